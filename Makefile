@@ -1,0 +1,50 @@
+# ExoStudy's two commands:
+#   make run    install everything, migrate the database, start the server on http://127.0.0.1:8000
+#   make test   install everything (plus Debian's chromium), run the whole test suite
+# Both are idempotent: a second run only re-installs what changed.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV   := .venv
+BIN    := $(VENV)/bin
+SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+NODE_STAMP := frontend/node_modules/.package-lock.json
+
+.PHONY: run test install lint bench clean-db system-npm system-chromium
+
+run: install
+	$(BIN)/exostudy db upgrade
+	$(BIN)/exostudy serve
+
+test: install system-chromium
+	$(BIN)/python -m pytest
+
+install: $(VENV)/.installed $(NODE_STAMP)
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian, apt-get install python3-venv"; exit 1; }
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@
+
+$(NODE_STAMP): frontend/package.json frontend/package-lock.json | system-npm
+	cd frontend && npm ci --no-audit --no-fund
+	touch $@
+
+# Debian packages the project needs and a fresh machine may lack.
+system-npm:
+	@command -v npm >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y npm; }
+
+system-chromium:
+	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y chromium; }
+
+lint: install
+	$(BIN)/ruff check controller backend tests bench migrations
+	$(BIN)/mypy
+
+bench: install
+	$(BIN)/python bench/run_all.py
+
+clean-db:
+	rm -f var/exostudy.db var/exostudy.db-wal var/exostudy.db-shm

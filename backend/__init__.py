@@ -1,0 +1,1 @@
+"""ExoStudy server: study management, the supervised control worker, storage and streaming."""

@@ -1,0 +1,118 @@
+"""`exostudy`: the command line.
+
+    exostudy serve [--host H] [--port P]      start the server (worker included)
+    exostudy db upgrade|downgrade|current     manage the database schema
+    exostudy device-sim --port P ...          the simulated exoskeleton on the wire
+    exostudy simulate --seed S --script NAME --out FILE.csv
+    exostudy replay --angles IN.csv --controller umc ... --out TICKS.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+
+def _serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from backend.core.config import Settings
+    from backend.main import create_app
+
+    overrides: dict[str, object] = {}
+    if args.host:
+        overrides["host"] = args.host
+    if args.port is not None:
+        overrides["port"] = args.port
+    settings = Settings(**overrides)  # type: ignore[arg-type]
+    app = create_app(settings)
+    print(f"ExoStudy is starting on http://{settings.host}:{settings.port}/", flush=True)
+    # One process only: the worker and the 3D view are per server process.
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, workers=1)
+    return 0
+
+
+def _db(args: argparse.Namespace) -> int:
+    from backend.core.config import Settings
+    from backend.db import migrate
+
+    url = Settings().database_url
+    if args.action == "upgrade":
+        migrate.upgrade(url, args.revision or "head")
+        print(f"database at revision {migrate.current(url)}: {url}")
+    elif args.action == "downgrade":
+        migrate.downgrade(url, args.revision or "base")
+        print(f"database at revision {migrate.current(url)}: {url}")
+    else:
+        print(migrate.current(url) or "empty")
+    return 0
+
+
+def _device_sim(args: argparse.Namespace) -> int:
+    from controller.sim import device_server
+
+    return device_server.main(args.rest)
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from controller.sim.recording import simulate_to_csv
+
+    n = simulate_to_csv(args.seed, args.script, Path(args.out))
+    print(f"wrote {n} samples to {args.out}")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from controller import replay
+
+    return replay.main(args.rest)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for tests and documentation)."""
+    p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("serve", help="start the server")
+    s.add_argument("--host", default=None)
+    s.add_argument("--port", type=int, default=None)
+    s.add_argument("--log-level", default="info")
+    s.set_defaults(func=_serve)
+
+    d = sub.add_parser("db", help="database schema migrations")
+    d.add_argument("action", choices=["upgrade", "downgrade", "current"])
+    d.add_argument("revision", nargs="?", default=None)
+    d.set_defaults(func=_db)
+
+    ds = sub.add_parser("device-sim", help="run the simulated exoskeleton (UDP)", add_help=False)
+    ds.add_argument("rest", nargs=argparse.REMAINDER)
+    ds.set_defaults(func=_device_sim)
+
+    sim = sub.add_parser("simulate", help="write a simulated recording as CSV")
+    sim.add_argument("--seed", type=int, required=True)
+    sim.add_argument("--script", required=True)
+    sim.add_argument("--out", required=True)
+    sim.set_defaults(func=_simulate)
+
+    r = sub.add_parser("replay", help="replay angles through a controller", add_help=False)
+    r.add_argument("rest", nargs=argparse.REMAINDER)
+    r.set_defaults(func=_replay)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the `exostudy` console script."""
+    args = build_parser().parse_args(argv)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"exostudy {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,67 @@
+"""One settings object, read from the environment (prefix `EXOSTUDY_`) and `.env`.
+
+Every default is the embedded one a newcomer gets from `make run`: a SQLite file under
+`var/`, a simulated exoskeleton, the server on 127.0.0.1:8000.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+
+class Settings(BaseSettings):
+    """Server configuration. `EXOSTUDY_DATABASE_URL=... exostudy serve` overrides a field."""
+
+    model_config = SettingsConfigDict(env_prefix="EXOSTUDY_", env_file=".env", extra="ignore")
+
+    database_url: str = f"sqlite:///{PROJECT_ROOT / 'var' / 'exostudy.db'}"
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=0, le=65535)
+
+    #: `sim`: the simulated exoskeleton runs inside the worker process.
+    #: `udp`: the worker talks to a device over the wire protocol at `device_address`.
+    device_kind: Literal["sim", "udp"] = "sim"
+    device_address: str = "127.0.0.1:5555"
+    #: With `udp`, start the simulated exoskeleton as its own process on that address.
+    device_spawn_simulator: bool = False
+    device_seed: int = 1
+    device_script: str = "paper-evaluation"
+    precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
+
+    #: Messages per second sent to each browser (each carries every tick since the last).
+    stream_rate: float = Field(default=30.0, gt=0.0, le=100.0)
+    #: Queue length per browser before the oldest message is dropped.
+    stream_queue: int = Field(default=60, ge=1)
+    #: Longest time (s) ticks wait in memory before they are written to the database.
+    db_flush_interval: float = Field(default=0.5, gt=0.0, le=1.0)
+
+    #: Start the control worker with the server (tests switch it off).
+    start_worker: bool = True
+    frontend_dir: Path = PROJECT_ROOT / "frontend"
+
+    @field_validator("device_address")
+    @classmethod
+    def _host_port(cls, v: str) -> str:
+        host, sep, port = v.rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ValueError(f"device_address must be HOST:PORT, got {v!r}")
+        return v
+
+    @property
+    def device_host_port(self) -> tuple[str, int]:
+        """`device_address` split into host and port."""
+        host, _, port = self.device_address.rpartition(":")
+        return host, int(port)
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process-wide settings (tests build their own `Settings` instead)."""
+    return Settings()

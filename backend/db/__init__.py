@@ -1,0 +1,1 @@
+"""Storage: the engine, the ORM models and the migrations that create them."""

@@ -1,0 +1,69 @@
+"""The application factory: settings -> migrated database -> live path -> routes -> pages."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+from fastapi.responses import FileResponse, RedirectResponse
+from fastapi.staticfiles import StaticFiles
+
+from backend.api.routes import health, live, worker
+from backend.core.config import Settings, get_settings
+from backend.db import migrate
+from backend.db.engine import make_engine, make_session_factory
+from backend.runtime import Runtime
+
+log = logging.getLogger(__name__)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the app. Migrations are applied at start-up, so a fresh clone just works."""
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        migrate.upgrade(settings.database_url)
+        engine = make_engine(settings.database_url)
+        app.state.settings = settings
+        app.state.engine = engine
+        app.state.sessions = make_session_factory(engine)
+        runtime = Runtime(settings, engine)
+        app.state.runtime = runtime
+        await runtime.start()
+        try:
+            yield
+        finally:
+            await runtime.stop()
+            engine.dispose()
+
+    app = FastAPI(
+        title="ExoStudy",
+        version="0.1.0",
+        summary="Intent estimation and decision-theoretic control for a quasi-passive hip "
+        "exoskeleton, and the studies around it.",
+        lifespan=lifespan,
+    )
+    app.include_router(health.router)
+    app.include_router(worker.router)
+    app.include_router(live.router)
+
+    static = settings.frontend_dir / "static"
+    uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"
+    if not uplot.is_dir():
+        log.warning("uPlot not found at %s: run `make run` (npm ci) to install it", uplot)
+    else:
+        app.mount("/vendor/uplot", StaticFiles(directory=uplot), name="uplot")
+    app.mount("/static", StaticFiles(directory=static), name="static")
+
+    @app.get("/", include_in_schema=False)
+    def index() -> RedirectResponse:
+        return RedirectResponse("/live")
+
+    @app.get("/live", include_in_schema=False)
+    def live_page() -> FileResponse:
+        return FileResponse(static / "live.html")
+
+    return app

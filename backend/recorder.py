@@ -1,0 +1,139 @@
+"""Writes the worker's ticks to the database in batches.
+
+Ticks wait in memory at most `flush_interval` seconds (setting `db_flush_interval`,
+at most 1 s), so a killed server loses at most that much. Each worker run becomes a
+`runs` row; its ticks reference it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from datetime import UTC, datetime
+
+from sqlalchemy import Engine, insert, update
+
+from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
+from backend.worker.messages import RunStarted, TickBatch
+from controller.tick import TickRecord
+
+log = logging.getLogger(__name__)
+
+
+class TickRecorder:
+    """Buffers tick batches and inserts them on a background thread."""
+
+    def __init__(self, engine: Engine, flush_interval: float = 0.5) -> None:
+        self.engine = engine
+        self.flush_interval = flush_interval
+        self._pending: list[tuple[int, TickRecord]] = []
+        self._lock = threading.Lock()
+        self._runs: dict[int, int] = {}  # worker run token -> runs.id, for the current worker
+        self._counts: dict[int, int] = {}
+        self.current_run_id: int | None = None
+        self.written = 0
+        self.failures = 0
+        self.last_error = ""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="tick-recorder", daemon=True)
+
+    def start(self) -> None:
+        """Begin flushing periodically."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Flush what is left and stop."""
+        self._stop.set()
+        self._thread.join(5.0)
+        self.flush()
+
+    def run_started(self, msg: RunStarted, device_kind: str) -> int:
+        """Create the run row (closing the previous run of this worker)."""
+        self.flush()
+        with self.engine.begin() as conn:
+            if self.current_run_id is not None:
+                self._close(conn, self.current_run_id, "controller changed")
+            result = conn.execute(
+                insert(Run).values(
+                    started_at=datetime.now(UTC),
+                    device_kind=device_kind,
+                    controller=msg.controller,
+                    config_json=json.dumps(msg.controller_config, default=str),
+                    worker_pid=msg.pid,
+                    tick_count=0,
+                )
+            )
+            pk = result.inserted_primary_key
+            run_id = int(pk[0]) if pk is not None else 0
+        with self._lock:
+            self._runs[msg.run_token] = run_id
+            self.current_run_id = run_id
+        return run_id
+
+    def worker_exited(self, reason: str) -> None:
+        """Store everything received, then close the run with the reason."""
+        self.flush()
+        with self.engine.begin() as conn:
+            if self.current_run_id is not None:
+                self._close(conn, self.current_run_id, reason)
+        with self._lock:
+            self._runs.clear()
+            self.current_run_id = None
+
+    def _close(self, conn: object, run_id: int, reason: str) -> None:
+        from sqlalchemy import Connection
+
+        assert isinstance(conn, Connection)
+        conn.execute(
+            update(Run)
+            .where(Run.id == run_id)
+            .values(ended_at=datetime.now(UTC), end_reason=reason[:200],
+                    tick_count=self._counts.get(run_id, 0))
+        )
+
+    def add(self, batch: TickBatch) -> None:
+        """Queue a batch (called on the supervisor's reader thread)."""
+        with self._lock:
+            run_id = self._runs.get(batch.run_token)
+            if run_id is None:
+                log.warning("ticks for unknown run token %s dropped", batch.run_token)
+                return
+            self._pending.extend((run_id, r) for r in batch.records)
+
+    def flush(self) -> int:
+        """Insert everything pending now; returns the number of ticks written."""
+        with self._lock:
+            pending, self._pending = self._pending, []
+        if not pending:
+            return 0
+        # NaN ("not computed at this tick") is stored as NULL on every database.
+        rows = [
+            {
+                "run_id": run_id,
+                **{
+                    k: (None if isinstance(v, float) and v != v else v)
+                    for k, v in zip(TICK_DATA_COLUMNS, r.as_tuple(), strict=True)
+                },
+            }
+            for run_id, r in pending
+        ]
+        try:
+            with self.engine.begin() as conn:
+                conn.execute(insert(ticks_table), rows)
+        except Exception as exc:
+            # Keep the ticks for the next attempt rather than lose them.
+            self.failures += 1
+            self.last_error = str(exc)[:300]
+            log.exception("writing %d ticks failed", len(rows))
+            with self._lock:
+                self._pending = pending + self._pending
+            return 0
+        for run_id, _ in pending:
+            self._counts[run_id] = self._counts.get(run_id, 0) + 1
+        self.written += len(rows)
+        return len(rows)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.flush_interval):
+            self.flush()

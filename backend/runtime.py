@@ -1,0 +1,165 @@
+"""The live path on the server: worker supervisor -> tick recorder and live stream.
+
+Created by the app's lifespan; one per server process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import subprocess
+import sys
+import time
+from typing import Any
+
+from sqlalchemy import Engine
+
+from backend.core.config import Settings
+from backend.recorder import TickRecorder
+from backend.schemas.live import DatabaseHealth, DeviceHealth, Health, WorkerHealth
+from backend.stream import LiveStream
+from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+
+log = logging.getLogger(__name__)
+
+
+def _finite(x: float | None) -> float | None:
+    if x is None or x != x or x in (float("inf"), float("-inf")):
+        return None
+    return x
+
+
+class Runtime:
+    """Owns the worker, the recorder and the stream, and answers health questions."""
+
+    def __init__(self, settings: Settings, engine: Engine) -> None:
+        self.settings = settings
+        host, port = settings.device_host_port
+        self.worker_config = WorkerConfig(
+            device_kind=settings.device_kind,
+            device_host=host,
+            device_port=port,
+            device_seed=settings.device_seed,
+            device_script=settings.device_script,
+            precompression_pct=settings.precompression_pct,
+        )
+        self.recorder = TickRecorder(engine, settings.db_flush_interval)
+        self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
+        self.supervisor = WorkerSupervisor(
+            self.worker_config,
+            WorkerCallbacks(
+                on_ticks=self._on_ticks,
+                on_run_started=self._on_run_started,
+                on_exit=self._on_exit,
+                on_event=self._on_event,
+            ),
+        )
+        self.device_process: subprocess.Popen[bytes] | None = None
+        self._status_task: asyncio.Task[None] | None = None
+
+    async def start(self) -> None:
+        """Start recording, streaming and (if configured) the device simulator and worker."""
+        self.recorder.start()
+        await self.stream.start()
+        if self.settings.device_kind == "udp" and self.settings.device_spawn_simulator:
+            self.start_device_simulator()
+        if self.settings.start_worker:
+            self.supervisor.start()
+        self._status_task = asyncio.create_task(self._status_loop(), name="status-loop")
+
+    async def _status_loop(self) -> None:
+        # Consoles learn of a dead worker within 0.1 s through on_exit; this periodic
+        # message keeps their timing figures current.
+        while True:
+            await asyncio.sleep(1.0)
+            if self.stream.client_count:
+                self._on_event("tick", {})
+
+    async def stop(self) -> None:
+        """Stop the worker first (it releases the device), then flush and close."""
+        if self._status_task is not None:
+            self._status_task.cancel()
+        self.supervisor.stop("server shutdown")
+        self.recorder.worker_exited("server shutdown")
+        self.recorder.stop()
+        await self.stream.stop()
+        if self.device_process is not None:
+            self.device_process.terminate()
+            try:
+                self.device_process.wait(3.0)
+            except subprocess.TimeoutExpired:
+                self.device_process.kill()
+
+    def start_device_simulator(self) -> None:
+        """Run the simulated exoskeleton as its own process on the device address."""
+        host, port = self.settings.device_host_port
+        cmd = [
+            sys.executable, "-m", "backend.cli", "device-sim",
+            "--port", str(port), "--seed", str(self.settings.device_seed),
+            "--script", self.settings.device_script,
+            "--precompression", str(self.settings.precompression_pct),
+            "--bind", host,
+        ]
+        self.device_process = subprocess.Popen(cmd)  # noqa: S603 - our own interpreter and args
+        time.sleep(0.3)
+
+    # Supervisor callbacks (reader thread).
+    def _on_ticks(self, batch: TickBatch) -> None:
+        self.recorder.add(batch)
+        self.stream.push(batch.records)
+
+    def _on_run_started(self, msg: RunStarted) -> None:
+        run_id = self.recorder.run_started(msg, msg.device_kind)
+        self.stream.run_id = run_id
+        self._on_event("run", {"run_id": run_id, "controller": msg.controller})
+
+    def _on_exit(self, code: int | None, reason: str) -> None:
+        self.recorder.worker_exited(reason)
+
+    def _on_event(self, kind: str, data: dict[str, Any]) -> None:
+        self.stream.broadcast_json({"type": "status", "health": self.health().model_dump()})
+
+    def health(self) -> Health:
+        """The state of the live path, as `GET /api/health` reports it."""
+        st = self.supervisor.state
+        s = st.status
+        status_fresh = st.alive and st.status_at is not None and time.time() - st.status_at < 1.5
+        worker = WorkerHealth(
+            alive=st.alive,
+            pid=st.pid if st.alive else None,
+            restarts=st.restarts,
+            exit_code=st.exit_code,
+            exit_reason=st.exit_reason,
+            controller=s.controller if s else self.supervisor.config.controller,
+            ticks=s.ticks if s else 0,
+            period_mean_ms=_finite(s.period_mean_ms) if s else None,
+            jitter_p50_ms=_finite(s.jitter_p50_ms) if s else None,
+            jitter_p99_ms=_finite(s.jitter_p99_ms) if s else None,
+            jitter_max_ms=_finite(s.jitter_max_ms) if s else None,
+            compute_p99_us=_finite(s.compute_p99_us) if s else None,
+            overruns=s.overruns if s else 0,
+            gaps=s.gaps if s else 0,
+            dropped_records=s.dropped_records if s else 0,
+            errors=list(st.errors[-5:]),
+        )
+        device = DeviceHealth(
+            alive=bool(s and status_fresh and s.device_alive),
+            kind=self.settings.device_kind,
+            last_sample_age_s=_finite(s.last_sample_age_s) if s else None,
+            faults=list(s.device_faults) if s else [],
+        )
+        db = DatabaseHealth(
+            ticks_written=self.recorder.written,
+            write_failures=self.recorder.failures,
+            last_error=self.recorder.last_error,
+            current_run_id=self.recorder.current_run_id,
+        )
+        ok = worker.alive and device.alive and not self.recorder.last_error
+        return Health(
+            status="ok" if ok else "degraded",
+            worker=worker,
+            device=device,
+            database=db,
+            clients=self.stream.client_count,
+        )

@@ -1,0 +1,25 @@
+"""Build the device named by the worker configuration (inside the worker process)."""
+
+from __future__ import annotations
+
+from controller.device.base import Device
+from backend.worker.messages import WorkerConfig
+
+
+def make_device(config: WorkerConfig) -> Device:
+    """The configured device; imports lazily so the worker only loads what it uses."""
+    if config.device_kind == "sim":
+        from controller.device.simulated import SimulatedDevice
+
+        return SimulatedDevice(
+            seed=config.device_seed,
+            script=config.device_script,
+            realtime=True,
+            loop=True,
+            precompression_pct=config.precompression_pct,
+        )
+    if config.device_kind == "udp":
+        from controller.device.udp import UdpDevice
+
+        return UdpDevice(device_host=config.device_host, device_port=config.device_port)
+    raise ValueError(f"unknown device kind {config.device_kind!r}; use 'sim' or 'udp'")

@@ -1,0 +1,95 @@
+"""Everything the server and the worker process say to each other: one typed definition
+each, pickled over a `multiprocessing` pipe."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from controller.tick import TickRecord
+
+
+@dataclass(frozen=True, slots=True)
+class WorkerConfig:
+    """What the worker needs to start: which device, which controller."""
+
+    device_kind: str = "sim"
+    device_host: str = "127.0.0.1"
+    device_port: int = 5555
+    device_seed: int = 1
+    device_script: str = "paper-evaluation"
+    precompression_pct: float = 25.0
+    controller: str = "none"
+    controller_config: dict[str, Any] = field(default_factory=dict)
+    #: Seconds between status reports.
+    status_interval: float = 0.25
+
+
+@dataclass(frozen=True, slots=True)
+class TickBatch:
+    """Ticks in order, from one run."""
+
+    run_token: int
+    records: tuple[TickRecord, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class WorkerStatus:
+    """The worker's heartbeat: timing, device health, current controller."""
+
+    pid: int
+    run_token: int
+    controller: str
+    ticks: int
+    period_mean_ms: float
+    jitter_p50_ms: float
+    jitter_p99_ms: float
+    jitter_max_ms: float
+    compute_p50_us: float
+    compute_p99_us: float
+    overruns: int
+    gaps: int
+    timeouts: int
+    dropped_records: int
+    device_kind: str
+    device_alive: bool
+    last_sample_age_s: float
+    device_faults: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class RunStarted:
+    """A new run began (at start-up or after a controller change)."""
+
+    run_token: int
+    controller: str
+    controller_config: dict[str, Any]
+    device_kind: str
+    pid: int
+
+
+@dataclass(frozen=True, slots=True)
+class WorkerError:
+    """Something the experimenter should see (a bad configuration, a device failure)."""
+
+    message: str
+    fatal: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class SetController:
+    """Switch controller; the worker starts a new run when it takes effect."""
+
+    name: str
+    config: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class StopWorker:
+    """Release the device and exit."""
+
+    reason: str = "requested"
+
+
+WorkerMessage = TickBatch | WorkerStatus | RunStarted | WorkerError
+ServerCommand = SetController | StopWorker

@@ -1,0 +1,226 @@
+"""Starts, watches and restarts the worker process from the server.
+
+A reader thread waits on both the worker's pipe and its process sentinel, so a worker
+that dies (even by SIGKILL) is noticed within `POLL_S` seconds, after the messages it
+had already sent are drained and stored.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from multiprocessing.connection import Connection, wait
+from multiprocessing.process import BaseProcess
+from typing import Any
+
+from backend.worker.messages import (
+    RunStarted,
+    SetController,
+    StopWorker,
+    TickBatch,
+    WorkerConfig,
+    WorkerError,
+    WorkerStatus,
+)
+from backend.worker.process import worker_main
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.1
+
+
+@dataclass
+class WorkerCallbacks:
+    """Where the supervisor delivers what the worker says. Called on the reader thread."""
+
+    on_ticks: Callable[[TickBatch], None] = lambda batch: None
+    on_run_started: Callable[[RunStarted], None] = lambda msg: None
+    on_exit: Callable[[int | None, str], None] = lambda code, reason: None
+    on_event: Callable[[str, dict[str, Any]], None] = lambda kind, data: None
+
+
+@dataclass
+class WorkerState:
+    """What the server knows about its worker (read by the health endpoint)."""
+
+    alive: bool = False
+    pid: int | None = None
+    started_at: float | None = None
+    exited_at: float | None = None
+    exit_code: int | None = None
+    exit_reason: str = ""
+    restarts: int = 0
+    status: WorkerStatus | None = None
+    status_at: float | None = None
+    errors: list[str] = field(default_factory=list)
+
+
+class WorkerSupervisor:
+    """Owns one worker process at a time."""
+
+    def __init__(self, config: WorkerConfig, callbacks: WorkerCallbacks) -> None:
+        self.config = config
+        self.callbacks = callbacks
+        self.state = WorkerState()
+        self._ctx = mp.get_context("spawn")
+        self._proc: BaseProcess | None = None
+        self._out: Connection | None = None
+        self._cmd: Connection | None = None
+        self._reader: threading.Thread | None = None
+        self._lock = threading.RLock()
+        self._stopping = False
+
+    @property
+    def process(self) -> BaseProcess | None:
+        """The current worker process, if one was started."""
+        return self._proc
+
+    def start(self) -> None:
+        """Start a worker unless one is running."""
+        with self._lock:
+            if self._proc is not None and self._proc.is_alive():
+                return
+            if self._reader is not None:
+                self._reader.join(2.0)
+            out_parent, out_child = self._ctx.Pipe(duplex=False)
+            cmd_child, cmd_parent = self._ctx.Pipe(duplex=False)
+            proc = self._ctx.Process(
+                target=worker_main,
+                args=(self.config, out_child, cmd_child, os.getpid()),
+                name="exostudy-worker",
+                daemon=True,
+            )
+            proc.start()
+            out_child.close()
+            cmd_child.close()
+            if self.state.started_at is not None:
+                self.state.restarts += 1
+            self._proc, self._out, self._cmd = proc, out_parent, cmd_parent
+            self._stopping = False
+            self.state.alive = True
+            self.state.pid = proc.pid
+            self.state.started_at = time.time()
+            self.state.exit_code = None
+            self.state.exit_reason = ""
+            self.state.status = None
+            self._reader = threading.Thread(
+                target=self._read, args=(proc, out_parent), name="worker-reader", daemon=True
+            )
+            self._reader.start()
+            self.callbacks.on_event("worker", {"alive": True, "pid": proc.pid})
+
+    def stop(self, reason: str = "requested", timeout: float = 3.0) -> None:
+        """Ask the worker to release the device and exit; force it if it does not."""
+        with self._lock:
+            proc, cmd = self._proc, self._cmd
+            if proc is None:
+                return
+            self._stopping = True
+            self.state.exit_reason = reason
+            if proc.is_alive() and cmd is not None:
+                try:
+                    cmd.send(StopWorker(reason))
+                except (BrokenPipeError, OSError):
+                    pass
+            proc.join(timeout)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(1.0)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(1.0)
+        if self._reader is not None:
+            self._reader.join(2.0)
+
+    def restart(self) -> None:
+        """Stop (if running) and start again with the same configuration."""
+        self.stop("restart")
+        self.start()
+
+    def set_controller(self, name: str, config: dict[str, Any] | None = None) -> None:
+        """Switch controller in the running worker; it takes effect at the next tick."""
+        with self._lock:
+            self.config = replace(self.config, controller=name, controller_config=config or {})
+            if self._cmd is None or not self.state.alive:
+                return
+            try:
+                self._cmd.send(SetController(name, config or {}))
+            except (BrokenPipeError, OSError):
+                pass
+
+    def _read(self, proc: BaseProcess, conn: Connection) -> None:
+        while True:
+            ready = wait([conn, proc.sentinel], timeout=POLL_S)
+            if conn in ready:
+                if not self._receive(conn):
+                    ready = [proc.sentinel]
+            if proc.sentinel in ready or (not ready and not proc.is_alive()):
+                # Keep what the worker managed to send before it died.
+                while True:
+                    try:
+                        if not conn.poll(0) or not self._receive(conn):
+                            break
+                    except (EOFError, OSError):
+                        break
+                proc.join(1.0)
+                self._on_exit(proc)
+                return
+
+    def _receive(self, conn: Connection) -> bool:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return False
+        try:
+            if isinstance(msg, TickBatch):
+                self.callbacks.on_ticks(msg)
+            elif isinstance(msg, WorkerStatus):
+                self.state.status = msg
+                self.state.status_at = time.time()
+            elif isinstance(msg, RunStarted):
+                self.callbacks.on_run_started(msg)
+            elif isinstance(msg, WorkerError):
+                self.state.errors = [*self.state.errors[-19:], msg.message]
+                log.warning("worker: %s", msg.message)
+                self.callbacks.on_event("error", {"message": msg.message, "fatal": msg.fatal})
+        except Exception:
+            log.exception("handling a worker message failed")
+        return True
+
+    def _on_exit(self, proc: BaseProcess) -> None:
+        code = proc.exitcode
+        with self._lock:
+            if proc is not self._proc:
+                return
+            self.state.alive = False
+            self.state.exited_at = time.time()
+            self.state.exit_code = code
+            if not self._stopping:
+                self.state.exit_reason = _describe_exit(code)
+                log.error("worker exited unexpectedly: %s", self.state.exit_reason)
+            reason = self.state.exit_reason
+        self.callbacks.on_exit(code, reason)
+        self.callbacks.on_event("worker", {"alive": False, "exit_code": code, "reason": reason})
+
+
+def _describe_exit(code: int | None) -> str:
+    if code is None:
+        return "unknown"
+    if code < 0:
+        import signal
+
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return {
+        0: "exited",
+        3: "device failed to open",
+        4: "lost the server",
+        5: "loop failed",
+    }.get(code, f"exit code {code}")

@@ -1,0 +1,128 @@
+"""MACCEPA 2.0 actuator with a circular profile disk: torque from spring deflection.
+
+Equations and parameters from `shared/spec/hardware.md` (the paper's "Hardware"
+section written out). Lengths in millimetres inside, torque returned in Nm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import overload
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class MaccepaParams:
+    """Geometry and springs of one side. Defaults are the paper's prototype."""
+
+    lever_arm_mm: float = 10.0  # B
+    roller_distance_mm: float = 30.0  # C
+    disk_radius_mm: float = 7.5  # R
+    stiffness_n_per_mm: float = 2 * 33.6  # two springs in parallel
+    max_compression_mm: float = 22.0
+    ratchet_teeth: int = 40
+
+    def __post_init__(self) -> None:
+        if not 0 < self.lever_arm_mm < self.roller_distance_mm:
+            raise ValueError("lever arm B must be positive and shorter than roller distance C")
+        if self.disk_radius_mm <= 0 or self.stiffness_n_per_mm <= 0:
+            raise ValueError("disk radius and stiffness must be positive")
+        if self.max_compression_mm <= 0 or self.ratchet_teeth <= 0:
+            raise ValueError("max compression and ratchet teeth must be positive")
+
+    @property
+    def tooth_angle(self) -> float:
+        """Angular pitch of the ratchet in radians (9 degrees for 40 teeth)."""
+        return 2.0 * math.pi / self.ratchet_teeth
+
+
+PAPER_ACTUATOR = MaccepaParams()
+
+
+def _check_precompression(precompression_pct: float) -> float:
+    if not (0.0 <= precompression_pct <= 100.0) or math.isnan(precompression_pct):
+        raise ValueError(f"precompression must be within 0..100 %, got {precompression_pct}")
+    return precompression_pct
+
+
+def spring_elongation_mm(alpha: FloatArray | float, p: MaccepaParams = PAPER_ACTUATOR) -> FloatArray:
+    """Spring compression added by deflection `alpha` (rad); zero at alpha = 0."""
+    a = np.asarray(alpha, dtype=np.float64)
+    B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
+    i = C * np.cos(a) - B
+    h = C * np.sin(a) - R
+    e = np.sqrt(i * i + h * h - R * R)
+    lam = np.pi / 2 - np.arctan(e / R) + np.arctan2(h, i)
+    return np.asarray(e + R * lam - (C - B), dtype=np.float64)
+
+
+@overload
+def maccepa_torque(
+    alpha: float, precompression_pct: float, params: MaccepaParams = ...
+) -> float: ...
+@overload
+def maccepa_torque(
+    alpha: FloatArray, precompression_pct: float, params: MaccepaParams = ...
+) -> FloatArray: ...
+def maccepa_torque(
+    alpha: FloatArray | float, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR
+) -> FloatArray | float:
+    """Extension torque (Nm) at deflection `alpha` (rad) for a precompression in percent
+    of the 22 mm maximum compression.
+
+    Deflections at or below zero give no torque (the ratchet does not hold there).
+    Beyond the compression limit the torque is clamped at the limit's value: the
+    mechanism cannot go further (the simulator reports that as a hard stop).
+
+    >>> round(maccepa_torque(math.radians(30), 0.0), 2)
+    1.79
+    """
+    pct = _check_precompression(precompression_pct)
+    scalar = np.ndim(alpha) == 0
+    a = np.asarray(alpha, dtype=np.float64)
+    if np.isnan(a).any():
+        raise ValueError("deflection alpha contains NaN")
+    p = params
+    pre = p.max_compression_mm * pct / 100.0
+    a_lim = max_deflection(pct, p)
+    a_c = np.clip(a, 0.0, a_lim)
+    B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
+    i = C * np.cos(a_c) - B
+    h = C * np.sin(a_c) - R
+    e = np.sqrt(i * i + h * h - R * R)
+    lam = np.pi / 2 - np.arctan(e / R) + np.arctan2(h, i)
+    kappa = lam - a_c
+    elong = e + R * lam - (C - B)
+    force = p.stiffness_n_per_mm * (pre + elong)  # N
+    torque = force * C * np.sin(kappa) / 1000.0  # N mm -> N m
+    torque = np.where(a > 0.0, torque, 0.0)
+    if scalar:
+        return float(torque)
+    return np.asarray(torque, dtype=np.float64)
+
+
+def max_deflection(precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> float:
+    """Deflection (rad) at which precompression plus elongation reaches the limit."""
+    pct = _check_precompression(precompression_pct)
+    room = params.max_compression_mm * (1.0 - pct / 100.0)
+    if room <= 0.0:
+        return 0.0
+
+    def excess(a: float) -> float:
+        return float(spring_elongation_mm(a, params)) - room
+
+    # The elongation grows monotonically up to about 150 degrees, where atan2 wraps;
+    # every admissible precompression reaches the limit well before that.
+    hi = math.radians(150.0)
+    return float(brentq(excess, 0.0, hi, xtol=1e-10))
+
+
+def at_hard_stop(alpha: float, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> bool:
+    """True when the spring is fully compressed at deflection `alpha`."""
+    return alpha >= max_deflection(precompression_pct, params) - 1e-9

@@ -1,0 +1,121 @@
+"""The device interface and the data it exchanges with the worker.
+
+`Sample` and `LockCommand` are the only types that cross the device boundary: the
+in-process simulator, the UDP device and a real exoskeleton's firmware all speak them.
+"""
+
+from __future__ import annotations
+
+import enum
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+ENCODER_BITS = 14
+ENCODER_COUNTS = 1 << ENCODER_BITS  # 16384 counts per turn, 0.0219 deg per count
+
+
+class Status(enum.IntFlag):
+    """Status bits a device reports with each sample (same bit values on the wire)."""
+
+    NONE = 0
+    SOLENOID_LEFT = 1 << 0
+    SOLENOID_RIGHT = 1 << 1
+    LOCKED_LEFT = 1 << 2
+    LOCKED_RIGHT = 1 << 3
+    HARD_STOP_LEFT = 1 << 4
+    HARD_STOP_RIGHT = 1 << 5
+    ENCODER_FAULT = 1 << 6
+    WATCHDOG_RELEASED = 1 << 7
+    SUPPLY_FAULT = 1 << 8
+
+    @property
+    def is_fault(self) -> bool:
+        """Faults make a sample unusable for control; locks and hard stops are states, not faults."""
+        return bool(self & (Status.ENCODER_FAULT | Status.SUPPLY_FAULT))
+
+
+@dataclass(frozen=True, slots=True)
+class GroundTruth:
+    """What a simulated wearer was really doing; absent for real hardware."""
+
+    activity: str
+    lift_index: int = -1
+    progress: float = float("nan")
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One reading of the exoskeleton's four absolute encoders.
+
+    Counts are raw 14-bit values in the order left output link, left cam link, right
+    output link, right cam link. Hip flexion comes from the output links; the spring
+    deflection from output minus cam (see `controller.encoders`).
+    """
+
+    seq: int
+    t: float
+    counts: tuple[int, int, int, int]
+    status: Status = Status.NONE
+    truth: GroundTruth | None = None
+
+    def __post_init__(self) -> None:
+        if len(self.counts) != 4:
+            raise ValueError(f"a sample needs 4 encoder counts, got {len(self.counts)}")
+
+
+@dataclass(frozen=True, slots=True)
+class LockCommand:
+    """Energise the solenoid of each side (True) or not. There is no commanded unlock:
+    a side releases by itself when its spring deflection returns to zero."""
+
+    seq: int
+    lock_left: bool
+    lock_right: bool
+
+
+NO_LOCK = LockCommand(seq=-1, lock_left=False, lock_right=False)
+
+
+class DeviceError(RuntimeError):
+    """The device cannot deliver samples or accept commands (link down, fault)."""
+
+
+class Device(ABC):
+    """An exoskeleton: a stream of samples at the device's own rate and a command input.
+
+    Implementations: `SimulatedDevice` (in process), `UdpDevice` (the wire protocol in
+    `docs/device-protocol.md`). The worker loop is the only caller.
+    """
+
+    kind: str = "abstract"
+
+    @abstractmethod
+    def open(self) -> None:
+        """Connect. Called once, in the process that will use the device."""
+
+    @abstractmethod
+    def read(self, timeout: float) -> Sample | None:
+        """Block until the next sample or `timeout` seconds; None on timeout."""
+
+    @abstractmethod
+    def send(self, command: LockCommand) -> None:
+        """Send a lock command. Must not block."""
+
+    @abstractmethod
+    def release(self) -> None:
+        """Make the device safe: stop energising the solenoids. Must never raise."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Release and disconnect."""
+
+    def faults(self) -> list[str]:
+        """Human-readable faults seen since the last call (link loss, late packets, ...)."""
+        return []
+
+    def __enter__(self) -> Device:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

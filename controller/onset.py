@@ -1,0 +1,550 @@
+"""Onset detection: Mahalanobis subsequence DTW between the observation window and a model.
+
+Implements controller.md, "Onset detection". Rows `i = 0..M-1` of the DTW matrix are
+observations (row `M-1` is the newest), columns `n = 0..N'-1` are model samples.
+
+- Local cost: squared Mahalanobis distance with the model's per-sample 2x2 covariance.
+- Step pattern symmetric1: `D(i, n) = c(i, n) + min(D(i-1, n-1), D(i-1, n), D(i, n-1))`.
+- Relaxed start on the bottom row (`i = 0`) or the left column (`n = 0`): there `D = c`.
+  Since every cost is non-negative, starting there is never worse than arriving there.
+- Relaxed end on the top row: `D = min_n D(M-1, n)`; on equal values the smallest `n`
+  wins (the least advanced progress estimate).
+- Backtracking from that cell to a start cell; tie order diagonal, vertical, horizontal.
+  `L` is the number of cells on the path.
+- Optional Sakoe-Chiba band of radius `r` cells around the straight line from (0, 0) to
+  (M-1, N'-1): cell (i, n) is inside iff `|n - i (N'-1)/(M-1)| <= r`, evaluated exactly
+  in integers as `|n (M-1) - i (N'-1)| <= r (M-1)`. Cells outside have infinite cost, so
+  start and end cells must lie inside the band too (paper: "inside the adjustment
+  window"). With `M = 1` the line degenerates and every cell is inside. A band too
+  narrow to connect the bottom to the top row gives `D = inf`, `L = 0` and indices -1.
+
+The hot path is `ModelBank.evaluate`: one compiled call that matches one observation
+window against every model, on preallocated buffers, with the inverse covariances
+computed once when the bank is built. `match` is the convenient one-shot form.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+#: Samples in a full, time-normalised motion model (controller.md).
+N_FULL = 101
+#: Samples of the online (hip-flexion) half of a model, `n = 0..50`.
+N_ONLINE = 51
+#: Observation window length: 0.3 s at 100 Hz.
+WINDOW = 30
+#: Sample period in seconds.
+DT = 0.01
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+# Column layout of the per-model integer outputs.
+_L, _N_START, _N_CURR, _I_START, _I_CURR = range(5)
+# Layout of the per-sample precomputed parameters: mean, then the inverse covariance
+# [[a, b], [b, c]] as (a, 2b, c), so the cost is a d0^2 + (2b) d0 d1 + c d1^2.
+_MU0, _MU1, _IA, _IB, _IC = range(5)
+
+
+@dataclass(frozen=True, slots=True)
+class Match:
+    """The best warping path of one observation window against one model.
+
+    `n_*` index model samples (progress `s = n / (N_FULL - 1)`), `i_*` index the
+    observation window (`t = i * dt`). Without any path, `D` is inf, `L` 0 and the
+    indices are -1.
+    """
+
+    D: float
+    L: int
+    n_start: int
+    n_curr: int
+    i_start: int
+    i_curr: int
+
+
+@dataclass(frozen=True, slots=True)
+class OnsetCriteria:
+    """The paper's three acceptance criteria for a match (all configuration).
+
+    Defaults from controller.md: `d_max = 30 * 2^2`, every one of 30 observations two
+    standard deviations from the mean.
+    """
+
+    s_req: float = 0.05
+    t_req: float = 0.05
+    d_max: float = 120.0
+
+    def __post_init__(self) -> None:
+        for name in ("s_req", "t_req", "d_max"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"OnsetCriteria.{name} must be a finite number >= 0, got {v!r}")
+
+    def accepts(self, m: Match, n_full: int = N_FULL, dt: float = DT) -> bool:
+        """True iff `s_curr - s_start > s_req`, `t_curr - t_start > t_req` and `D < d_max`.
+
+        Args:
+            m: The match to judge.
+            n_full: Samples of the full model; progress is `n / (n_full - 1)`.
+            dt: Observation sample period in seconds.
+        """
+        if m.L <= 0:
+            return False
+        ds = (m.n_curr - m.n_start) / (n_full - 1)
+        dt_span = (m.i_curr - m.i_start) * dt
+        return ds > self.s_req and dt_span > self.t_req and m.D < self.d_max
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+@njit(cache=True, nogil=True)
+def _band_limits(i: int, m_rows: int, n_cols: int, radius: int) -> tuple[int, int]:
+    """First and last column of row `i` inside the band (hi < lo if the row is empty)."""
+    if radius < 0 or m_rows == 1:
+        return 0, n_cols - 1
+    den = m_rows - 1
+    centre = i * (n_cols - 1)
+    lo_num = centre - radius * den
+    hi_num = centre + radius * den
+    lo = -((-lo_num) // den)  # ceil division
+    hi = hi_num // den
+    if lo < 0:
+        lo = 0
+    if hi > n_cols - 1:
+        hi = n_cols - 1
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _fill(obs: FloatArray, prm: FloatArray, radius: int, acc: FloatArray) -> None:
+    """Accumulated costs of every model at once: `acc[i, n, k]` for `prm[n, :, k]`.
+
+    Models are the innermost loop: their recurrences are independent, so the CPU
+    overlaps them instead of waiting on one model's add-then-min chain along a row.
+    """
+    m_rows = obs.shape[0]
+    n_cols = prm.shape[0]
+    n_models = prm.shape[2]
+    inf = np.inf
+    for i in range(m_rows):
+        x0 = obs[i, 0]
+        x1 = obs[i, 1]
+        lo, hi = _band_limits(i, m_rows, n_cols, radius)
+        for n in range(0, min(lo, n_cols)):
+            for k in range(n_models):
+                acc[i, n, k] = inf
+        for n in range(max(hi + 1, 0), n_cols):
+            for k in range(n_models):
+                acc[i, n, k] = inf
+        for n in range(lo, hi + 1):
+            start = i == 0 or n == 0
+            for k in range(n_models):
+                d0 = x0 - prm[n, 0, k]
+                d1 = x1 - prm[n, 1, k]
+                c = prm[n, 2, k] * d0 * d0 + prm[n, 3, k] * d0 * d1 + prm[n, 4, k] * d1 * d1
+                if start:
+                    acc[i, n, k] = c
+                else:
+                    best = acc[i - 1, n - 1, k]
+                    v = acc[i - 1, n, k]
+                    if v < best:
+                        best = v
+                    h = acc[i, n - 1, k]
+                    if h < best:
+                        best = h
+                    acc[i, n, k] = c + best
+
+
+@njit(cache=True, nogil=True)
+def _trace(
+    acc: FloatArray, m_rows: int, k: int, out_d: FloatArray, out_i: IntArray
+) -> None:
+    """Best end on the top row of model `k`, then backtrack; write D and the path summary."""
+    n_cols = acc.shape[1]
+    top = m_rows - 1
+    best_d = np.inf
+    nb = -1
+    for n in range(n_cols):
+        if acc[top, n, k] < best_d:
+            best_d = acc[top, n, k]
+            nb = n
+    if nb < 0:
+        out_d[k] = np.inf
+        out_i[k, 0] = 0
+        for j in range(1, 5):
+            out_i[k, j] = -1
+        return
+    i = top
+    n = nb
+    length = 1
+    while i > 0 and n > 0:
+        dg = acc[i - 1, n - 1, k]
+        v = acc[i - 1, n, k]
+        h = acc[i, n - 1, k]
+        if dg <= v and dg <= h:
+            i -= 1
+            n -= 1
+        elif v <= h:
+            i -= 1
+        else:
+            n -= 1
+        length += 1
+    out_d[k] = best_d
+    out_i[k, 0] = length
+    out_i[k, 1] = n
+    out_i[k, 2] = nb
+    out_i[k, 3] = i
+    out_i[k, 4] = top
+
+
+@njit(cache=True, nogil=True)
+def _match_kernel(
+    obs: FloatArray, prm: FloatArray, radius: int, acc: FloatArray,
+    out_d: FloatArray, out_i: IntArray,
+) -> None:
+    """Fill and trace every model, without acceptance (the one-shot path)."""
+    _fill(obs, prm, radius, acc)
+    for k in range(prm.shape[2]):
+        _trace(acc, obs.shape[0], k, out_d, out_i)
+
+
+@njit(cache=True, nogil=True)
+def _bank_kernel(
+    obs: FloatArray,
+    prm: FloatArray,
+    radius: int,
+    crit: FloatArray,
+    acc: FloatArray,
+    out_d: FloatArray,
+    out_i: IntArray,
+    out_s: FloatArray,
+    out_ok: npt.NDArray[np.bool_],
+) -> int:
+    """Match `obs` against every model and judge each match; -1 if `obs` holds a NaN.
+
+    `crit` = (s_req, t_req, d_max, n_full, dt). `out_s[k]` = (s_start, s_curr).
+    """
+    m_rows = obs.shape[0]
+    for i in range(m_rows):
+        if not (math.isfinite(obs[i, 0]) and math.isfinite(obs[i, 1])):
+            return -1
+    n_models = prm.shape[2]
+    s_req = crit[0]
+    t_req = crit[1]
+    d_max = crit[2]
+    s_den = crit[3] - 1.0
+    dt = crit[4]
+    _fill(obs, prm, radius, acc)
+    for k in range(n_models):
+        _trace(acc, m_rows, k, out_d, out_i)
+        if out_i[k, 0] > 0:
+            s0 = out_i[k, 1] / s_den
+            s1 = out_i[k, 2] / s_den
+            out_s[k, 0] = s0
+            out_s[k, 1] = s1
+            ds = (out_i[k, 2] - out_i[k, 1]) / s_den
+            dtt = (out_i[k, 4] - out_i[k, 3]) * dt
+            out_ok[k] = ds > s_req and dtt > t_req and out_d[k] < d_max
+        else:
+            out_s[k, 0] = np.nan
+            out_s[k, 1] = np.nan
+            out_ok[k] = False
+    return 0
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _as_obs(obs: npt.ArrayLike) -> FloatArray:
+    a = np.ascontiguousarray(obs, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 1:
+        raise ValueError(f"observations must have shape (M, 2) with M >= 1, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        bad = int(np.flatnonzero(~np.isfinite(a).all(axis=1))[0])
+        raise ValueError(f"observations contain NaN or inf (first at observation index {bad})")
+    return a
+
+
+def _model_params(mean: npt.ArrayLike, cov: npt.ArrayLike, label: str) -> FloatArray:
+    """Validate one model and return its (N, 5) mean + inverse-covariance table."""
+    mu = np.asarray(mean, dtype=np.float64)
+    sg = np.asarray(cov, dtype=np.float64)
+    if mu.ndim != 2 or mu.shape[1] != 2 or mu.shape[0] < 1:
+        raise ValueError(f"{label}: mean must have shape (N, 2), got {mu.shape}")
+    n = mu.shape[0]
+    if sg.shape != (n, 2, 2):
+        raise ValueError(f"{label}: cov must have shape ({n}, 2, 2) to match mean, got {sg.shape}")
+    if not np.all(np.isfinite(mu)):
+        bad = int(np.flatnonzero(~np.isfinite(mu).all(axis=1))[0])
+        raise ValueError(f"{label}: mean contains NaN or inf at model sample {bad}")
+    finite = np.isfinite(sg).all(axis=(1, 2))
+    if not finite.all():
+        raise ValueError(f"{label}: cov contains NaN or inf at model sample {int(np.argmin(finite))}")
+    a, b, b2, c = sg[:, 0, 0], sg[:, 0, 1], sg[:, 1, 0], sg[:, 1, 1]
+    scale = np.maximum(np.abs(a), np.abs(c))
+    asym = np.abs(b - b2) > 1e-9 * np.maximum(scale, np.finfo(np.float64).tiny)
+    if asym.any():
+        raise ValueError(f"{label}: cov is not symmetric at model sample {int(np.argmax(asym))}")
+    det = a * c - b * b
+    # Positive definite: a > 0 and det > 0, with det judged relative to a*c so that a
+    # numerically singular matrix is rejected rather than inverted into huge numbers.
+    not_pd = (a <= 0) | (c <= 0) | (det <= 1e-12 * a * c)
+    if not_pd.any():
+        i = int(np.argmax(not_pd))
+        raise ValueError(
+            f"{label}: cov is not positive definite at model sample {i}: {sg[i].tolist()}"
+        )
+    prm = np.empty((n, 5), dtype=np.float64)
+    prm[:, _MU0] = mu[:, 0]
+    prm[:, _MU1] = mu[:, 1]
+    prm[:, _IA] = c / det
+    prm[:, _IB] = -2.0 * b / det  # twice the off-diagonal: the cost uses it once
+    prm[:, _IC] = a / det
+    return prm
+
+
+def _check_band(band: int | None) -> int:
+    if band is None:
+        return -1
+    if isinstance(band, bool) or not isinstance(band, int | np.integer) or band < 0:
+        raise ValueError(f"band must be None or an integer radius >= 0, got {band!r}")
+    return int(band)
+
+
+# --------------------------------------------------------------------------- public API
+
+
+class ModelBank:
+    """Several motion models, ready to be matched against one window in one compiled call.
+
+    Build it once per model set (inverse covariances are computed here), call
+    `warm_up()` before the control loop, then `evaluate(obs)` every controller tick.
+    Results are written into the arrays below, which are reused (copy them to keep them):
+
+    - `D` (K,) float, `L` (K,) int,
+    - `n_start`, `n_curr`, `i_start`, `i_curr` (K,) int,
+    - `s_start`, `s_curr` (K,) float (progress `n / (n_full - 1)`, NaN without a path),
+    - `accepted` (K,) bool (the criteria, judged inside the same call).
+    """
+
+    def __init__(
+        self,
+        means: npt.ArrayLike,
+        covs: npt.ArrayLike,
+        band: int | None = None,
+        criteria: OnsetCriteria | None = None,
+        n_full: int = N_FULL,
+        dt: float = DT,
+        max_window: int = WINDOW,
+    ) -> None:
+        """Validate the models and precompute their inverse covariances.
+
+        Args:
+            means: (K, N, 2) online part of every model's mean.
+            covs: (K, N, 2, 2) matching 2x2 covariance blocks.
+            band: Sakoe-Chiba radius in cells, None for the full matrix.
+            criteria: Acceptance criteria (defaults from controller.md).
+            n_full: Samples of the full model, for progress values.
+            dt: Observation sample period in seconds.
+            max_window: Largest observation window `evaluate` will be given.
+        """
+        mu = np.asarray(means, dtype=np.float64)
+        sg = np.asarray(covs, dtype=np.float64)
+        if mu.ndim != 3 or mu.shape[0] < 1:
+            raise ValueError(f"means must have shape (K, N, 2), got {mu.shape}")
+        if sg.ndim != 4 or sg.shape[0] != mu.shape[0]:
+            raise ValueError(f"covs must have shape (K, N, 2, 2) with K={mu.shape[0]}, got {sg.shape}")
+        if n_full < 2 or n_full < mu.shape[1]:
+            raise ValueError(f"n_full must be >= 2 and >= the model length, got {n_full}")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number, got {dt!r}")
+        if max_window < 1:
+            raise ValueError(f"max_window must be >= 1, got {max_window}")
+        self.criteria = criteria if criteria is not None else OnsetCriteria()
+        self.band = band
+        self.n_full = int(n_full)
+        self.dt = float(dt)
+        self._radius = _check_band(band)
+        # (N, 5, K): models innermost, the layout `_fill` interleaves them in.
+        self._prm = np.ascontiguousarray(
+            np.stack(
+                [_model_params(mu[k], sg[k], f"model {k}") for k in range(mu.shape[0])], axis=-1
+            )
+        )
+        n_cols, k_models = self._prm.shape[0], self._prm.shape[2]
+        self.n_models = k_models
+        self.n_samples = n_cols
+        self.max_window = int(max_window)
+        c = self.criteria
+        self._crit = np.array([c.s_req, c.t_req, c.d_max, float(n_full), float(dt)])
+        self._acc = np.empty((self.max_window, n_cols, k_models), dtype=np.float64)
+        self.D = np.full(k_models, np.inf)
+        self._ints = np.zeros((k_models, 5), dtype=np.int64)
+        self._s = np.full((k_models, 2), np.nan)
+        self.accepted = np.zeros(k_models, dtype=np.bool_)
+        # Views on the integer table, so callers read named arrays.
+        self.L = self._ints[:, _L]
+        self.n_start = self._ints[:, _N_START]
+        self.n_curr = self._ints[:, _N_CURR]
+        self.i_start = self._ints[:, _I_START]
+        self.i_curr = self._ints[:, _I_CURR]
+        self.s_start = self._s[:, 0]
+        self.s_curr = self._s[:, 1]
+
+    def warm_up(self) -> None:
+        """Compile (or load from the numba cache) now, so no tick ever pays for it."""
+        obs = np.repeat(self._prm[:1, :2, 0], min(self.max_window, WINDOW), axis=0)
+        self.evaluate(obs)
+
+    def evaluate(self, obs: FloatArray) -> None:
+        """Match one window (M, 2), oldest first, against every model; fill the outputs.
+
+        Only cheap checks run here (this is the hot path): `obs` must be a C-contiguous
+        float64 (M, 2) array with `M <= max_window`; NaN raises ValueError.
+        """
+        if (
+            obs.ndim != 2
+            or obs.shape[1] != 2
+            or not 1 <= obs.shape[0] <= self.max_window
+            or obs.dtype != np.float64
+            or not obs.flags.c_contiguous
+        ):
+            obs = _as_obs(obs)
+            if obs.shape[0] > self.max_window:
+                raise ValueError(f"window of {obs.shape[0]} > max_window={self.max_window}")
+        rc = _bank_kernel(
+            obs, self._prm, self._radius, self._crit, self._acc,
+            self.D, self._ints, self._s, self.accepted,
+        )
+        if rc != 0:
+            _as_obs(obs)  # raises with the offending index
+            raise ValueError("observations contain NaN or inf")
+
+    def match(self, k: int) -> Match:
+        """The last `evaluate` result for model `k` as a `Match`."""
+        return Match(
+            D=float(self.D[k]),
+            L=int(self.L[k]),
+            n_start=int(self.n_start[k]),
+            n_curr=int(self.n_curr[k]),
+            i_start=int(self.i_start[k]),
+            i_curr=int(self.i_curr[k]),
+        )
+
+    def ensure_window(self, m_rows: int) -> None:
+        """Grow the scratch buffer so that windows of `m_rows` observations fit."""
+        if m_rows > self.max_window:
+            self.max_window = int(m_rows)
+            self._acc = np.empty(
+                (self.max_window, self.n_samples, self.n_models), dtype=np.float64
+            )
+
+    def cost_matrix(self, obs: npt.ArrayLike, k: int) -> FloatArray:
+        """The accumulated-cost matrix of model `k` for `obs` (for plots and tests)."""
+        a = _as_obs(obs)
+        acc = np.empty((a.shape[0], self.n_samples, self.n_models), dtype=np.float64)
+        d = np.empty(self.n_models)
+        ints = np.empty((self.n_models, 5), dtype=np.int64)
+        _match_kernel(a, self._prm, self._radius, acc, d, ints)
+        return acc[:, :, k].copy()
+
+
+class OnsetDetector:
+    """One model, precomputed; `match(obs)` per window. A one-model `ModelBank`."""
+
+    def __init__(
+        self, mean: npt.ArrayLike, cov: npt.ArrayLike, band: int | None = None,
+        n_full: int = N_FULL,
+    ) -> None:
+        """Args: mean (N, 2), cov (N, 2, 2), band radius or None, full model length."""
+        self.bank = ModelBank(
+            np.asarray(mean, dtype=np.float64)[None], np.asarray(cov, dtype=np.float64)[None],
+            band=band, n_full=n_full,
+        )
+
+    def warm_up(self) -> None:
+        """Compile now, never inside a tick."""
+        self.bank.warm_up()
+
+    def match(self, obs: npt.ArrayLike) -> Match:
+        """Best path of the observations (M, 2), oldest first, against the model."""
+        a = _as_obs(obs)
+        self.bank.ensure_window(a.shape[0])
+        self.bank.evaluate(a)
+        return self.bank.match(0)
+
+
+def match(
+    obs: npt.ArrayLike, mean: npt.ArrayLike, cov: npt.ArrayLike, band: int | None = None
+) -> Match:
+    """Match observations (M, 2) against one model: mean (N, 2), cov (N, 2, 2).
+
+    One-shot convenience: validates and inverts the covariances on every call. A
+    controller should hold a `ModelBank` instead.
+    """
+    a = _as_obs(obs)
+    prm = _model_params(mean, cov, "model")[:, :, None]
+    radius = _check_band(band)
+    acc = np.empty((a.shape[0], prm.shape[0], 1), dtype=np.float64)
+    d = np.empty(1)
+    ints = np.empty((1, 5), dtype=np.int64)
+    _match_kernel(a, prm, radius, acc, d, ints)
+    return Match(
+        D=float(d[0]), L=int(ints[0, 0]), n_start=int(ints[0, 1]), n_curr=int(ints[0, 2]),
+        i_start=int(ints[0, 3]), i_curr=int(ints[0, 4]),
+    )
+
+
+class ObservationWindow:
+    """The last `M` calibrated hip angles, oldest first, as a contiguous (M, 2) array.
+
+    A doubled ring buffer: every push writes two slots, so `view()` is always a
+    contiguous slice, with no copy and no allocation per tick.
+    """
+
+    def __init__(self, size: int = WINDOW) -> None:
+        """Args: size: window length in samples (30 = 0.3 s at 100 Hz)."""
+        if size < 1:
+            raise ValueError(f"window size must be >= 1, got {size}")
+        self.size = size
+        self._buf = np.zeros((2 * size, 2), dtype=np.float64)
+        self._pos = 0
+        self._count = 0
+
+    def push(self, q_left: float, q_right: float) -> None:
+        """Append the newest sample, dropping the oldest once full."""
+        b = self._buf
+        p = self._pos
+        b[p, 0] = q_left
+        b[p, 1] = q_right
+        b[p + self.size, 0] = q_left
+        b[p + self.size, 1] = q_right
+        p += 1
+        self._pos = 0 if p == self.size else p
+        if self._count < self.size:
+            self._count += 1
+
+    @property
+    def full(self) -> bool:
+        """True once `size` samples have been pushed since the last reset."""
+        return self._count == self.size
+
+    def __len__(self) -> int:
+        return self._count
+
+    def view(self) -> FloatArray:
+        """The window, oldest first: (len, 2), valid until the next push."""
+        start = self._pos + self.size - self._count
+        return self._buf[start : self._pos + self.size]
+
+    def reset(self) -> None:
+        """Forget all samples."""
+        self._pos = 0
+        self._count = 0

@@ -1,0 +1,64 @@
+"""Recording mode: angles in, no locks out.
+
+Used while demonstrations are recorded and whenever no controller is active. It still
+converts counts to angles and reports the mechanism state so that the record is complete.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from controller.base import Controller
+from controller.device.base import ENCODER_COUNTS, Sample, Status
+from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.tick import Action, TickFlag, TickRecord
+
+
+class PassThroughController(Controller):
+    """Never locks. Every tick carries the angles and deflections of both sides."""
+
+    name = "none"
+
+    def __init__(self, layout: EncoderLayout = DEFAULT_LAYOUT) -> None:
+        self.layout = layout
+
+    def reset(self) -> None:
+        """Stateless: nothing to forget."""
+
+    def step(self, sample: Sample) -> TickRecord:
+        """Convert the sample; flag it if it is unusable."""
+        t0 = time.perf_counter()
+        c = sample.counts
+        base = TickRecord(
+            seq=sample.seq,
+            t=sample.t,
+            t_host=time.time(),
+            count_left_output=c[0],
+            count_left_cam=c[1],
+            count_right_output=c[2],
+            count_right_cam=c[3],
+            action=int(Action.NO_LOCK),
+            truth_activity=sample.truth.activity if sample.truth else "",
+            truth_lift=sample.truth.lift_index if sample.truth else -1,
+            truth_progress=sample.truth.progress if sample.truth else math.nan,
+            locked_left=bool(sample.status & Status.LOCKED_LEFT),
+            locked_right=bool(sample.status & Status.LOCKED_RIGHT),
+        )
+        flags = TickFlag.NONE
+        if sample.status.is_fault:
+            flags |= TickFlag.DEVICE_FAULT
+        if any(not (0 <= x < ENCODER_COUNTS) for x in c) or not math.isfinite(sample.t):
+            flags |= TickFlag.BAD_SAMPLE
+            return base.with_(flags=int(flags), compute_us=(time.perf_counter() - t0) * 1e6)
+        ql, al, qr, ar = self.layout.joint_angles(c)
+        return base.with_(
+            q_raw_left=ql,
+            q_raw_right=qr,
+            q_left=ql,
+            q_right=qr,
+            alpha_left=al,
+            alpha_right=ar,
+            flags=int(flags),
+            compute_us=(time.perf_counter() - t0) * 1e6,
+        )

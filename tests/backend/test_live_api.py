@@ -1,0 +1,56 @@
+"""The server with its real worker: health reports both alive, the WebSocket streams ticks,
+and ticks reach the database."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import func, select
+
+from backend.core.config import Settings
+from backend.db.engine import make_engine
+from backend.db.models import ticks_table
+from backend.main import create_app
+
+pytestmark = pytest.mark.slow
+
+
+def _wait_healthy(client: TestClient, timeout: float = 60.0) -> dict:
+    deadline = time.monotonic() + timeout
+    body: dict = {}
+    while time.monotonic() < deadline:
+        body = client.get("/api/health").json()
+        if body["status"] == "ok":
+            return body
+        time.sleep(0.2)
+    raise AssertionError(f"never healthy: {body}")
+
+
+def test_health_websocket_and_storage(settings: Settings) -> None:
+    settings = settings.model_copy(update={"start_worker": True})
+    with TestClient(create_app(settings)) as client:
+        body = _wait_healthy(client)
+        assert body["worker"]["alive"] and body["device"]["alive"]
+        assert isinstance(body["worker"]["pid"], int)
+        assert body["worker"]["period_mean_ms"] == pytest.approx(10.0, abs=1.0)
+
+        with client.websocket_connect("/ws/live") as ws:
+            first = json.loads(ws.receive_text())
+            assert first["type"] == "status"
+            seqs: list[int] = []
+            start = time.monotonic()
+            while time.monotonic() - start < 2.0:
+                msg = json.loads(ws.receive_text())
+                if msg["type"] == "ticks":
+                    seqs.extend(msg["columns"]["seq"])
+            assert len(seqs) >= 150
+            assert seqs == sorted(seqs)
+        time.sleep(settings.db_flush_interval + 0.3)
+        engine = make_engine(settings.database_url)
+        with engine.connect() as conn:
+            stored = conn.execute(select(func.count()).select_from(ticks_table)).scalar_one()
+        engine.dispose()
+        assert stored >= 150

@@ -1,0 +1,126 @@
+"""The worker as a real spawned process: ticks arrive, death is noticed fast, restart works,
+and a worker whose server dies stops on its own."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+
+pytestmark = pytest.mark.slow
+
+
+class Collected:
+    def __init__(self) -> None:
+        self.ticks: list[TickBatch] = []
+        self.runs: list[RunStarted] = []
+        self.exits: list[tuple[int | None, str, float]] = []
+        self.got_ticks = threading.Event()
+        self.exited = threading.Event()
+
+    def callbacks(self) -> WorkerCallbacks:
+        def on_ticks(b: TickBatch) -> None:
+            self.ticks.append(b)
+            if sum(len(x.records) for x in self.ticks) >= 50:
+                self.got_ticks.set()
+
+        def on_exit(code: int | None, reason: str) -> None:
+            self.exits.append((code, reason, time.monotonic()))
+            self.exited.set()
+
+        return WorkerCallbacks(on_ticks=on_ticks, on_run_started=self.runs.append, on_exit=on_exit)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in state
+
+
+def test_ticks_arrive_in_order_from_a_real_worker() -> None:
+    got = Collected()
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim"), got.callbacks())
+    sup.start()
+    try:
+        assert got.got_ticks.wait(60), f"no ticks; errors: {sup.state.errors}"
+        records = [r for b in got.ticks for r in b.records]
+        seqs = [r.seq for r in records]
+        assert seqs == sorted(seqs)
+        assert got.runs and got.runs[0].controller == "none"
+        # Plausible hip angles, in radians, from the simulated wearer's encoders.
+        assert all(-0.6 < r.q_left < 2.2 for r in records)
+        time.sleep(0.6)
+        assert sup.state.status is not None and sup.state.status.device_alive
+        assert sup.state.status.period_mean_ms == pytest.approx(10.0, abs=1.0)
+    finally:
+        sup.stop()
+    assert not sup.state.alive
+
+
+def test_sigkill_is_noticed_within_half_a_second_and_restart_recovers() -> None:
+    got = Collected()
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim"), got.callbacks())
+    sup.start()
+    try:
+        assert got.got_ticks.wait(60)
+        pid = sup.state.pid
+        assert pid is not None
+        killed_at = time.monotonic()
+        os.kill(pid, signal.SIGKILL)
+        assert got.exited.wait(2.0)
+        code, reason, noticed_at = got.exits[0]
+        assert noticed_at - killed_at < 0.5
+        assert code == -signal.SIGKILL and "SIGKILL" in reason
+        assert not sup.state.alive
+
+        got.got_ticks.clear()
+        got.ticks.clear()
+        sup.restart()
+        assert sup.state.alive and sup.state.pid != pid and sup.state.restarts == 1
+        assert got.got_ticks.wait(60)
+    finally:
+        sup.stop()
+
+
+ORPHAN_SCRIPT = """
+import sys, time
+from backend.worker.messages import WorkerConfig
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+if __name__ == "__main__":
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim"), WorkerCallbacks())
+    sup.start()
+    print(sup.state.pid, flush=True)
+    time.sleep(600)
+"""
+
+
+def test_worker_exits_when_its_server_is_killed(tmp_path: Path) -> None:
+    script = tmp_path / "server.py"
+    script.write_text(ORPHAN_SCRIPT)
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True,
+                            cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        assert proc.stdout is not None
+        worker_pid = int(proc.stdout.readline())
+        time.sleep(3.0)  # let it start its loop
+        assert _alive(worker_pid)
+        proc.kill()
+        proc.wait(5)
+        deadline = time.monotonic() + 5.0
+        while _alive(worker_pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not _alive(worker_pid), "the orphaned worker kept running"
+    finally:
+        proc.kill()

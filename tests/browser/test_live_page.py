@@ -1,0 +1,42 @@
+"""The live page in a real browser: data flows at the device rate and is drawn."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def test_live_page_receives_and_draws_at_least_50_samples_per_second(server: str, page: Any) -> None:
+    page.goto(f"{server}/live")
+    page.wait_for_function("window.exostudyLive && window.exostudyLive.samples > 0", timeout=20000)
+    start = page.evaluate("({s: window.exostudyLive.samples, d: window.exostudyLive.draws, t: performance.now()})")
+    page.wait_for_timeout(3000)
+    end = page.evaluate("({s: window.exostudyLive.samples, d: window.exostudyLive.draws, t: performance.now()})")
+    seconds = (end["t"] - start["t"]) / 1000
+    rate = (end["s"] - start["s"]) / seconds
+    draws = (end["d"] - start["d"]) / seconds
+    assert rate >= 50, f"only {rate:.1f} samples/s reached the page"
+    assert draws >= 10, f"plots redrawn only {draws:.1f} times/s"
+    assert page.get_attribute("#conn", "data-state") == "live"
+    assert page.get_attribute("#worker-state", "data-alive") == "true"
+    # The plotted series really hold the angles: uPlot has data, not empty arrays.
+    n_points = page.evaluate("document.querySelectorAll('#plot-angles canvas').length")
+    assert n_points >= 1
+
+
+def test_killing_the_worker_shows_on_the_page_and_restart_recovers(server: str, page: Any) -> None:
+    import os
+    import signal
+
+    import httpx
+
+    page.goto(f"{server}/live")
+    page.wait_for_function("window.exostudyLive.samples > 20", timeout=20000)
+    pid = httpx.get(f"{server}/api/health").json()["worker"]["pid"]
+    os.kill(pid, signal.SIGKILL)
+    page.wait_for_selector("#worker-state[data-alive='false']", timeout=3000)
+    assert "SIGKILL" in page.inner_text("#worker-state")
+    page.click("#restart")
+    page.wait_for_selector("#worker-state[data-alive='true']", timeout=15000)
+    before = page.evaluate("window.exostudyLive.samples")
+    page.wait_for_timeout(1000)
+    assert page.evaluate("window.exostudyLive.samples") > before + 40

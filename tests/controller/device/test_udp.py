@@ -1,0 +1,214 @@
+"""UdpDevice against a hand-driven fake device socket on loopback: exact packets in, exact
+behaviour out (ordering, wrap, foreign and malformed datagrams, commands, release)."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from controller.device.base import NO_LOCK, DeviceError, LockCommand, Sample, Status
+from controller.device.protocol import (
+    CommandPacket,
+    HelloPacket,
+    decode,
+    encode_sample,
+)
+from controller.device.udp import RESTART_AFTER, UdpDevice
+
+
+class FakeDevice:
+    """A bare socket playing the exoskeleton, so each test controls every datagram."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(1.0)
+        self.port = int(self.sock.getsockname()[1])
+        self.host: tuple[str, int] | None = None
+
+    def receive(self) -> CommandPacket | HelloPacket:
+        data, addr = self.sock.recvfrom(2048)
+        self.host = (str(addr[0]), int(addr[1]))
+        packet = decode(data)
+        assert isinstance(packet, CommandPacket | HelloPacket)
+        return packet
+
+    def send_sample(self, seq: int, status: Status = Status.NONE) -> None:
+        assert self.host is not None
+        sample = Sample(seq=seq, t=seq * 0.01, counts=(seq % 16384, 1, 2, 3), status=status)
+        self.sock.sendto(encode_sample(sample), self.host)
+
+    def send_raw(self, data: bytes) -> None:
+        assert self.host is not None
+        self.sock.sendto(data, self.host)
+
+
+@pytest.fixture
+def link() -> Iterator[tuple[UdpDevice, FakeDevice]]:
+    fake = FakeDevice()
+    dev = UdpDevice(device_host="127.0.0.1", device_port=fake.port)
+    dev.open()
+    hello = fake.receive()
+    assert isinstance(hello, HelloPacket)
+    yield dev, fake
+    dev.close()
+    fake.sock.close()
+
+
+def _seqs(dev: UdpDevice, n: int) -> list[int]:
+    out = []
+    for _ in range(n):
+        s = dev.read(0.5)
+        assert s is not None
+        out.append(s.seq)
+    return out
+
+
+def test_open_says_hello_from_its_own_address(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    assert dev.kind == "udp"
+    assert fake.host == dev.address
+
+
+def test_samples_in_order_and_decoded(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(10, Status.LOCKED_RIGHT)
+    fake.send_sample(11)
+    s = dev.read(0.5)
+    assert s is not None
+    assert (s.seq, s.t, s.counts, s.status) == (10, 0.1, (10, 1, 2, 3), Status.LOCKED_RIGHT)
+    assert _seqs(dev, 1) == [11]
+    assert dev.read(0.02) is None
+    assert dev.faults() == []
+
+
+def test_duplicates_and_out_of_order_are_dropped(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    for seq in (1, 2, 2, 1, 3):
+        fake.send_sample(seq)
+    assert _seqs(dev, 3) == [1, 2, 3]
+    assert (dev.stats.duplicates, dev.stats.stale) == (1, 1)
+    faults = dev.faults()
+    assert "1 duplicate sample(s) dropped" in faults
+    assert "1 out-of-order sample(s) dropped" in faults
+    assert dev.faults() == []  # reported once
+
+
+def test_gaps_are_counted_and_visible_in_seq(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    for seq in (1, 2, 6, 7, 9):
+        fake.send_sample(seq)
+    assert _seqs(dev, 5) == [1, 2, 6, 7, 9]
+    assert (dev.stats.gaps, dev.stats.missing) == (2, 4)
+    assert "2 sequence gap(s), 4 sample(s) missing" in dev.faults()
+
+
+def test_wrap_keeps_host_sequence_increasing(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    for seq in (2**32 - 2, 2**32 - 1, 0, 1):
+        fake.send_sample(seq)
+    assert _seqs(dev, 4) == [2**32 - 2, 2**32 - 1, 2**32, 2**32 + 1]
+    assert dev.stats.gaps == 0
+
+
+def test_device_restart_is_detected(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(5000)
+    assert _seqs(dev, 1) == [5000]
+    for seq in range(RESTART_AFTER + 2):
+        fake.send_sample(seq)
+    # The first RESTART_AFTER - 1 look stale; then the host resynchronises.
+    assert _seqs(dev, 3) == [5001, 5002, 5003]
+    assert dev.stats.restarts == 1
+    assert any("restarted" in f for f in dev.faults())
+
+
+def test_malformed_packets_are_counted_by_reason(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    good = bytearray(encode_sample(Sample(seq=1, t=0.01, counts=(1, 2, 3, 4))))
+    bad_crc = bytes(good[:-1]) + bytes([good[-1] ^ 0xFF])
+    fake.send_raw(b"EX")
+    fake.send_raw(bad_crc)
+    fake.send_raw(b"ZZ" + bytes(good[2:]))
+    fake.send_sample(1)
+    assert _seqs(dev, 1) == [1]
+    assert dict(dev.stats.malformed) == {"short": 1, "crc": 1, "magic": 1}
+    assert "3 malformed packet(s) dropped (crc: 1, magic: 1, short: 1)" in dev.faults()
+
+
+def test_foreign_senders_are_ignored(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    packet = encode_sample(Sample(seq=1, t=0.01, counts=(1, 2, 3, 4), status=Status.LOCKED_LEFT))
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other_ip:
+        other_ip.bind(("127.0.0.2", 0))  # another loopback address
+        other_ip.sendto(packet, dev.address)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other_port:
+        other_port.bind(("127.0.0.1", 0))  # the device's IP, but not its port
+        other_port.sendto(packet, dev.address)
+    assert dev.read(0.1) is None
+    assert dev.stats.foreign == 2
+    assert dev.stats.samples == 0
+    assert "2 packet(s) from foreign addresses ignored" in dev.faults()
+
+
+def test_commands_echo_the_last_sample(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    dev.send(LockCommand(seq=0, lock_left=True, lock_right=False))
+    first = fake.receive()
+    assert isinstance(first, CommandPacket)
+    assert first.echo_seq is None  # no sample yet
+    fake.send_sample(41)
+    fake.send_sample(42)
+    _seqs(dev, 2)
+    dev.send(LockCommand(seq=1, lock_left=False, lock_right=True))
+    second = fake.receive()
+    assert isinstance(second, CommandPacket)
+    assert (second.lock_left, second.lock_right, second.echo_seq) == (False, True, 42)
+    assert second.host_seq == first.host_seq + 1
+    assert dev.stats.commands_sent == 2
+
+
+def test_send_does_not_block(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, _ = link
+    t0 = time.perf_counter()
+    for _ in range(2000):  # far more than the fake reads; the kernel drops, we do not wait
+        dev.send(NO_LOCK)
+    assert time.perf_counter() - t0 < 0.5
+
+
+def test_release_sends_unlock_and_never_raises(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    dev.release()
+    packet = fake.receive()
+    assert isinstance(packet, CommandPacket)
+    assert (packet.lock_left, packet.lock_right) == (False, False)
+    dev.close()
+    dev.release()  # closed: still no exception
+    dev.close()
+    with pytest.raises(DeviceError):
+        dev.read(0.01)
+
+
+def test_read_timeout_is_respected(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, _ = link
+    t0 = time.monotonic()
+    assert dev.read(0.05) is None
+    assert 0.045 <= time.monotonic() - t0 < 0.2
+    assert dev.read(0.0) is None
+
+
+def test_hello_repeats_while_no_command_is_sent(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    dev.read(0.6)
+    assert isinstance(fake.receive(), HelloPacket)
+    assert dev.stats.hellos_sent == 2
+
+
+def test_unopened_device_refuses() -> None:
+    dev = UdpDevice(device_port=9)
+    with pytest.raises(DeviceError):
+        dev.send(NO_LOCK)
+    dev.release()  # never raises, even unopened
