@@ -52,7 +52,8 @@ def expected_utilities(
         posteriors: `(4,)` posteriors of squat, stoop_left, stoop_right, other.
 
     Returns:
-        `(4,)` EU of actions a1..a4.
+        `(4,)` EU of actions a1..a4. The `other` column is read at `n = 0`: it is
+        constant over progress (a minimum over walking).
     """
     table = np.asarray(table, dtype=np.float64)
     s = np.asarray(s_curr, dtype=np.float64)
@@ -97,7 +98,7 @@ def expected_utilities_into(
         s = s_curr[j]
         if s != s:
             raise ValueError("progress is NaN for a model with positive posterior")
-        n = int(math.floor(s * n_last + 0.5))
+        n = math.floor(s * n_last + 0.5)
         n = min(max(n, 0), n_last)
         for a in range(4):
             out[a] += pj * table[a, j, n]
@@ -109,7 +110,9 @@ def decide_fast(
 ) -> int:  # pragma: no cover - compiled
     """Fill `out` with the EUs and return the chosen action number (1..4).
 
-    Strict `>` keeps the first (lowest-numbered) action on ties.
+    Strict `>` keeps the first (lowest-numbered) action on ties. Inputs are not
+    checked (the tick has no time for it); a NaN posterior makes every EU NaN, no
+    comparison succeeds and the result is 1, no lock.
     """
     expected_utilities_into(table, s_curr, posteriors, out)
     best = 0

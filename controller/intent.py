@@ -43,13 +43,14 @@ _LOG_RESCALE = math.log(_RESCALE)
 @njit(cache=True, nogil=True)
 def likelihood_nb(D: float, L: int) -> float:
     """Compiled `likelihood` for the hot loop: NaN for NaN `D` or `L < 1`."""
-    if not (D == D) or L < 1:  # NaN check that numba compiles to a plain compare
+    dist = D
+    if math.isnan(dist) or L < 1:
         return np.nan
-    if D <= 0.0:
+    if dist <= 0.0:
         return 1.0
-    if D == np.inf:
+    if math.isinf(dist):
         return 0.0
-    x = 0.5 * D
+    x = 0.5 * dist
     term = 1.0
     total = 1.0
     log_scale = 0.0
@@ -117,13 +118,15 @@ def _posteriors_into(p_obs: FloatArray, priors: FloatArray, post: FloatArray) ->
     k = p_obs.shape[0]
     other = 1.0
     for j in range(k):
-        other *= 1.0 - p_obs[j]
+        other *= 1.0 - float(p_obs[j])
     total = 0.0
     for j in range(k):
-        post[j] = p_obs[j] * priors[j]
-        total += post[j]
-    post[k] = other * priors[k]
-    total += post[k]
+        w = float(p_obs[j] * priors[j])
+        post[j] = w
+        total += w
+    w = other * float(priors[k])
+    post[k] = w
+    total += w
     if total > 0.0:
         for j in range(k + 1):
             post[j] /= total

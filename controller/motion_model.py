@@ -341,7 +341,8 @@ class ModelSet:
 
     def ordered(self) -> tuple[MotionModel, MotionModel, MotionModel]:
         """Models in `MODEL_NAMES` order (the order of every per-model array)."""
-        return (self.models[MODEL_NAMES[0]], self.models[MODEL_NAMES[1]], self.models[MODEL_NAMES[2]])
+        m = self.models
+        return (m[MODEL_NAMES[0]], m[MODEL_NAMES[1]], m[MODEL_NAMES[2]])
 
     def to_json(self) -> dict[str, Any]:
         """Versioned JSON document."""
@@ -374,7 +375,9 @@ class ModelSet:
         return cls(
             models=models,
             version=str(data.get("version", "1")),
-            demonstrations={k: [str(i) for i in v] for k, v in data.get("demonstrations", {}).items()},
+            demonstrations={
+                k: [str(i) for i in v] for k, v in data.get("demonstrations", {}).items()
+            },
             fit_params=dict(data.get("fit_params", {})),
             created=str(data.get("created", "")),
             meta=dict(data.get("meta", {})),

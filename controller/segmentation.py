@@ -46,6 +46,10 @@ class LiftSegment:
         if not 0 <= self.start <= self.peak <= self.end:
             raise ValueError(f"need 0 <= start <= peak <= end, got {self}")
 
+    def as_slice(self) -> slice:
+        """The demonstration's samples, `q[seg.as_slice()]` (end included)."""
+        return slice(self.start, self.end + 1)
+
 
 @dataclass(frozen=True, slots=True)
 class SegmentationParams:
@@ -61,7 +65,9 @@ class SegmentationParams:
         rest_tol_rad: mean flexion above rest still counted as rest at onset and end
             (5 deg; covers sway and a little drift between quiet spells).
         rest_velocity: mean flexion speed below which the wearer is not moving into or
-            out of the lift (0.05 rad/s; smoothed noise is ~0.01 rad/s).
+            out of the lift (0.02 rad/s, about 3 SD of the smoothed velocity noise at
+            0.06 deg encoder noise). Low, because the walk from the threshold
+            crossing stops at the first slow sample: sway can only end it early.
         quiet_velocity: per-hip speed below which a sample can serve as rest baseline.
         quiet_min_s: minimum duration of a quiet spell used as baseline (excludes the
             brief turnarounds of walking, where both hips stop together).
@@ -77,7 +83,7 @@ class SegmentationParams:
     detect_rad: float = 0.6
     min_each_hip_rad: float = 0.35
     rest_tol_rad: float = 0.087
-    rest_velocity: float = 0.05
+    rest_velocity: float = 0.02
     quiet_velocity: float = 0.1
     quiet_min_s: float = 0.3
     quiet_level_rad: float = 0.26
@@ -117,7 +123,7 @@ def _baseline(
     m = qs.mean(axis=1)
     low = float(np.percentile(m, 5))
     quiet = (np.abs(vs) < p.quiet_velocity).all(axis=1) & (m < low + p.quiet_level_rad)
-    min_len = max(int(round(p.quiet_min_s * fs)), 1)
+    min_len = max(round(p.quiet_min_s * fs), 1)
     idx = [np.arange(a, b + 1) for a, b in _runs(quiet) if b - a + 1 >= min_len]
     base = np.empty_like(qs)
     if not idx:
@@ -159,7 +165,7 @@ def segment_lifts(
     k_len = t.shape[0]
     dt = float(np.median(np.diff(t))) if k_len >= 2 else 0.01
     fs = 1.0 / dt
-    win = max(int(round(p.smooth_window_s * fs)) | 1, p.smooth_order + 2 | 1)
+    win = max(round(p.smooth_window_s * fs) | 1, (p.smooth_order + 2) | 1)
     if k_len < win:
         raise ValueError(f"recording of {k_len} samples is shorter than the smoothing window")
     qs = savgol_filter(q, win, p.smooth_order, axis=0, mode="interp")
@@ -168,7 +174,7 @@ def segment_lifts(
     rel = qs - base
     d = rel.mean(axis=1)
     v = vs.mean(axis=1)
-    search = int(round(p.max_search_s * fs))
+    search = round(p.max_search_s * fs)
 
     def at_rest_before(k: int) -> bool:
         return bool(d[k] <= p.rest_tol_rad and v[k] <= p.rest_velocity)

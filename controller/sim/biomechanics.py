@@ -28,7 +28,6 @@ With this model a 75 kg, 1.75 m wearer needs about 2.2 Nm/kg (squat, 10 kg), 2.0
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,7 +154,3 @@ def nm_per_kg(moment: FloatArray | float, mass_kg: float) -> FloatArray:
     """Moment normalised by body mass, the unit the literature reports."""
     return np.asarray(moment, dtype=np.float64) / mass_kg
 
-
-def deg(x: float) -> float:
-    """Degrees to radians (kept here so that templates read in degrees)."""
-    return math.radians(x)

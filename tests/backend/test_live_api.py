@@ -23,7 +23,7 @@ def _wait_healthy(client: TestClient, timeout: float = 60.0) -> dict:
     body: dict = {}
     while time.monotonic() < deadline:
         body = client.get("/api/health").json()
-        if body["status"] == "ok":
+        if body["status"] == "ok" and body["worker"]["ticks"] > 50:
             return body
         time.sleep(0.2)
     raise AssertionError(f"never healthy: {body}")

@@ -36,7 +36,7 @@ def first_argmax(values: np.ndarray) -> Action:
 
 @settings(max_examples=60, deadline=None)
 @given(table=tables, s=progress, j=st.integers(0, 3))
-def test_certain_model_gives_its_best_action(table, s, j) -> None:
+def test_certain_model_gives_its_best_action(table: np.ndarray, s: np.ndarray, j: int) -> None:
     post = np.zeros(4)
     post[j] = 1.0
     n = 0 if j == 3 else math.floor(s[j] * 100 + 0.5)
@@ -48,7 +48,7 @@ def test_certain_model_gives_its_best_action(table, s, j) -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(table=tables, s=progress, w=weights)
-def test_eu_is_linear_in_the_posteriors(table, s, w) -> None:
+def test_eu_is_linear_in_the_posteriors(table: np.ndarray, s: np.ndarray, w: np.ndarray) -> None:
     assume(w.sum() > 1e-3)
     p = w / w.sum()
     parts = [expected_utilities(table, s, np.eye(4)[k]) for k in range(4)]
@@ -60,7 +60,7 @@ def test_eu_is_linear_in_the_posteriors(table, s, w) -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(table=tables, s=progress, w=weights)
-def test_fast_variant_agrees(table, s, w) -> None:
+def test_fast_variant_agrees(table: np.ndarray, s: np.ndarray, w: np.ndarray) -> None:
     out = np.empty(4)
     action = decide_fast(table, s, w, out)
     eu = expected_utilities(table, s, w)

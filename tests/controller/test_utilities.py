@@ -85,7 +85,9 @@ pcts = st.sampled_from([0.0, 10.0, 25.0, 50.0])
 
 @settings(max_examples=15, deadline=None)
 @given(theta=angles, tau=torques, pct=pcts)
-def test_lock_reward_matches_formula_written_out(theta, tau, pct) -> None:
+def test_lock_reward_matches_formula_written_out(
+    theta: np.ndarray, tau: np.ndarray, pct: float
+) -> None:
     q = lock_total_reward(theta, tau, pct)
     for c in (0, 1, 17, 50, 99, 100):
         assert q[c] == pytest.approx(brute_lock(theta, tau, c, pct), rel=1e-10, abs=1e-9)
@@ -127,7 +129,9 @@ def test_value_iteration_equals_closed_form_for_lifts(motion: str, pct: float) -
     tau=arrays(np.float64, 7, elements=st.floats(-60.0, 60.0)),
     pct=pcts,
 )
-def test_value_iteration_equals_exhaustive_search(theta, tau, pct) -> None:
+def test_value_iteration_equals_exhaustive_search(
+    theta: np.ndarray, tau: np.ndarray, pct: float
+) -> None:
     keep, lock = value_iteration_leg(theta, tau, pct)
     for c in range(7):
         assert keep[c] == pytest.approx(brute_optimum(theta, tau, c, 0, pct), rel=1e-10, abs=1e-9)
@@ -136,7 +140,9 @@ def test_value_iteration_equals_exhaustive_search(theta, tau, pct) -> None:
 
 @settings(max_examples=15, deadline=None)
 @given(theta=angles, tau=torques, pct=pcts)
-def test_value_iteration_never_below_closed_form(theta, tau, pct) -> None:
+def test_value_iteration_never_below_closed_form(
+    theta: np.ndarray, tau: np.ndarray, pct: float
+) -> None:
     """The closed forms are particular policies; the optimum is at least as good."""
     vi_keep, vi_lock = value_iteration_leg(theta, tau, pct)
     for supporting in (True, False):

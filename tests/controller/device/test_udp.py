@@ -140,7 +140,7 @@ def test_malformed_packets_are_counted_by_reason(link: tuple[UdpDevice, FakeDevi
 
 
 def test_foreign_senders_are_ignored(link: tuple[UdpDevice, FakeDevice]) -> None:
-    dev, fake = link
+    dev, _ = link
     packet = encode_sample(Sample(seq=1, t=0.01, counts=(1, 2, 3, 4), status=Status.LOCKED_LEFT))
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other_ip:
         other_ip.bind(("127.0.0.2", 0))  # another loopback address

@@ -13,13 +13,14 @@ import subprocess
 import sys
 import threading
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
-from controller.device.base import LockCommand, Sample, Status
+from controller.device.base import Device, LockCommand, Sample, Status
 from controller.device.protocol import (
     CommandPacket,
     HelloPacket,
@@ -36,17 +37,23 @@ LOCK_BOTH = LockCommand(seq=0, lock_left=True, lock_right=True)
 LOCK_LEFT = LockCommand(seq=0, lock_left=True, lock_right=False)
 
 
-def _wait_bound(port: int, host: str = "127.0.0.1", timeout: float = 5.0) -> None:
-    """Until something is bound to the port (so a first HELLO is not lost)."""
+def _bound_ports() -> set[int]:
+    """Local UDP ports in use, from the kernel's table (probing by binding would race)."""
+    ports = set()
+    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+        local = line.split()[1]
+        ports.add(int(local.split(":")[1], 16))
+    return ports
+
+
+def _wait_bound(port: int, timeout: float = 5.0) -> None:
+    """Until the server has bound its port (so the host's first HELLO is not lost)."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind((host, port))
-            except OSError:
-                return
+        if port in _bound_ports():
+            return
         time.sleep(0.01)
-    raise TimeoutError(f"nothing bound to {host}:{port}")
+    raise TimeoutError(f"nothing bound to UDP port {port}")
 
 
 @dataclass
@@ -161,9 +168,7 @@ def test_foreign_and_malformed_commands_are_ignored(server: Running, host: UdpDe
     bad_crc = lock[:-1] + bytes([lock[-1] ^ 0xFF])
     v2 = bytearray(lock[:-4])
     v2[2] = 2
-    import zlib
-
-    v2_packet = bytes(v2) + zlib.crc32(bytes(v2)).to_bytes(4, "little")
+    v2_packet = bytes(v2) + zlib.crc32(bytes(v2)).to_bytes(4, "little")  # valid CRC
     with intruder:
         statuses = []
         for _ in range(20):
@@ -173,6 +178,7 @@ def test_foreign_and_malformed_commands_are_ignored(server: Running, host: UdpDe
             host._sendto(v2_packet)  # from the host, but a version this device lacks
     assert all(st & Status.WATCHDOG_RELEASED for st in statuses)
     assert not any(st & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for st in statuses)
+    time.sleep(0.03)  # let the server take in the last datagrams before it stops
     stats = server.finish()
     assert stats.foreign == 20
     assert stats.malformed["crc"] == 20 and stats.summary()["unknown_version"] == 20
@@ -181,6 +187,7 @@ def test_foreign_and_malformed_commands_are_ignored(server: Running, host: UdpDe
 
 def test_host_port_is_learned_and_stale_commands_dropped(server: Running) -> None:
     a, b = _raw_host(), _raw_host()
+    b_port = b.getsockname()[1]
     with a, b:
         a.sendto(encode_hello(HelloPacket(100)), ("127.0.0.1", server.port))
         assert decode_sample(a.recv(2048)).seq == 0
@@ -194,12 +201,13 @@ def test_host_port_is_learned_and_stale_commands_dropped(server: Running) -> Non
     stats = server.finish()
     assert stats.commands == 1 and stats.stale_commands == 1
     assert stats.hellos == 2 and stats.host_changes == 1
-    assert stats.host == f"127.0.0.1:{b.getsockname()[1] if False else stats.host.split(':')[1]}"
+    assert stats.host == f"127.0.0.1:{b_port}"
 
 
 def test_duration_and_script_end_stop_the_server() -> None:
     t0 = time.monotonic()
-    assert serve(free_udp_port(), 0, "stub", duration=0.2, model=StubExoskeleton()).samples_sent == 0
+    alone = serve(free_udp_port(), 0, "stub", duration=0.2, model=StubExoskeleton())
+    assert alone.samples_sent == 0
     assert 0.18 < time.monotonic() - t0 < 0.5  # nobody said hello: no samples, still stops
     run = _start(StubExoskeleton(steps=10), loop=False)
     dev = UdpDevice(device_port=run.port)
@@ -214,7 +222,7 @@ def test_duration_and_script_end_stop_the_server() -> None:
     assert run.result[0].samples_sent == 10
 
 
-def _drive(dev: UdpDevice, seconds: float) -> tuple[list[float], list[Sample]]:
+def _drive(dev: Device, seconds: float) -> tuple[list[float], list[Sample]]:
     """Play the worker: read each sample, answer at once (lock both after 1 s)."""
     arrivals: list[float] = []
     got: list[Sample] = []
@@ -247,7 +255,7 @@ def test_server_in_a_separate_process_with_stub_model() -> None:
     try:
         _wait_bound(port, timeout=20.0)
         with UdpDevice(device_port=port) as dev:
-            assert isinstance(dev, UdpDevice)
+            assert dev.kind == "udp"
             arrivals, got = _drive(dev, 2.5)
         summary = queue.get(timeout=10.0)
     finally:
@@ -268,8 +276,17 @@ def test_server_in_a_separate_process_with_stub_model() -> None:
 def test_real_device_sim_process_over_loopback() -> None:
     port = free_udp_port()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "controller.sim.device_server", "--port", str(port),
-         "--seed", "3", "--script", "paper-evaluation"],
+        [
+            sys.executable,
+            "-m",
+            "controller.sim.device_server",
+            "--port",
+            str(port),
+            "--seed",
+            "3",
+            "--script",
+            "paper-evaluation",
+        ],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

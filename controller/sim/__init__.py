@@ -1,0 +1,1 @@
+"""The simulated wearer and exoskeleton: participants, activities, biomechanics and the plant."""

@@ -1,0 +1,298 @@
+"""Activities of the simulated wearer: hip flexion and hip moments over time, vectorised.
+
+Each generator returns a `Segment`: true hip flexion (rad, flexion positive) and hip
+extension moment (Nm) per leg at 100 Hz, with the ground-truth labels. Segments start
+and end at the participant's standing posture with zero velocity and acceleration, so
+that a script is a smooth concatenation (the controllers differentiate the angles).
+Postural sway is added by the script over the whole timeline.
+
+Kinematic assumptions (the project's own, against `shared/spec/biomechanics.md`):
+- Lifts: minimum-jerk lowering (1.1-1.45 s at nominal speed), a 0.25-0.55 s pause at
+  the bottom (grasp or release), minimum-jerk raising (0.95-1.15 x the lowering time).
+  Peak hip velocity is 1.875 x range / duration, i.e. 2-3 rad/s.
+- Squat: both hips to the participant's depth (92-108 deg), trunk inclination a fixed
+  fraction (0.36-0.48) of hip flexion. Asymmetric stoop: the box-side hip to 76-94 deg,
+  the other hip to 0.62-0.78 of it (the feet are at 90 degrees, so the trunk's bend is
+  partly rotation and abduction for that hip); the trunk inclines 0.95 x the box-side
+  hip flexion (lumbar flexion compensates the thighs' backward tilt).
+- Gait: one periodic template per kind over the leg's own cycle (0 = foot contact), the
+  right leg half a cycle after the left; amplitude ramps in over the first 0.6 stride
+  (gait initiation) and out over the last; kinds cross-fade over 0.3 s.
+- Turns: the walking template at 45-65 % amplitude, the inner leg smaller, slower strides.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline
+
+from controller.sim.biomechanics import (
+    Anthropometrics,
+    FloatArray,
+    gait_moment,
+    lift_hip_moment,
+    split_moment,
+)
+from controller.sim.participant import VirtualParticipant
+
+DT = 0.01
+ACTIVITIES: tuple[str, ...] = (
+    "stand",
+    "squat",
+    "stoop_left",
+    "stoop_right",
+    "walk",
+    "turn",
+    "stairs_up",
+    "stairs_down",
+)
+ACTIVITY_CODE: dict[str, int] = {name: i for i, name in enumerate(ACTIVITIES)}
+LIFT_KINDS: tuple[str, str, str] = ("squat", "stoop_left", "stoop_right")
+GAIT_KINDS: tuple[str, ...] = ("walk", "turn", "stairs_up", "stairs_down")
+
+STOOP_TRUNK_RATIO = 0.95
+CROSS_FADE_S = 0.3
+RAMP_STRIDES = 0.6
+BOX_TRANSFER_S = 0.25  # the box's weight moves onto or off the hands over this time
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A stretch of samples at 100 Hz. `lift` is 0 inside the segment's lift, -1 else
+    (the script numbers lifts); `progress` is NaN outside lifts."""
+
+    theta: FloatArray  # (K, 2) rad
+    torque: FloatArray  # (K, 2) Nm, hip extension positive
+    activity: NDArray[np.int8]  # (K,) codes into ACTIVITIES
+    lift: NDArray[np.int32]  # (K,)
+    progress: FloatArray  # (K,)
+
+    def __post_init__(self) -> None:
+        k = self.theta.shape[0]
+        if self.theta.shape != (k, 2) or self.torque.shape != (k, 2):
+            raise ValueError("theta and torque must have shape (K, 2)")
+        if not (self.activity.shape == self.lift.shape == self.progress.shape == (k,)):
+            raise ValueError("labels must have shape (K,)")
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.theta.shape[0])
+
+
+def min_jerk(x: npt.ArrayLike) -> FloatArray:
+    """0 -> 1 with zero velocity and acceleration at both ends (x clipped to 0..1)."""
+    u = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
+    return np.asarray(u * u * u * (10.0 - 15.0 * u + 6.0 * u * u), dtype=np.float64)
+
+
+def _n_samples(duration: float) -> int:
+    return max(2, math.ceil(duration / DT - 1e-9) + 1)
+
+
+def _labels(n: int, activity: str, in_lift: bool) -> tuple[NDArray[np.int8], NDArray[np.int32]]:
+    act = np.full(n, ACTIVITY_CODE[activity], dtype=np.int8)
+    lift = np.full(n, 0 if in_lift else -1, dtype=np.int32)
+    return act, lift
+
+
+def _vary(rng: np.random.Generator, sd: float) -> float:
+    """A multiplicative repetition factor, truncated at 3 SD."""
+    return float(1.0 + np.clip(rng.normal(0.0, sd), -3.0 * sd, 3.0 * sd))
+
+
+def stand(
+    p: VirtualParticipant, duration: float, box_kg: float = 0.0
+) -> Segment:
+    """Quiet standing (optionally holding the box against the body)."""
+    n = _n_samples(duration)
+    theta = np.tile(p.stand_flexion, (n, 1))
+    body = Anthropometrics.from_body(p.mass_kg, p.height_m)
+    total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), DT)
+    torque = split_moment(total, 0.5 + 0.5 * p.asymmetry)
+    act, lift = _labels(n, "stand", False)
+    return Segment(theta, torque, act, lift, np.full(n, np.nan))
+
+
+@dataclass(frozen=True, slots=True)
+class LiftShape:
+    """The drawn parameters of one lift (kept so tests and datasets can inspect them)."""
+
+    kind: str
+    peak_deg: tuple[float, float]  # absolute peak hip flexion, left/right
+    t_down: float
+    t_pause: float
+    t_up: float
+
+    @property
+    def duration(self) -> float:
+        """Onset to return to standing (s)."""
+        return self.t_down + self.t_pause + self.t_up
+
+
+def draw_lift(p: VirtualParticipant, rng: np.random.Generator, kind: str) -> LiftShape:
+    """Depth and timing of one repetition of `kind` for participant `p`."""
+    if kind not in LIFT_KINDS:
+        raise ValueError(f"unknown lift {kind!r}; choose one of {', '.join(LIFT_KINDS)}")
+    f = p.rep_variation
+    depth = _vary(rng, f)
+    speed = p.speed * _vary(rng, 1.5 * f)
+    t_down = float(rng.uniform(1.1, 1.45)) / speed
+    t_pause = float(rng.uniform(0.25, 0.55))
+    t_up = t_down * float(rng.uniform(0.95, 1.15))
+    asym = p.asymmetry + float(np.clip(rng.normal(0.0, 0.015), -0.045, 0.045))
+    if kind == "squat":
+        peak = p.squat_depth_deg * depth
+        left, right = peak * (1.0 + asym / 2.0), peak * (1.0 - asym / 2.0)
+    else:
+        box_side = p.stoop_depth_deg * depth
+        other = box_side * p.stoop_other_ratio * _vary(rng, f)
+        left, right = (box_side, other) if kind == "stoop_left" else (other, box_side)
+    return LiftShape(kind, (float(left), float(right)), t_down, t_pause, t_up)
+
+
+def lift(
+    p: VirtualParticipant, shape: LiftShape, box_kg: float, pick_up: bool
+) -> Segment:
+    """One lift from standing to standing: pick the box up (`pick_up`) or put it down.
+
+    Progress runs 0..1 over the whole segment, so the hip-flexion half is about its
+    first 40-45 %. The box weighs on the hands after lift-off when picking up, until
+    touch-down when putting down.
+    """
+    n = _n_samples(shape.duration)
+    t = np.arange(n) * DT
+    t_bottom = shape.t_down + shape.t_pause
+    s = np.where(
+        t <= shape.t_down,
+        min_jerk(t / shape.t_down),
+        1.0 - min_jerk((t - t_bottom) / shape.t_up),
+    )
+    stand_flex = p.stand_flexion
+    delta = np.radians(np.asarray(shape.peak_deg)) - stand_flex
+    theta = stand_flex[None, :] + s[:, None] * delta[None, :]
+    if shape.kind == "squat":
+        trunk = p.squat_trunk_ratio * s * float(delta.mean())
+        share: float = 0.5 + 0.5 * (shape.peak_deg[0] / shape.peak_deg[1] - 1.0)
+    else:
+        box_leg = 0 if shape.kind == "stoop_left" else 1
+        trunk = STOOP_TRUNK_RATIO * s * float(delta[box_leg])
+        share = p.box_side_share if box_leg == 0 else 1.0 - p.box_side_share
+    if pick_up:
+        held = min_jerk((t - (t_bottom - BOX_TRANSFER_S)) / BOX_TRANSFER_S)
+    else:
+        held = 1.0 - min_jerk((t - shape.t_down) / BOX_TRANSFER_S)
+    body = Anthropometrics.from_body(p.mass_kg, p.height_m)
+    total = lift_hip_moment(body, trunk, box_kg * held, DT)
+    torque = split_moment(total, share)
+    act, lift_idx = _labels(n, shape.kind, True)
+    progress = np.clip(t / shape.duration, 0.0, 1.0)
+    return Segment(theta, torque, act, lift_idx, progress)
+
+
+def _periodic_deg(points: list[tuple[float, float]]) -> CubicSpline:
+    x = np.array([q[0] for q in points] + [1.0])
+    y = np.radians(np.array([q[1] for q in points] + [points[0][1]]))
+    return CubicSpline(x, y, bc_type="periodic")
+
+
+# Hip flexion over the leg's own cycle, degrees above the standing posture.
+GAIT_ANGLE: dict[str, CubicSpline] = {
+    # Level walking: about +32 at contact and late swing, -11 in late stance (range 43).
+    "walk": _periodic_deg(
+        [(0.00, 28.0), (0.10, 25.0), (0.30, 6.0), (0.50, -11.0), (0.60, -6.0),
+         (0.75, 16.0), (0.87, 32.0), (0.95, 30.0)]
+    ),
+    # Stair ascent: the foot lands on the next step with the hip at about 60 deg and the
+    # stance leg pulls the body up to about 3 deg (range ~58); swing flexes it again.
+    "stairs_up": _periodic_deg(
+        [(0.00, 58.0), (0.10, 52.0), (0.30, 28.0), (0.50, 8.0), (0.60, 3.0),
+         (0.68, 7.0), (0.78, 27.0), (0.88, 51.0), (0.96, 60.0)]
+    ),
+    # Stair descent: range about 28 deg, most flexion late in stance and in swing.
+    "stairs_down": _periodic_deg(
+        [(0.00, 10.0), (0.15, 6.0), (0.35, 7.0), (0.55, 16.0), (0.68, 28.0),
+         (0.82, 34.0), (0.92, 22.0)]
+    ),
+}
+GAIT_ANGLE["turn"] = GAIT_ANGLE["walk"]
+
+
+@dataclass(frozen=True, slots=True)
+class GaitPiece:
+    """Part of a gait bout: `strides` cycles of one kind at amplitude (left, right)
+    relative to the participant's template, each stride lasting `stride_s`."""
+
+    kind: str
+    strides: float
+    stride_s: float
+    amplitude: tuple[float, float] = (1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in GAIT_KINDS:
+            raise ValueError(f"unknown gait {self.kind!r}; choose one of {GAIT_KINDS}")
+        if self.strides <= 0 or self.stride_s <= 0:
+            raise ValueError("strides and stride_s must be positive")
+
+
+def _moment_kind(kind: str) -> tuple[str, float]:
+    # A turn's hip moments: the walking curve, reduced like its angles.
+    return ("walk", 0.7) if kind == "turn" else (kind, 1.0)
+
+
+def gait_cycle_values(
+    p: VirtualParticipant, piece: GaitPiece, phase_left: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Steady-state hip flexion above standing (rad) and hip moment (Nm), shape (K, 2),
+    of `piece` at the left leg's gait phase; the right leg is half a cycle later."""
+    kind, moment_scale = _moment_kind(piece.kind)
+    dtheta = np.empty((phase_left.size, 2))
+    moment = np.empty((phase_left.size, 2))
+    for leg in range(2):
+        frac = np.mod(phase_left + 0.5 * leg, 1.0)
+        amp = piece.amplitude[leg]
+        dtheta[:, leg] = amp * GAIT_ANGLE[piece.kind](frac)
+        moment[:, leg] = gait_moment(kind, frac, p.mass_kg, p.torque_scale * moment_scale * amp)
+    return dtheta, moment
+
+
+def gait(p: VirtualParticipant, pieces: list[GaitPiece]) -> Segment:
+    """A continuous gait bout from standing to standing through the given pieces."""
+    if not pieces:
+        raise ValueError("a gait bout needs at least one piece")
+    durations = np.array([pc.strides * pc.stride_s for pc in pieces])
+    bounds = np.concatenate([[0.0], np.cumsum(durations)])
+    total = float(bounds[-1])
+    n = _n_samples(total)
+    t = np.arange(n) * DT
+    # Smooth partition of unity over the pieces.
+    h = [np.ones(n)] + [min_jerk((t - b) / CROSS_FADE_S + 0.5) for b in bounds[1:-1]]
+    h.append(np.zeros(n))
+    weights = [h[i] - h[i + 1] for i in range(len(pieces))]
+    freq = np.zeros(n)
+    for w, pc in zip(weights, pieces, strict=True):
+        freq += w / pc.stride_s
+    phase_left = np.concatenate([[0.0], np.cumsum(freq[:-1]) * DT])
+    ramp_in = RAMP_STRIDES * pieces[0].stride_s
+    ramp_out = RAMP_STRIDES * pieces[-1].stride_s
+    env = min_jerk(t / ramp_in) * (1.0 - min_jerk((t - (total - ramp_out)) / ramp_out))
+    theta = np.tile(p.stand_flexion, (n, 1))
+    torque = np.zeros((n, 2))
+    for w, pc in zip(weights, pieces, strict=True):
+        dtheta, moment = gait_cycle_values(p, pc, phase_left)
+        theta += (env * w)[:, None] * dtheta
+        torque += (env * w)[:, None] * moment
+    which = np.clip(np.searchsorted(bounds, t, side="right") - 1, 0, len(pieces) - 1)
+    codes = np.array([ACTIVITY_CODE[pc.kind] for pc in pieces], dtype=np.int8)
+    act = codes[which]
+    return Segment(theta, torque, act, np.full(n, -1, dtype=np.int32), np.full(n, np.nan))
+
+
+def walk_amplitude(p: VirtualParticipant) -> float:
+    """Template scale that gives the participant's walking range (template range 43)."""
+    return p.walk_range_deg / 43.0
