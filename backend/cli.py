@@ -50,24 +50,12 @@ def _db(args: argparse.Namespace) -> int:
     return 0
 
 
-def _device_sim(args: argparse.Namespace) -> int:
-    from controller.sim import device_server
-
-    return device_server.main(args.rest)
-
-
 def _simulate(args: argparse.Namespace) -> int:
     from controller.sim.recording import simulate_to_csv
 
     n = simulate_to_csv(args.seed, args.script, Path(args.out))
     print(f"wrote {n} samples to {args.out}")
     return 0
-
-
-def _replay(args: argparse.Namespace) -> int:
-    from controller import replay
-
-    return replay.main(args.rest)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -87,9 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("revision", nargs="?", default=None)
     d.set_defaults(func=_db)
 
-    ds = sub.add_parser("device-sim", help="run the simulated exoskeleton (UDP)", add_help=False)
-    ds.add_argument("rest", nargs=argparse.REMAINDER)
-    ds.set_defaults(func=_device_sim)
+    sub.add_parser("device-sim", help="run the simulated exoskeleton on the wire (UDP); "
+                   "see `exostudy device-sim --help`")
 
     sim = sub.add_parser("simulate", help="write a simulated recording as CSV")
     sim.add_argument("--seed", type=int, required=True)
@@ -97,14 +84,22 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True)
     sim.set_defaults(func=_simulate)
 
-    r = sub.add_parser("replay", help="replay angles through a controller", add_help=False)
-    r.add_argument("rest", nargs=argparse.REMAINDER)
-    r.set_defaults(func=_replay)
+    sub.add_parser("replay", help="replay recorded angles through a controller; "
+                   "see `exostudy replay --help`")
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `exostudy` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Subcommands with their own parsers get their arguments untouched.
+    passthrough = {"replay": "controller.replay", "device-sim": "controller.sim.device_server"}
+    if argv and argv[0] in passthrough:
+        import importlib
+
+        module = importlib.import_module(passthrough[argv[0]])
+        code: int = module.main(argv[1:])
+        return code
     args = build_parser().parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     try:

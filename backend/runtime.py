@@ -12,13 +12,19 @@ import sys
 import time
 from typing import Any
 
+from dataclasses import replace
+from pathlib import Path
+
 from sqlalchemy import Engine
 
+from backend import bootstrap
 from backend.core.config import Settings
 from backend.recorder import TickRecorder
 from backend.schemas.live import DatabaseHealth, DeviceHealth, Health, WorkerHealth
 from backend.stream import LiveStream
-from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
+from backend.worker.messages import CalibrationResult, RunStarted, TickBatch, WorkerConfig
+from controller.config import ControllerConfig
+from controller.factory import NEEDS_MODELS
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 
 log = logging.getLogger(__name__)
@@ -36,6 +42,8 @@ class Runtime:
     def __init__(self, settings: Settings, engine: Engine) -> None:
         self.settings = settings
         host, port = settings.device_host_port
+        self.calibration: CalibrationResult | None = None
+        self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self.worker_config = WorkerConfig(
             device_kind=settings.device_kind,
             device_host=host,
@@ -43,6 +51,7 @@ class Runtime:
             device_seed=settings.device_seed,
             device_script=settings.device_script,
             precompression_pct=settings.precompression_pct,
+            models_path=str(settings.models_path),
         )
         self.recorder = TickRecorder(engine, settings.db_flush_interval)
         self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
@@ -53,13 +62,73 @@ class Runtime:
                 on_run_started=self._on_run_started,
                 on_exit=self._on_exit,
                 on_event=self._on_event,
+                on_calibration=self._on_calibration,
             ),
         )
         self.device_process: subprocess.Popen[bytes] | None = None
         self._status_task: asyncio.Task[None] | None = None
 
+    def utilities_path(self) -> Path:
+        """The default utility set for the configured precompression."""
+        return bootstrap.utilities_path(self.settings.utilities_dir,
+                                        self.settings.precompression_pct)
+
+    def prepare_defaults(self) -> None:
+        """Build the default model and utility sets if they are missing (first start)."""
+        bootstrap.ensure_models(self.settings.models_path)
+        bootstrap.ensure_utilities(self.utilities_path(), self.settings.precompression_pct)
+
+    def controller_config(self, name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The full configuration for controller `name`: defaults, the server's settings,
+        the E-UMC calibration if one was made, then `overrides` (settings fields)."""
+        settings: dict[str, Any] = {"precompression_pct": self.settings.precompression_pct}
+        cfg = ControllerConfig(precompression_pct=self.settings.precompression_pct)
+        if self.settings.controller_rate_hz is not None:
+            cfg = cfg.at_rate(self.settings.controller_rate_hz)
+        settings = cfg.to_json()
+        if name == "eumc" and self.calibration is not None and self.calibration.ok:
+            settings["calibration"] = [self.calibration.offset_left,
+                                       self.calibration.offset_right]
+        settings.update(overrides or {})
+        ControllerConfig.from_json(settings)  # refuse a bad setting here, not in the worker
+        out: dict[str, Any] = {"settings": settings}
+        if name in NEEDS_MODELS:
+            out["models_path"] = str(self.settings.models_path)
+            out["utilities_path"] = str(self.utilities_path())
+        return out
+
+    def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
+        """Switch the worker's controller (a new run starts)."""
+        self.supervisor.set_controller(name, self.controller_config(name, overrides))
+
+    async def calibrate(self, seconds: float, max_std_deg: float) -> CalibrationResult:
+        """Ask the worker to calibrate and wait for the outcome."""
+        loop = asyncio.get_running_loop()
+        rid = self.supervisor.request_calibration(seconds, max_std_deg)
+        fut: asyncio.Future[CalibrationResult] = loop.create_future()
+        self._calibration_waiters[rid] = fut
+        try:
+            return await asyncio.wait_for(fut, seconds + 5.0)
+        finally:
+            self._calibration_waiters.pop(rid, None)
+
+    def _on_calibration(self, result: CalibrationResult) -> None:
+        if result.ok:
+            self.calibration = result
+        fut = self._calibration_waiters.get(result.request_id)
+        loop = self.stream._loop
+        if fut is not None and loop is not None:
+            loop.call_soon_threadsafe(lambda: fut.done() or fut.set_result(result))
+
     async def start(self) -> None:
         """Start recording, streaming and (if configured) the device simulator and worker."""
+        await asyncio.to_thread(self.prepare_defaults)
+        self.worker_config = replace(
+            self.worker_config,
+            controller=self.settings.controller,
+            controller_config=self.controller_config(self.settings.controller),
+        )
+        self.supervisor.config = self.worker_config
         self.recorder.start()
         await self.stream.start()
         if self.settings.device_kind == "udp" and self.settings.device_spawn_simulator:

@@ -126,3 +126,31 @@ def max_deflection(precompression_pct: float, params: MaccepaParams = PAPER_ACTU
 def at_hard_stop(alpha: float, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> bool:
     """True when the spring is fully compressed at deflection `alpha`."""
     return alpha >= max_deflection(precompression_pct, params) - 1e-9
+
+
+class TorqueModel:
+    """`maccepa_torque` for one precompression as plain scalar math, for the 100 Hz tick.
+
+    The NumPy version costs microseconds per call in overhead; this one costs about one.
+    The limit deflection is found once, at construction.
+    """
+
+    def __init__(self, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> None:
+        self.precompression_pct = _check_precompression(precompression_pct)
+        self.params = params
+        self.alpha_max = max_deflection(precompression_pct, params)
+        self._pre = params.max_compression_mm * precompression_pct / 100.0
+
+    def __call__(self, alpha: float) -> float:
+        """Torque (Nm) at deflection `alpha` (rad); 0 for alpha <= 0 or NaN."""
+        if not alpha > 0.0:
+            return 0.0
+        a = min(alpha, self.alpha_max)
+        p = self.params
+        B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
+        i = C * math.cos(a) - B
+        h = C * math.sin(a) - R
+        e = math.sqrt(i * i + h * h - R * R)
+        lam = math.pi / 2 - math.atan(e / R) + math.atan2(h, i)
+        force = p.stiffness_n_per_mm * (self._pre + e + R * lam - (C - B))
+        return force * C * math.sin(lam - a) / 1000.0

@@ -35,6 +35,15 @@ class Settings(BaseSettings):
     device_script: str = "paper-evaluation"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
 
+    #: Controller the worker starts with: none, umc, eumc or pec.
+    controller: str = "none"
+    #: Run every controller at this rate (Hz) instead of the paper's rates.
+    controller_rate_hz: float | None = Field(default=None, gt=0.0, le=100.0)
+    #: Model set for UMC and E-UMC; built from simulated demonstrations if missing.
+    models_path: Path = PROJECT_ROOT / "var" / "models" / "sim-default.json"
+    #: Folder of default utility sets (one per precompression), built if missing.
+    utilities_dir: Path = PROJECT_ROOT / "var" / "utilities"
+
     #: Messages per second sent to each browser (each carries every tick since the last).
     stream_rate: float = Field(default=30.0, gt=0.0, le=100.0)
     #: Queue length per browser before the oldest message is dropped.

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from controller.device.base import Device
 from backend.worker.messages import WorkerConfig
+from controller.device.base import Device
 
 
 def make_device(config: WorkerConfig) -> Device:

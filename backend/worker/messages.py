@@ -21,6 +21,8 @@ class WorkerConfig:
     precompression_pct: float = 25.0
     controller: str = "none"
     controller_config: dict[str, Any] = field(default_factory=dict)
+    #: The model set used for calibration when the running controller has none.
+    models_path: str = ""
     #: Seconds between status reports.
     status_interval: float = 0.25
 
@@ -91,5 +93,28 @@ class StopWorker:
     reason: str = "requested"
 
 
-WorkerMessage = TickBatch | WorkerStatus | RunStarted | WorkerError
-ServerCommand = SetController | StopWorker
+@dataclass(frozen=True, slots=True)
+class Calibrate:
+    """Collect `seconds` of standing still, then compute the E-UMC offsets."""
+
+    seconds: float = 3.0
+    max_std_deg: float = 1.0
+    request_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class CalibrationResult:
+    """Outcome of a `Calibrate` request; on success the offsets are applied to the E-UMC."""
+
+    request_id: int
+    ok: bool
+    message: str
+    offset_left: float = 0.0
+    offset_right: float = 0.0
+    std_left_deg: float = float("nan")
+    std_right_deg: float = float("nan")
+    samples: int = 0
+
+
+WorkerMessage = TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
+ServerCommand = SetController | StopWorker | Calibrate

@@ -12,18 +12,21 @@ Safety rules:
 from __future__ import annotations
 
 import collections
+import math
 import os
 import signal
 import threading
 import time
 from multiprocessing.connection import Connection
 from types import FrameType
+from typing import Any
 
-from controller.factory import make_controller
-from controller.loop import ControlLoop
-from controller.tick import TickRecord
+import numpy as np
+
 from backend.worker.devices import make_device
 from backend.worker.messages import (
+    Calibrate,
+    CalibrationResult,
     RunStarted,
     SetController,
     StopWorker,
@@ -33,6 +36,10 @@ from backend.worker.messages import (
     WorkerMessage,
     WorkerStatus,
 )
+from controller.calibration import CalibrationError, calibrate
+from controller.factory import load_models, make_controller
+from controller.loop import ControlLoop
+from controller.tick import TickRecord
 
 #: Records kept for the server if it stops reading: one minute at 100 Hz.
 OUTBOX_LIMIT = 6000
@@ -113,7 +120,7 @@ def worker_main(
     try:
         device = make_device(config)
         device.open()
-    except Exception as exc:  # noqa: BLE001 - reported to the server, then exit
+    except Exception as exc:
         outbox.put(WorkerError(f"device {config.device_kind!r} failed to open: {exc}", fatal=True))
         outbox.stop.set()
         outbox.thread.join(1.0)
@@ -123,11 +130,13 @@ def worker_main(
     try:
         try:
             controller = make_controller(config.controller, config.controller_config)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             outbox.put(WorkerError(f"controller {config.controller!r}: {exc}; using 'none'"))
             controller = make_controller("none")
         controller.warm_up()
         loop = ControlLoop(device, controller)
+        current_config: dict[str, Any] = dict(config.controller_config)
+        calibration: _CalibrationJob | None = None
         run_token = 1
         outbox.run_token = run_token
         outbox.put(RunStarted(run_token, controller.name, dict(config.controller_config),
@@ -149,35 +158,98 @@ def worker_main(
                     try:
                         new = make_controller(cmd.name, cmd.config)
                         new.warm_up()
-                    except Exception as exc:  # noqa: BLE001
+                    except Exception as exc:
                         outbox.put(WorkerError(f"controller {cmd.name!r} rejected: {exc}"))
                         continue
                     loop.controller = new
+                    current_config = dict(cmd.config)
                     run_token += 1
-                    outbox.put(RunStarted(run_token, new.name, dict(cmd.config), device.kind, pid))
+                    outbox.put(RunStarted(run_token, new.name, current_config, device.kind, pid))
                     outbox.run_token = run_token
+                elif isinstance(cmd, Calibrate):
+                    calibration = _CalibrationJob(cmd, config, current_config)
             if stopping.is_set():
                 break
             record = loop.tick(timeout=0.05)
             if record is not None:
                 outbox.put_record(record)
+                if calibration is not None and calibration.add(record):
+                    result, new_config = calibration.finish(loop.controller.name)
+                    calibration = None
+                    outbox.put(result)
+                    if new_config is not None:
+                        # The running E-UMC takes its calibration at once: a new run.
+                        try:
+                            new = make_controller(loop.controller.name, new_config)
+                            new.warm_up()
+                            loop.controller = new
+                            current_config = new_config
+                            run_token += 1
+                            outbox.put(RunStarted(run_token, new.name, new_config,
+                                                  device.kind, pid))
+                            outbox.run_token = run_token
+                        except Exception as exc:
+                            outbox.put(WorkerError(f"applying the calibration failed: {exc}"))
             now = time.monotonic()
             if now >= next_status:
                 next_status = now + config.status_interval
                 outbox.put(_status(loop, outbox, pid, run_token, device.kind, device.faults()))
-    except Exception as exc:  # noqa: BLE001 - any failure: make safe, report, exit non-zero
+    except Exception as exc:
         outbox.put(WorkerError(f"worker loop failed: {exc!r}", fatal=True))
         exit_code = 5
     finally:
         device.release()
         try:
             device.close()
-        except Exception:  # noqa: BLE001, S110 - closing must not mask the exit
+        except Exception:
             pass
         outbox.stop.set()
         outbox.thread.join(2.0)
     if exit_code:
         raise SystemExit(exit_code)
+
+
+class _CalibrationJob:
+    """Collects raw hip angles of the next `seconds` of ticks, then calibrates."""
+
+    def __init__(self, cmd: Calibrate, worker: WorkerConfig, current: dict[str, Any]) -> None:
+        self.cmd = cmd
+        self.worker = worker
+        self.current = current
+        self.needed = max(10, round(cmd.seconds * 100))
+        self.q: list[tuple[float, float]] = []
+
+    def add(self, r: TickRecord) -> bool:
+        """Take one tick; True when enough have been collected."""
+        self.q.append((r.q_raw_left, r.q_raw_right))
+        return len(self.q) >= self.needed
+
+    def finish(self, running: str) -> tuple[CalibrationResult, dict[str, Any] | None]:
+        """The result, and the E-UMC configuration to switch to if it is running."""
+        rid = self.cmd.request_id
+        q = np.asarray(self.q, dtype=np.float64)
+        models_cfg = self.current if "models_path" in self.current or "models" in self.current \
+            else {"models_path": self.worker.models_path}
+        try:
+            mset = load_models(models_cfg)
+            start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
+            cal = calibrate(q, start, max_std=math.radians(self.cmd.max_std_deg))
+        except (CalibrationError, ValueError) as exc:
+            std = np.nanstd(q, axis=0) if q.size else np.array([math.nan, math.nan])
+            return CalibrationResult(rid, False, str(exc), std_left_deg=math.degrees(std[0]),
+                                     std_right_deg=math.degrees(std[1]), samples=len(q)), None
+        std = q.std(axis=0)
+        result = CalibrationResult(
+            rid, True, "calibrated", cal.offset_left, cal.offset_right,
+            math.degrees(std[0]), math.degrees(std[1]), len(q),
+        )
+        if running != "eumc":
+            return result, None
+        new_config = dict(self.current)
+        settings = dict(new_config.get("settings", {}))
+        settings["calibration"] = [cal.offset_left, cal.offset_right]
+        new_config["settings"] = settings
+        return result, new_config
 
 
 def _status(

@@ -19,6 +19,8 @@ from multiprocessing.process import BaseProcess
 from typing import Any
 
 from backend.worker.messages import (
+    Calibrate,
+    CalibrationResult,
     RunStarted,
     SetController,
     StopWorker,
@@ -42,6 +44,7 @@ class WorkerCallbacks:
     on_run_started: Callable[[RunStarted], None] = lambda msg: None
     on_exit: Callable[[int | None, str], None] = lambda code, reason: None
     on_event: Callable[[str, dict[str, Any]], None] = lambda kind, data: None
+    on_calibration: Callable[[CalibrationResult], None] = lambda result: None
 
 
 @dataclass
@@ -74,6 +77,7 @@ class WorkerSupervisor:
         self._reader: threading.Thread | None = None
         self._lock = threading.RLock()
         self._stopping = False
+        self._request_id = 0
 
     @property
     def process(self) -> BaseProcess | None:
@@ -153,6 +157,17 @@ class WorkerSupervisor:
             except (BrokenPipeError, OSError):
                 pass
 
+    def request_calibration(self, seconds: float, max_std_deg: float) -> int:
+        """Ask the worker to calibrate over the next `seconds`; returns the request id.
+        The result arrives through `callbacks.on_calibration`."""
+        with self._lock:
+            if self._cmd is None or not self.state.alive:
+                raise RuntimeError("the worker is not running")
+            self._request_id += 1
+            rid = self._request_id
+            self._cmd.send(Calibrate(seconds, max_std_deg, rid))
+            return rid
+
     def _read(self, proc: BaseProcess, conn: Connection) -> None:
         while True:
             ready = wait([conn, proc.sentinel], timeout=POLL_S)
@@ -184,6 +199,8 @@ class WorkerSupervisor:
                 self.state.status_at = time.time()
             elif isinstance(msg, RunStarted):
                 self.callbacks.on_run_started(msg)
+            elif isinstance(msg, CalibrationResult):
+                self.callbacks.on_calibration(msg)
             elif isinstance(msg, WorkerError):
                 self.state.errors = [*self.state.errors[-19:], msg.message]
                 log.warning("worker: %s", msg.message)

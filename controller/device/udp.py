@@ -122,8 +122,11 @@ class UdpDevice(Device):
                 self._send_hello()
             self._check_outage(now)
             remaining = deadline - now
-            # Wake up for the next HELLO too, in case nobody is sending commands.
+            # Also wake for the next HELLO (nobody may be sending commands) and to notice
+            # an outage as it starts.
             wait = min(remaining, self._last_send + HELLO_INTERVAL_S - now)
+            if self._last_sample_at is not None and not self._in_outage:
+                wait = min(wait, self._last_sample_at + OUTAGE_S + 1e-4 - now)
             sock.settimeout(max(wait, 0.0))
             try:
                 data, addr = sock.recvfrom(MAX_PACKET + 1)
@@ -211,13 +214,13 @@ class UdpDevice(Device):
 
     def _sendto(self, data: bytes) -> bool:
         sock = self._require_open()
+        self._last_send = time.monotonic()  # the attempt counts: no HELLO storm on errors
         try:
             sock.setblocking(False)  # a timeout left by read() would make sendto poll first
             sock.sendto(data, socket.MSG_DONTWAIT, self._device_addr)
         except OSError:
             self.stats.send_errors += 1
             return False
-        self._last_send = time.monotonic()
         return True
 
     def _send_hello(self) -> None:
@@ -229,6 +232,7 @@ class UdpDevice(Device):
         if last is not None and not self._in_outage and now - last > OUTAGE_S:
             self._in_outage = True
             self.stats.outages += 1
+            self._events.append(f"link outage: no sample for more than {1000 * OUTAGE_S:.0f} ms")
 
     def _accept(self, data: bytes, addr: tuple[str, int]) -> Sample | None:
         """Filter one datagram; return the sample it carries if the worker should see it."""
@@ -268,7 +272,8 @@ class UdpDevice(Device):
                 self.stats.missing += step - 1
         self._backwards = 0
         if self._in_outage and self._last_sample_at is not None:
-            self._events.append(f"no samples for {1000 * (now - self._last_sample_at):.0f} ms")
+            gap_ms = 1000 * (now - self._last_sample_at)
+            self._events.append(f"link outage ended: samples resumed after {gap_ms:.0f} ms")
         self._in_outage = False
         self._last_sample_at = now
         self._last_wire = packet.seq

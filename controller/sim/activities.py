@@ -17,7 +17,9 @@ Kinematic assumptions (the project's own, against `shared/spec/biomechanics.md`)
   hip flexion (lumbar flexion compensates the thighs' backward tilt).
 - Gait: one periodic template per kind over the leg's own cycle (0 = foot contact), the
   right leg half a cycle after the left; amplitude ramps in over the first 0.6 stride
-  (gait initiation) and out over the last; kinds cross-fade over 0.3 s.
+  (gait initiation) and out over the last; kinds cross-fade over 0.8 s (a
+  shorter fade between templates as different as walking and stairs would add
+  unphysical hip velocity).
 - Turns: the walking template at 45-65 % amplitude, the inner leg smaller, slower strides.
 """
 
@@ -56,7 +58,7 @@ LIFT_KINDS: tuple[str, str, str] = ("squat", "stoop_left", "stoop_right")
 GAIT_KINDS: tuple[str, ...] = ("walk", "turn", "stairs_up", "stairs_down")
 
 STOOP_TRUNK_RATIO = 0.95
-CROSS_FADE_S = 0.3
+CROSS_FADE_S = 0.8
 RAMP_STRIDES = 0.6
 BOX_TRANSFER_S = 0.25  # the box's weight moves onto or off the hands over this time
 
@@ -102,8 +104,8 @@ def _labels(n: int, activity: str, in_lift: bool) -> tuple[NDArray[np.int8], NDA
 
 
 def _vary(rng: np.random.Generator, sd: float) -> float:
-    """A multiplicative repetition factor, truncated at 3 SD."""
-    return float(1.0 + np.clip(rng.normal(0.0, sd), -3.0 * sd, 3.0 * sd))
+    """A multiplicative repetition factor, truncated at 2 SD."""
+    return float(1.0 + np.clip(rng.normal(0.0, sd), -2.0 * sd, 2.0 * sd))
 
 
 def stand(
@@ -128,11 +130,22 @@ class LiftShape:
     t_down: float
     t_pause: float
     t_up: float
+    lag_s: tuple[float, float] = (0.0, 0.0)  # delay of each hip's motion (one is 0)
 
     @property
     def duration(self) -> float:
-        """Onset to return to standing (s)."""
-        return self.t_down + self.t_pause + self.t_up
+        """Onset to return to standing (s), including the lagging hip."""
+        return self.t_down + self.t_pause + self.t_up + max(self.lag_s)
+
+    def profile(self, t: FloatArray, leg: int) -> FloatArray:
+        """Fraction of the way to the peak (0..1) of hip `leg` at times `t`."""
+        u = t - self.lag_s[leg]
+        t_bottom = self.t_down + self.t_pause
+        return np.where(
+            u <= self.t_down,
+            min_jerk(u / self.t_down),
+            1.0 - min_jerk((u - t_bottom) / self.t_up),
+        )
 
 
 def draw_lift(p: VirtualParticipant, rng: np.random.Generator, kind: str) -> LiftShape:
@@ -140,7 +153,7 @@ def draw_lift(p: VirtualParticipant, rng: np.random.Generator, kind: str) -> Lif
     if kind not in LIFT_KINDS:
         raise ValueError(f"unknown lift {kind!r}; choose one of {', '.join(LIFT_KINDS)}")
     f = p.rep_variation
-    depth = _vary(rng, f)
+    depth = _vary(rng, 0.6 * f)  # depth is more consistent than timing
     speed = p.speed * _vary(rng, 1.5 * f)
     t_down = float(rng.uniform(1.1, 1.45)) / speed
     t_pause = float(rng.uniform(0.25, 0.55))
@@ -153,7 +166,15 @@ def draw_lift(p: VirtualParticipant, rng: np.random.Generator, kind: str) -> Lif
         box_side = p.stoop_depth_deg * depth
         other = box_side * p.stoop_other_ratio * _vary(rng, f)
         left, right = (box_side, other) if kind == "stoop_left" else (other, box_side)
-    return LiftShape(kind, (float(left), float(right)), t_down, t_pause, t_up)
+    # The hips do not start together: in a squat either may lead by a few tens of ms;
+    # in a stoop the hip away from the box follows the trunk's turn a little later.
+    if kind == "squat":
+        lag = float(np.clip(abs(rng.normal(0.0, 0.02)), 0.0, 0.05))
+        lags = (lag, 0.0) if rng.random() < 0.5 else (0.0, lag)
+    else:
+        lag = float(rng.uniform(0.0, 0.08))
+        lags = (0.0, lag) if kind == "stoop_left" else (lag, 0.0)
+    return LiftShape(kind, (float(left), float(right)), t_down, t_pause, t_up, lags)
 
 
 def lift(
@@ -166,27 +187,25 @@ def lift(
     touch-down when putting down.
     """
     n = _n_samples(shape.duration)
-    t = np.arange(n) * DT
-    t_bottom = shape.t_down + shape.t_pause
-    s = np.where(
-        t <= shape.t_down,
-        min_jerk(t / shape.t_down),
-        1.0 - min_jerk((t - t_bottom) / shape.t_up),
-    )
+    t = (np.arange(n) * DT).astype(np.float64)
+    s = np.stack([shape.profile(t, 0), shape.profile(t, 1)], axis=1)
     stand_flex = p.stand_flexion
     delta = np.radians(np.asarray(shape.peak_deg)) - stand_flex
-    theta = stand_flex[None, :] + s[:, None] * delta[None, :]
+    theta = stand_flex[None, :] + s * delta[None, :]
     if shape.kind == "squat":
-        trunk = p.squat_trunk_ratio * s * float(delta.mean())
+        trunk = p.squat_trunk_ratio * (s @ delta) / 2.0
         share: float = 0.5 + 0.5 * (shape.peak_deg[0] / shape.peak_deg[1] - 1.0)
+        ref = int(np.argmin(shape.lag_s))
     else:
-        box_leg = 0 if shape.kind == "stoop_left" else 1
-        trunk = STOOP_TRUNK_RATIO * s * float(delta[box_leg])
-        share = p.box_side_share if box_leg == 0 else 1.0 - p.box_side_share
+        ref = 0 if shape.kind == "stoop_left" else 1
+        trunk = STOOP_TRUNK_RATIO * s[:, ref] * float(delta[ref])
+        share = p.box_side_share if ref == 0 else 1.0 - p.box_side_share
+    u = t - shape.lag_s[ref]
     if pick_up:
-        held = min_jerk((t - (t_bottom - BOX_TRANSFER_S)) / BOX_TRANSFER_S)
+        t_liftoff = shape.t_down + shape.t_pause
+        held = min_jerk((u - (t_liftoff - BOX_TRANSFER_S)) / BOX_TRANSFER_S)
     else:
-        held = 1.0 - min_jerk((t - shape.t_down) / BOX_TRANSFER_S)
+        held = 1.0 - min_jerk((u - shape.t_down) / BOX_TRANSFER_S)
     body = Anthropometrics.from_body(p.mass_kg, p.height_m)
     total = lift_hip_moment(body, trunk, box_kg * held, DT)
     torque = split_moment(total, share)
@@ -261,8 +280,11 @@ def gait_cycle_values(
     return dtheta, moment
 
 
-def gait(p: VirtualParticipant, pieces: list[GaitPiece]) -> Segment:
-    """A continuous gait bout from standing to standing through the given pieces."""
+def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left") -> Segment:
+    """A continuous gait bout from standing to standing through the given pieces; the
+    `lead` leg takes the first step (its swing comes first)."""
+    if lead not in ("left", "right"):
+        raise ValueError(f"lead must be 'left' or 'right', got {lead!r}")
     if not pieces:
         raise ValueError("a gait bout needs at least one piece")
     durations = np.array([pc.strides * pc.stride_s for pc in pieces])
@@ -277,7 +299,8 @@ def gait(p: VirtualParticipant, pieces: list[GaitPiece]) -> Segment:
     freq = np.zeros(n)
     for w, pc in zip(weights, pieces, strict=True):
         freq += w / pc.stride_s
-    phase_left = np.concatenate([[0.0], np.cumsum(freq[:-1]) * DT])
+    start = 0.5 if lead == "left" else 0.0  # phase 0.5: the leg is about to swing
+    phase_left = start + np.concatenate([[0.0], np.cumsum(freq[:-1]) * DT])
     ramp_in = RAMP_STRIDES * pieces[0].stride_s
     ramp_out = RAMP_STRIDES * pieces[-1].stride_s
     env = min_jerk(t / ramp_in) * (1.0 - min_jerk((t - (total - ramp_out)) / ramp_out))

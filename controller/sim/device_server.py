@@ -209,11 +209,12 @@ class DeviceServer:
             status |= Status.WATCHDOG_RELEASED
         dt = self.model.dt
         wire = Sample(seq=k, t=k * dt, counts=sim.counts, status=Status(status), truth=sim.truth)
-        data = encode_sample(wire)
         assert self.host_port is not None
         try:
-            self.sock.sendto(data, (self.host_ip, self.host_port))
-        except OSError:
+            self.sock.sendto(encode_sample(wire), (self.host_ip, self.host_port))
+        except (OSError, ProtocolError):
+            # A model that produced an unencodable sample must not stop the device; the
+            # host sees the missing sequence number as a gap.
             self.stats.send_errors += 1
         sent = time.monotonic()
         slot = k % RTT_RING

@@ -72,6 +72,8 @@ class VirtualParticipant:
     @classmethod
     def from_seed(cls, seed: int, donning: int = 0) -> VirtualParticipant:
         """The participant named by `seed` (deterministic across runs and machines)."""
+        if seed < 0:
+            raise ValueError(f"participant seed must be non-negative, got {seed}")
         r = _rng(int(seed), 1)
         # The paper's evaluation cohort was 7 of 8 male; keep a similar mix.
         sex = "female" if r.random() < 0.2 else "male"

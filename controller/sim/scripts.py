@@ -230,7 +230,8 @@ def realise(
             lift_ids.append(lift_offset + n_lifts)
             n_lifts += 1
         else:
-            seg = gait(p, _gait_pieces(p, step, rng))
+            lead = "left" if rng.random() < 0.5 else "right"
+            seg = gait(p, _gait_pieces(p, step, rng), lead)
             lift_ids.append(-1)
         segments.append(seg)
     n = sum(s.n for s in segments)

@@ -42,10 +42,10 @@ const postPlot = new uPlot({
   axes: [{ label: "device time (s)" }, { scale: "p", label: "P(model | obs)" }],
   series: [
     {},
-    { label: "squat", stroke: "#2b8a3e", scale: "p", width: 2 },
-    { label: "stoop left", stroke: "#1f6feb", scale: "p", width: 2 },
-    { label: "stoop right", stroke: "#d9480f", scale: "p", width: 2 },
-    { label: "other", stroke: "#868e96", scale: "p", width: 2 },
+    { label: "squat", stroke: "#2b8a3e", scale: "p", width: 2, spanGaps: true },
+    { label: "stoop left", stroke: "#1f6feb", scale: "p", width: 2, spanGaps: true },
+    { label: "stoop right", stroke: "#d9480f", scale: "p", width: 2, spanGaps: true },
+    { label: "other", stroke: "#868e96", scale: "p", width: 2, spanGaps: true },
     { label: "lock left", stroke: "#1f6feb", scale: "lock", width: 3, paths: uPlot.paths.stepped({ align: 1 }) },
     { label: "lock right", stroke: "#d9480f", scale: "lock", width: 3, paths: uPlot.paths.stepped({ align: 1 }) },
   ],
@@ -134,6 +134,7 @@ function showHealth(h) {
     ? `period ${w.period_mean_ms.toFixed(2)} ms · jitter p99 ${w.jitter_p99_ms.toFixed(2)} ms · ` +
       `overruns ${w.overruns} · restarts ${w.restarts}`
     : `restarts ${w.restarts}`;
+  if (w.controller && document.activeElement !== controllerSel) controllerSel.value = w.controller;
   const d = h.device;
   const dsEl = document.getElementById("device-state");
   dsEl.dataset.alive = String(d.alive);
@@ -141,6 +142,38 @@ function showHealth(h) {
   document.getElementById("device-detail").textContent =
     d.faults.length ? "faults: " + d.faults.join("; ") : "no faults";
 }
+
+const controllerSel = document.getElementById("controller");
+const controllerMsg = document.getElementById("controller-msg");
+controllerSel.addEventListener("change", async () => {
+  controllerMsg.textContent = `switching to ${controllerSel.value}…`;
+  const r = await fetch("/api/worker/controller", {
+    method: "POST", headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ name: controllerSel.value }),
+  });
+  const body = await r.json();
+  controllerMsg.textContent = r.ok ? `requested ${controllerSel.value}` : `refused: ${body.detail}`;
+});
+
+document.getElementById("calibrate").addEventListener("click", async (ev) => {
+  ev.target.disabled = true;
+  controllerMsg.textContent = "calibrating: the wearer stands still…";
+  try {
+    const r = await fetch("/api/worker/calibrate", {
+      method: "POST", headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ seconds: 3 }),
+    });
+    const body = await r.json();
+    const res = r.ok ? body : body.detail;
+    controllerMsg.dataset.calibrated = String(r.ok);
+    controllerMsg.textContent = typeof res === "string" ? `calibration failed: ${res}`
+      : r.ok ? `calibrated: offsets ${res.offset_left_deg.toFixed(1)}°, ${res.offset_right_deg.toFixed(1)}° ` +
+        `(std ${res.std_left_deg.toFixed(2)}°, ${res.std_right_deg.toFixed(2)}°)`
+      : `calibration failed: ${res.message}`;
+  } finally {
+    ev.target.disabled = false;
+  }
+});
 
 document.getElementById("restart").addEventListener("click", async (ev) => {
   ev.target.disabled = true;

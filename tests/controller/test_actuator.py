@@ -83,3 +83,10 @@ def test_bad_precompression_is_refused(bad: float) -> None:
 def test_nan_deflection_is_refused() -> None:
     with pytest.raises(ValueError, match="NaN"):
         maccepa_torque(np.array([0.1, np.nan]), 10)
+
+
+@given(st.floats(0.0, 100.0), st.floats(-1.0, 2.6))
+def test_scalar_torque_model_equals_the_vectorised_one(p: float, a: float) -> None:
+    from controller.actuator import TorqueModel
+
+    assert TorqueModel(p)(a) == pytest.approx(maccepa_torque(a, p), abs=1e-9)

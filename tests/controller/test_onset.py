@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -23,6 +24,8 @@ from controller.onset import (
 
 # --------------------------------------------------------------------------- references
 
+Problem = tuple[np.ndarray, np.ndarray, np.ndarray, int | None]
+
 
 def ref_in_band(i: int, n: int, m_rows: int, n_cols: int, band: int | None) -> bool:
     """Band membership straight from the definition, in floating point."""
@@ -32,7 +35,9 @@ def ref_in_band(i: int, n: int, m_rows: int, n_cols: int, band: int | None) -> b
     return abs(n - centre) <= band + 1e-9
 
 
-def ref_costs(obs: np.ndarray, mean: np.ndarray, cov: np.ndarray, band: int | None) -> list:
+def ref_costs(
+    obs: np.ndarray, mean: np.ndarray, cov: np.ndarray, band: int | None
+) -> list[list[float]]:
     m_rows, n_cols = len(obs), len(mean)
     c = [[math.inf] * n_cols for _ in range(m_rows)]
     for i in range(m_rows):
@@ -72,11 +77,11 @@ def ref_match(obs: np.ndarray, mean: np.ndarray, cov: np.ndarray, band: int | No
     return Match(best, length, n, n_end, i, m_rows - 1)
 
 
-def all_paths(m_rows: int, n_cols: int):  # noqa: ANN201 - test helper generator
+def all_paths(m_rows: int, n_cols: int) -> Iterator[list[tuple[int, int]]]:
     """Every admissible path: start on the bottom row or left column, end on the top row."""
     starts = {(0, n) for n in range(n_cols)} | {(i, 0) for i in range(m_rows)}
 
-    def extend(path: list[tuple[int, int]]):  # noqa: ANN202
+    def extend(path: list[tuple[int, int]]) -> Iterator[list[tuple[int, int]]]:
         i, n = path[-1]
         if i == m_rows - 1:
             yield list(path)
@@ -95,7 +100,9 @@ def all_paths(m_rows: int, n_cols: int):  # noqa: ANN201 - test helper generator
 
 
 @st.composite
-def problems(draw: st.DrawFn, max_m: int = 12, max_n: int = 16, integer: bool = False):  # noqa: ANN201
+def problems(
+    draw: st.DrawFn, max_m: int = 12, max_n: int = 16, integer: bool = False
+) -> Problem:
     m_rows = draw(st.integers(1, max_m))
     n_cols = draw(st.integers(1, max_n))
     seed = draw(st.integers(0, 2**32 - 1))
@@ -120,7 +127,7 @@ def assert_same(got: Match, want: Match) -> None:
     if math.isinf(want.D):
         assert math.isinf(got.D)
     else:
-        assert got.D == pytest.approx(want.D, rel=1e-10, abs=1e-12)
+        assert float(got.D) == pytest.approx(want.D, rel=1e-10, abs=1e-12)
 
 
 # --------------------------------------------------------------------------- tests
@@ -128,14 +135,14 @@ def assert_same(got: Match, want: Match) -> None:
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(problems())
-def test_matches_reference_on_random_problems(p) -> None:  # noqa: ANN001
+def test_matches_reference_on_random_problems(p: Problem) -> None:
     obs, mean, cov, band = p
     assert_same(match(obs, mean, cov, band=band), ref_match(obs, mean, cov, band))
 
 
 @settings(max_examples=300, deadline=None)
 @given(problems(integer=True))
-def test_matches_reference_with_many_ties(p) -> None:  # noqa: ANN001
+def test_matches_reference_with_many_ties(p: Problem) -> None:
     obs, mean, cov, band = p
     assert_same(match(obs, mean, cov, band=band), ref_match(obs, mean, cov, band))
 
@@ -154,7 +161,7 @@ def test_full_size_problem_matches_reference(seed: int, band: int | None) -> Non
 
 @settings(max_examples=60, deadline=None)
 @given(problems(max_m=4, max_n=4))
-def test_d_is_the_minimum_over_all_admissible_paths(p) -> None:  # noqa: ANN001
+def test_d_is_the_minimum_over_all_admissible_paths(p: Problem) -> None:
     """Exhaustive check of the DP itself, and that the reported path summary is optimal."""
     obs, mean, cov, _ = p
     c = ref_costs(obs, mean, cov, None)
@@ -166,7 +173,7 @@ def test_d_is_the_minimum_over_all_admissible_paths(p) -> None:  # noqa: ANN001
         key = (len(path), path[0][1], path[-1][1], path[0][0], path[-1][0])
         summaries[key] = min(summaries.get(key, math.inf), cost)
     m = match(obs, mean, cov)
-    assert m.D == pytest.approx(best, rel=1e-10, abs=1e-12)
+    assert float(m.D) == pytest.approx(best, rel=1e-10, abs=1e-12)
     assert summaries[(m.L, m.n_start, m.n_curr, m.i_start, m.i_curr)] == pytest.approx(
         m.D, rel=1e-10, abs=1e-12
     )
@@ -180,7 +187,7 @@ def test_path_can_start_on_the_left_column() -> None:
     obs[20:] = mean[:10]  # ... except the last ten, which follow the model from s = 0
     m = match(obs, mean, cov)
     assert m.n_start == 0 and m.i_start == 20 and m.i_curr == 29
-    assert m.n_curr == 9 and m.L == 10 and m.D == pytest.approx(0.0, abs=1e-12)
+    assert m.n_curr == 9 and m.L == 10 and float(m.D) == pytest.approx(0.0, abs=1e-12)
     assert m == ref_match(obs, mean, cov, None)
 
 
@@ -214,7 +221,7 @@ def test_mahalanobis_cost_uses_the_covariance() -> None:
     cov = np.array([[[4.0, 1.0], [1.0, 2.0]]])
     obs = np.array([[1.0, -2.0]])
     want = float(obs[0] @ np.linalg.inv(cov[0]) @ obs[0])
-    assert match(obs, mean, cov).D == pytest.approx(want, rel=1e-12)
+    assert float(match(obs, mean, cov).D) == pytest.approx(want, rel=1e-12)
     assert want == pytest.approx(22.0 / 7.0)
 
 
@@ -253,12 +260,12 @@ def test_identity_covariance_equals_dtaidistance(m_rows: int, n_cols: int, seed:
     d_all, _ = dtw_ndim.warping_paths(
         obs, mean, psi=(m_rows, 0, n_cols, n_cols), keep_int_repr=True, psi_neg=False
     )
-    assert m.D == pytest.approx(d_all, rel=1e-10, abs=1e-12)
+    assert float(m.D) == pytest.approx(d_all, rel=1e-10, abs=1e-12)
     sa = subsequence_alignment(obs, mean, penalty=0.0)
     d_sub = sa.best_match(minlength=1).distance ** 2
-    assert m.D <= d_sub * (1 + 1e-10) + 1e-12
+    assert float(m.D) <= d_sub * (1 + 1e-10) + 1e-12
     if m.i_start == 0:
-        assert m.D == pytest.approx(d_sub, rel=1e-9, abs=1e-12)
+        assert float(m.D) == pytest.approx(d_sub, rel=1e-9, abs=1e-12)
 
 
 # --------------------------------------------------------------------------- criteria

@@ -43,10 +43,60 @@ def controllers() -> list[str]:
 
 @router.post("/controller", response_model=Health)
 def set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
-    """Switch controller; a new run starts in the database."""
+    """Switch controller; a new run starts in the database. `config` overrides controller
+    settings (rates, thresholds, priors: see `controller.config.ControllerConfig`)."""
     if choice.name not in controller_names():
         raise HTTPException(
             422, f"name: unknown controller {choice.name!r}; choose one of {controller_names()}"
         )
-    runtime.supervisor.set_controller(choice.name, dict(choice.config))
+    try:
+        runtime.set_controller(choice.name, dict(choice.config))
+    except (ValueError, TypeError) as exc:
+        raise HTTPException(422, f"config: {exc}") from exc
     return runtime.health()
+
+
+class CalibrationRequest(BaseModel):
+    """Stand still for `seconds`; the wearer moving more than `max_std_deg` fails it."""
+
+    seconds: float = Field(default=3.0, ge=0.5, le=30.0)
+    max_std_deg: float = Field(default=1.0, gt=0.0, le=10.0)
+
+
+class CalibrationOutcome(BaseModel):
+    """The result of a calibration."""
+
+    ok: bool
+    message: str
+    offset_left_deg: float
+    offset_right_deg: float
+    std_left_deg: float | None
+    std_right_deg: float | None
+    samples: int
+
+
+@router.post("/calibrate", response_model=CalibrationOutcome,
+             responses={409: {"description": "no worker running"},
+                        422: {"description": "the wearer moved, or too few samples"}})
+async def calibrate(req: CalibrationRequest, runtime: RuntimeDep) -> CalibrationOutcome:
+    """E-UMC calibration: record the next seconds of standing still and compute the
+    offsets that map the rest posture onto the models' start. A running E-UMC takes
+    them at once; an E-UMC chosen later gets them too."""
+    import math
+
+    try:
+        r = await runtime.calibrate(req.seconds, req.max_std_deg)
+    except RuntimeError as exc:
+        raise HTTPException(409, str(exc)) from exc
+    except TimeoutError as exc:
+        raise HTTPException(409, "the worker did not answer the calibration request") from exc
+    out = CalibrationOutcome(
+        ok=r.ok, message=r.message,
+        offset_left_deg=math.degrees(r.offset_left), offset_right_deg=math.degrees(r.offset_right),
+        std_left_deg=None if math.isnan(r.std_left_deg) else r.std_left_deg,
+        std_right_deg=None if math.isnan(r.std_right_deg) else r.std_right_deg,
+        samples=r.samples,
+    )
+    if not r.ok:
+        raise HTTPException(422, out.model_dump())
+    return out

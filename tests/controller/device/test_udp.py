@@ -3,11 +3,14 @@ behaviour out (ordering, wrap, foreign and malformed datagrams, commands, releas
 
 from __future__ import annotations
 
+import itertools
 import socket
 import time
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from controller.device.base import NO_LOCK, DeviceError, LockCommand, Sample, Status
 from controller.device.protocol import (
@@ -15,6 +18,7 @@ from controller.device.protocol import (
     HelloPacket,
     decode,
     encode_sample,
+    seq_diff,
 )
 from controller.device.udp import RESTART_AFTER, UdpDevice
 
@@ -192,6 +196,19 @@ def test_release_sends_unlock_and_never_raises(link: tuple[UdpDevice, FakeDevice
         dev.read(0.01)
 
 
+def test_outage_is_reported_when_it_starts_and_ends(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(1)
+    _seqs(dev, 1)
+    assert dev.read(0.08) is None
+    assert dev.faults() == ["link outage: no sample for more than 50 ms"]
+    fake.send_sample(2)
+    _seqs(dev, 1)
+    (ended,) = dev.faults()
+    assert ended.startswith("link outage ended: samples resumed after")
+    assert dev.stats.outages == 1
+
+
 def test_read_timeout_is_respected(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, _ = link
     t0 = time.monotonic()
@@ -212,3 +229,29 @@ def test_unopened_device_refuses() -> None:
     with pytest.raises(DeviceError):
         dev.send(NO_LOCK)
     dev.release()  # never raises, even unopened
+
+
+@settings(max_examples=200)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.lists(st.integers(-40, 40), min_size=1, max_size=80),
+)
+def test_host_sequence_never_goes_backwards(start: int, steps: list[int]) -> None:
+    """Any mix of jumps, repeats and reordering, across the wrap: the worker only ever
+    sees increasing sequence numbers, spaced exactly as the wire's serial distance."""
+    dev = UdpDevice(device_host="127.0.0.1", device_port=9)  # never opened: no socket needed
+    wire = start
+    seen: list[tuple[int, int]] = []
+    for step in [0, *steps]:
+        wire = (wire + step) % 2**32
+        packet = encode_sample(Sample(seq=wire, t=0.0, counts=(0, 0, 0, 0)))
+        out = dev._accept(packet, ("127.0.0.1", 9))
+        if out is not None:
+            seen.append((out.seq, wire))
+    assert seen[0] == (start, start)
+    for (h0, w0), (h1, w1) in itertools.pairwise(seen):
+        assert h1 > h0
+        if dev.stats.restarts == 0:
+            assert h1 - h0 == seq_diff(w1, w0)
+    counted = dev.stats.duplicates + dev.stats.stale + dev.stats.samples
+    assert counted == len(steps) + 1

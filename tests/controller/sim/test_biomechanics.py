@@ -10,8 +10,8 @@ import pytest
 
 from controller.sim.activities import LiftShape, lift
 from controller.sim.biomechanics import (
-    G,
     Anthropometrics,
+    G,
     gait_moment,
     lift_hip_moment,
     split_moment,
@@ -56,7 +56,7 @@ def test_static_moment_of_a_horizontal_trunk() -> None:
 def test_accelerating_the_trunk_upwards_needs_extension() -> None:
     body = Anthropometrics.from_body(75.0, 1.75)
     t = np.arange(100) * 0.01
-    trunk = 1.0 - 0.5 * t**2  # accelerating towards upright
+    trunk = (1.0 - 0.5 * t**2).astype(np.float64)  # accelerating towards upright
     m = lift_hip_moment(body, trunk, np.zeros(100), 0.01)
     static = G * body.m_hat * body.r_com * np.sin(trunk)
     assert np.all(m[5:-5] > static[5:-5])

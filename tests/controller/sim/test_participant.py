@@ -22,8 +22,8 @@ def test_cohort_is_plausible_and_varied() -> None:
     people = [VirtualParticipant.from_seed(s) for s in range(60)]
     mass = np.array([p.mass_kg for p in people])
     height = np.array([p.height_m for p in people])
-    assert 45 < mass.min() and mass.max() < 125
-    assert 1.5 < height.min() and height.max() < 2.0
+    assert mass.min() > 45 and mass.max() < 125
+    assert height.min() > 1.5 and height.max() < 2.0
     assert 60 < mass.mean() < 85 and mass.std() > 5
     assert {p.sex for p in people} == {"male", "female"}
     assert all(0.55 <= p.box_side_share <= 0.65 for p in people)
@@ -71,4 +71,6 @@ def test_validation_refuses_implausible_values() -> None:
         replace(p, mass_kg=20.0)
     with pytest.raises(ValueError):
         replace(p, box_side_share=0.9)
+    with pytest.raises(ValueError, match="non-negative"):
+        VirtualParticipant.from_seed(-1)
     assert math.isfinite(p.stand_flexion.sum())

@@ -1,0 +1,51 @@
+"""Embedded defaults for a first start: a model set and a utility set from the simulation.
+
+A newcomer's `make run` has no demonstrations yet, so the live controllers would have no
+models. The simulated data-collection phase (six virtual participants, as in the paper)
+provides them; the reference human dataset provides the utilities. Both are files under
+`var/` with their provenance inside, built once and reused.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from controller.motion_model import ModelSet
+from controller.sim.demonstrations import simulated_model_set
+from controller.sim.human_dataset import reference_dataset
+from controller.utilities import UtilitySet, compute_utilities
+
+log = logging.getLogger(__name__)
+
+
+def ensure_models(path: Path) -> ModelSet:
+    """Load the model set at `path`, fitting it from simulated demonstrations if missing."""
+    if path.is_file():
+        return ModelSet.load(path)
+    log.info("fitting the default model set from simulated demonstrations -> %s", path)
+    models = simulated_model_set()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    models.save(tmp)
+    tmp.replace(path)
+    return models
+
+
+def utilities_path(folder: Path, precompression_pct: float) -> Path:
+    """Where the default utility set for a precompression is kept."""
+    return folder / f"utilities-sim-p{precompression_pct:g}.json"
+
+
+def ensure_utilities(path: Path, precompression_pct: float) -> UtilitySet:
+    """Load the utility set at `path`, computing it from the reference dataset if missing."""
+    if path.is_file():
+        return UtilitySet.load(path)
+    log.info("computing default utilities for %.1f %% precompression -> %s",
+             precompression_pct, path)
+    utilities = compute_utilities(reference_dataset(), precompression_pct)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    utilities.save(tmp)
+    tmp.replace(path)
+    return utilities

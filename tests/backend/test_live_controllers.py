@@ -1,0 +1,86 @@
+"""Controllers live: the worker switches controller on request, E-UMC refuses to lock
+until calibrated, and lock commands and posteriors reach the browser stream and the
+database."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+
+from backend.core.config import Settings
+from backend.db.engine import make_engine
+from backend.db.models import Run, ticks_table
+from backend.main import create_app
+from controller.tick import TickFlag
+
+pytestmark = pytest.mark.slow
+
+
+def _wait(cond: object, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():  # type: ignore[operator]
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_pec_then_eumc_with_calibration(settings: Settings) -> None:
+    settings = settings.model_copy(update={"start_worker": True, "controller": "pec",
+                                           "device_script": "squat-sequence"})
+    with TestClient(create_app(settings)) as client:
+        _wait(lambda: client.get("/api/health").json()["worker"]["ticks"] > 10, 60, "ticks")
+        # PEC: the lock command follows the velocity trigger (both hips >= 1 rad/s).
+        with client.websocket_connect("/ws/live") as ws:
+            trig_lock: list[tuple[bool, bool]] = []
+            start = time.monotonic()
+            while time.monotonic() - start < 12 and sum(t for t, _ in trig_lock) < 5:
+                msg = json.loads(ws.receive_text())
+                if msg["type"] == "ticks":
+                    c = msg["columns"]
+                    trig_lock += list(zip(c["trigger"], c["lock_left"], strict=True))
+        assert sum(t for t, _ in trig_lock) >= 5, "no squat triggered the PEC"
+        assert all(lock for trig, lock in trig_lock if trig)
+
+        r = client.post("/api/worker/controller", json={"name": "eumc"})
+        assert r.status_code == 200
+        _wait(lambda: client.get("/api/health").json()["worker"]["controller"] == "eumc", 30,
+              "the E-UMC")
+        # Calibrate while the wearer stands between squats (retry if they were moving).
+        outcome = None
+        for _ in range(12):
+            r = client.post("/api/worker/calibrate", json={"seconds": 1.0})
+            if r.status_code == 200:
+                outcome = r.json()
+                break
+            assert r.status_code == 422 and "not still" in r.json()["detail"]["message"]
+        assert outcome is not None and outcome["ok"]
+        assert abs(outcome["offset_left_deg"]) < 15 and outcome["std_left_deg"] < 1.0
+        time.sleep(12)  # a couple of squats with the calibrated E-UMC
+
+    engine = make_engine(settings.database_url)
+    with engine.connect() as conn:
+        runs = conn.execute(select(Run).order_by(Run.id)).all()
+        controllers = [r.controller for r in runs]
+        assert controllers[:2] == ["pec", "eumc"] and controllers[-1] == "eumc"
+        calibrated = runs[-1]
+        assert json.loads(calibrated.config_json)["settings"]["calibration"] is not None
+        uncalibrated_flags = conn.execute(
+            select(ticks_table.c.flags, ticks_table.c.lock_left)
+            .where(ticks_table.c.run_id == runs[1].id)
+        ).all()
+        ticks = conn.execute(
+            select(ticks_table).where(ticks_table.c.run_id == calibrated.id)
+        ).mappings().all()
+    engine.dispose()
+    assert all(f & TickFlag.NOT_CALIBRATED and not lock for f, lock in uncalibrated_flags)
+    ran = [t for t in ticks if t["controller_ran"] and t["post_squat"] is not None]
+    assert ran, "the calibrated E-UMC never evaluated the UMC"
+    assert max(t["post_squat"] for t in ran) > 0.5
+    assert any(t["lock_left"] and t["lock_right"] for t in ticks)
+    # It never runs the UMC while the trigger is off.
+    assert all(t["trigger"] for t in ticks if t["post_squat"] is not None)

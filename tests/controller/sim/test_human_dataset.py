@@ -1,0 +1,79 @@
+"""The built-in reference human dataset: deterministic, versioned, plausible."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controller.human_data import HumanMotionData
+from controller.sim import human_dataset
+from controller.sim.human_dataset import reference_dataset, write_reference_dataset
+
+
+@pytest.fixture(scope="module")
+def data() -> HumanMotionData:
+    return reference_dataset(seed=0, participants=8, repetitions=3)
+
+
+def test_deterministic_and_versioned(data: HumanMotionData) -> None:
+    again = reference_dataset(seed=0, participants=8, repetitions=3)
+    assert np.array_equal(again.theta, data.theta) and np.array_equal(again.tau, data.tau)
+    assert again.version == data.version and data.version.startswith("sim-")
+    other = reference_dataset(seed=1, participants=8, repetitions=3)
+    assert other.version != data.version
+    assert not np.allclose(other.theta, data.theta)
+    assert data.meta["participants"] == 8 and data.meta["box_kg"] == 10.0
+
+
+def test_version_changes_with_the_generator(monkeypatch: pytest.MonkeyPatch) -> None:
+    before = human_dataset.generator_version(seed=0)
+    monkeypatch.setattr(human_dataset, "GENERATOR_VERSION", "2")
+    assert human_dataset.generator_version(seed=0) != before
+    monkeypatch.setattr(human_dataset.inspect, "getsource", lambda obj: "changed")
+    assert human_dataset.generator_version(seed=0) != before
+
+
+def test_lifts_look_like_the_papers_mean_trajectories(data: HumanMotionData) -> None:
+    squat = np.degrees(data.theta[0])
+    assert np.all((squat.max(axis=1) > 90) & (squat.max(axis=1) < 110))
+    assert abs(squat[0].max() - squat[1].max()) < 5  # on the diagonal
+    left, right = np.degrees(data.angle("stoop_left", "left")), np.degrees(
+        data.angle("stoop_left", "right")
+    )
+    assert left.max() - right.max() > 15  # off the diagonal, box side deeper
+    for motion, box, other in (("stoop_left", "left", "right"), ("stoop_right", "right", "left")):
+        assert data.torque(motion, box).max() > 1.3 * data.torque(motion, other).max()
+    for m in range(3):
+        start, end = data.theta[m, :, 0], data.theta[m, :, -1]
+        assert np.allclose(start, end, atol=1e-6)  # standing to standing
+        assert 35 <= int(np.argmax(data.theta[m].sum(axis=0))) <= 60
+    mass = data.meta["mean_mass_kg"]
+    assert 1.7 < data.tau[0].sum(axis=0).max() / mass < 2.8  # squat, 10 kg
+    assert 2.6 < data.tau[1].sum(axis=0).max() / mass < 3.8  # stoop, 10 kg
+
+
+def test_walking_cycle(data: HumanMotionData) -> None:
+    walk = np.degrees(data.theta[3])
+    assert np.all((np.ptp(walk, axis=1) > 32) & (np.ptp(walk, axis=1) < 50))
+    assert np.corrcoef(walk[0], walk[1])[0, 1] < -0.5
+    assert walk[0, 0] > 20  # left heel strike: left hip flexed
+    tau = data.tau[3] / data.meta["mean_mass_kg"]
+    assert 0.5 < tau.max() < 1.0 and -1.2 < tau.min() < -0.5
+
+
+def test_write_and_load(tmp_path: Path) -> None:
+    path = tmp_path / "sub" / "human.json"
+    written = write_reference_dataset(path)
+    loaded = HumanMotionData.load(path)
+    assert loaded.version == written.version
+    assert np.allclose(loaded.theta, written.theta) and np.allclose(loaded.tau, written.tau)
+    assert written.meta["participants"] == human_dataset.DEFAULT_PARTICIPANTS
+
+
+def test_rejects_bad_arguments() -> None:
+    with pytest.raises(ValueError):
+        reference_dataset(participants=0)
+    with pytest.raises(ValueError):
+        reference_dataset(box_kg=-1.0)

@@ -1,0 +1,150 @@
+"""The hip module (ratchet, pawl, springs, hard stop) and the encoders."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from controller.actuator import maccepa_torque, max_deflection
+from controller.device.base import Status
+from controller.encoders import DEFAULT_LAYOUT
+from controller.sim.plant import EncoderModel, ExoPlant, HipModule
+
+D = math.radians
+PITCH = D(9.0)
+
+
+def ramp(a: float, b: float, n: int = 100) -> np.ndarray:
+    return np.linspace(D(a), D(b), n)
+
+
+def drive(hip: HipModule, angles: np.ndarray, solenoid: bool = True) -> list[float]:
+    torques = []
+    for a in angles:
+        hip.step(solenoid, float(a))
+        torques.append(hip.torque())
+    return torques
+
+
+def test_unlocked_cam_follows_output() -> None:
+    hip = HipModule(25.0)
+    hip.reset(0.0)
+    torques = drive(hip, ramp(0, 80), solenoid=False)
+    assert not hip.locked and hip.alpha == 0.0 and max(torques) == 0.0
+    assert hip.cam == hip.output == pytest.approx(D(80))
+
+
+def test_lock_command_during_extension_gives_no_torque() -> None:
+    hip = HipModule(25.0, tooth_phase=D(2.0))
+    hip.reset(D(80))
+    torques = drive(hip, ramp(80, 0), solenoid=True)
+    assert max(torques) == 0.0
+    assert not hip.locked and hip.alpha == 0.0
+    assert hip.cam == pytest.approx(0.0)
+
+
+def test_lock_during_flexion_gives_the_maccepa_torque_of_the_quantised_deflection() -> None:
+    phase = D(3.0)
+    hip = HipModule(25.0, tooth_phase=phase)
+    hip.reset(D(10.0))
+    hip.step(True, D(10.0))  # pull-in: first tick
+    hip.step(True, D(10.0))  # pawl on the ratchet
+    assert not hip.locked
+    drive(hip, ramp(10, 50))
+    assert hip.locked
+    tooth = phase + PITCH * math.ceil((D(10.0) - phase) / PITCH)  # 12 deg
+    assert hip.cam == pytest.approx(tooth)
+    assert 0.0 <= hip.cam - D(10.0) < PITCH  # grounded at the next tooth
+    assert hip.alpha == pytest.approx(D(50.0) - tooth)
+    assert hip.torque() == pytest.approx(maccepa_torque(D(50.0) - tooth, 25.0))
+    assert 7.0 < hip.torque() < 11.0  # 38 deg at 25 %: between T(30) and T(60)
+
+
+def test_engagement_is_at_the_next_tooth_after_the_lowest_point() -> None:
+    hip = HipModule(25.0, tooth_phase=0.0)
+    hip.reset(D(40.0))
+    down_up = np.concatenate([ramp(40, 13.5, 50), ramp(13.5, 60, 80)])
+    drive(hip, down_up)
+    assert hip.locked
+    assert hip.cam == pytest.approx(D(18.0))  # first tooth above 13.5 deg
+
+
+def test_release_at_zero_deflection_and_relock_only_when_commanded() -> None:
+    hip = HipModule(25.0, tooth_phase=0.0)
+    hip.reset(0.0)
+    drive(hip, ramp(0.5, 60))
+    assert hip.locked and hip.cam == pytest.approx(D(9.0))
+    # Extension back past the lock point releases the pawl, even with the solenoid off.
+    torques = drive(hip, ramp(60, 0), solenoid=False)
+    assert not hip.locked and hip.alpha == 0.0 and torques[-1] == 0.0
+    assert hip.output == pytest.approx(0.0)
+    # Monotonic torque while extending: it falls with the deflection.
+    locked_part = [t for t in torques if t > 0]
+    assert all(a >= b for a, b in itertools.pairwise(locked_part))
+    drive(hip, ramp(0, 60), solenoid=False)
+    assert not hip.locked and hip.torque() == 0.0
+
+
+def test_a_one_tick_pulse_does_not_seat_the_pawl() -> None:
+    hip = HipModule(25.0)
+    hip.reset(0.0)
+    angles = ramp(0, 60)
+    hip.step(True, float(angles[0]))
+    drive(hip, angles[1:], solenoid=False)
+    assert not hip.locked
+
+
+def test_hard_stop_at_the_22_mm_compression_limit() -> None:
+    hip = HipModule(25.0, tooth_phase=0.0)
+    hip.reset(0.0)
+    drive(hip, ramp(0.5, 120))
+    limit = max_deflection(25.0)
+    assert math.degrees(limit) == pytest.approx(78.0, abs=0.2)
+    assert hip.hard_stop
+    assert hip.output == pytest.approx(hip.cam + limit)
+    assert hip.torque() == pytest.approx(maccepa_torque(limit, 25.0))
+    drive(hip, ramp(120, 60))
+    assert not hip.hard_stop and hip.output == pytest.approx(D(60))
+
+
+def test_plant_status_bits_and_torques() -> None:
+    plant = ExoPlant(50.0)
+    plant.reset(0.0, 0.0)
+    status = Status.NONE
+    for a in ramp(0, 90):
+        status = plant.step(True, False, float(a), float(a))
+    assert status & Status.SOLENOID_LEFT and not status & Status.SOLENOID_RIGHT
+    assert status & Status.LOCKED_LEFT and not status & Status.LOCKED_RIGHT
+    assert status & Status.HARD_STOP_LEFT and not status & Status.HARD_STOP_RIGHT
+    left, right = plant.torques()
+    assert left > 20.0 and right == 0.0
+
+
+def test_counts_round_trip_through_the_layout_within_the_noise() -> None:
+    rng = np.random.default_rng(0)
+    plant = ExoPlant(25.0, DEFAULT_LAYOUT, EncoderModel.ideal())
+    for a in rng.uniform(-0.5, 2.0, 200):
+        plant.reset(float(a), float(-a / 2))
+        th_l, al_l, th_r, _al_r = DEFAULT_LAYOUT.joint_angles(plant.counts((0.0,) * 4))
+        assert th_l == pytest.approx(a, abs=D(0.0111))
+        assert th_r == pytest.approx(-a / 2, abs=D(0.0111))
+        assert al_l == pytest.approx(0.0, abs=D(0.0221))
+
+    enc = EncoderModel.from_seed()
+    plant = ExoPlant(25.0, DEFAULT_LAYOUT, enc)
+    errors, nonlin = [], []
+    for a in rng.uniform(-0.5, 2.0, 3000):
+        plant.reset(float(a), float(a))
+        noise = tuple(float(x) for x in rng.standard_normal(4))
+        got = DEFAULT_LAYOUT.joint_angles(plant.counts(noise))  # type: ignore[arg-type]
+        nl = enc.error(0, float(a))
+        errors.append(got[0] - a - nl)
+        nonlin.append(nl)
+    err = np.degrees(np.array(errors))
+    assert np.sqrt(np.mean(err**2)) <= 0.06  # AS5048A noise spec
+    assert np.sqrt(np.mean(err**2)) > 0.02  # but there is noise
+    nl_deg = np.degrees(np.abs(nonlin))
+    assert nl_deg.max() <= 0.8 and nl_deg.max() > 0.1
