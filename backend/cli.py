@@ -5,6 +5,7 @@
     exostudy device-sim --port P ...          the simulated exoskeleton on the wire
     exostudy simulate --seed S --script NAME --out FILE.csv
     exostudy replay --angles IN.csv --controller umc ... --out TICKS.csv
+    exostudy human-dataset --out FILE.json     the simulated reference human data
 """
 
 from __future__ import annotations
@@ -58,6 +59,14 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _human_dataset(args: argparse.Namespace) -> int:
+    from controller.sim.human_dataset import write_reference_dataset
+
+    data = write_reference_dataset(Path(args.out), seed=args.seed)
+    print(f"wrote reference human dataset {data.version} to {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
@@ -83,6 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--script", required=True)
     sim.add_argument("--out", required=True)
     sim.set_defaults(func=_simulate)
+
+    h = sub.add_parser("human-dataset", help="regenerate the simulated reference human "
+                       "motion dataset (angles and torques per motion and leg) as JSON")
+    h.add_argument("--out", required=True)
+    h.add_argument("--seed", type=int, default=0)
+    h.set_defaults(func=_human_dataset)
 
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")

@@ -10,10 +10,9 @@ import logging
 import subprocess
 import sys
 import time
-from typing import Any
-
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from sqlalchemy import Engine
 
@@ -23,9 +22,9 @@ from backend.recorder import TickRecorder
 from backend.schemas.live import DatabaseHealth, DeviceHealth, Health, WorkerHealth
 from backend.stream import LiveStream
 from backend.worker.messages import CalibrationResult, RunStarted, TickBatch, WorkerConfig
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
 from controller.factory import NEEDS_MODELS
-from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +77,9 @@ class Runtime:
         bootstrap.ensure_models(self.settings.models_path)
         bootstrap.ensure_utilities(self.utilities_path(), self.settings.precompression_pct)
 
-    def controller_config(self, name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    def controller_config(
+        self, name: str, overrides: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """The full configuration for controller `name`: defaults, the server's settings,
         the E-UMC calibration if one was made, then `overrides` (settings fields)."""
         settings: dict[str, Any] = {"precompression_pct": self.settings.precompression_pct}
@@ -118,7 +119,12 @@ class Runtime:
         fut = self._calibration_waiters.get(result.request_id)
         loop = self.stream._loop
         if fut is not None and loop is not None:
-            loop.call_soon_threadsafe(lambda: fut.done() or fut.set_result(result))
+
+            def resolve() -> None:
+                if not fut.done():
+                    fut.set_result(result)
+
+            loop.call_soon_threadsafe(resolve)
 
     async def start(self) -> None:
         """Start recording, streaming and (if configured) the device simulator and worker."""
@@ -170,7 +176,7 @@ class Runtime:
             "--precompression", str(self.settings.precompression_pct),
             "--bind", host,
         ]
-        self.device_process = subprocess.Popen(cmd)  # noqa: S603 - our own interpreter and args
+        self.device_process = subprocess.Popen(cmd)
         time.sleep(0.3)
 
     # Supervisor callbacks (reader thread).

@@ -74,7 +74,9 @@ def calibrate(
         )
     if not np.all(np.isfinite(a)):
         n_bad = int(np.count_nonzero(~np.isfinite(a).all(axis=1)))
-        raise CalibrationError(f"calibration period contains {n_bad} samples with NaN or inf")
+        raise CalibrationError(
+            f"calibration period has NaN or inf in {n_bad} of {len(a)} samples"
+        )
     std = a.std(axis=0)
     if np.any(std > max_std):
         raise CalibrationError(

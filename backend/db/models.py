@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from datetime import UTC, datetime
+from typing import Any
 
 from sqlalchemy import (
     BigInteger,
@@ -55,8 +56,8 @@ class Run(Base):
     tick_count: Mapped[int] = mapped_column(BigInteger, default=0)
 
 
-def _sql_type(tp: object) -> TypeEngine[object]:
-    mapping: dict[object, TypeEngine[object]] = {
+def _sql_type(tp: object) -> TypeEngine[Any]:
+    mapping: dict[object, TypeEngine[Any]] = {
         "int": BigInteger(),
         "float": Float(),
         "bool": Boolean(),
@@ -65,9 +66,9 @@ def _sql_type(tp: object) -> TypeEngine[object]:
     return mapping[tp]
 
 
-def tick_columns() -> list[Column[object]]:
+def tick_columns() -> list[Column[Any]]:
     """The tick table's data columns, in `TickRecord` order."""
-    cols: list[Column[object]] = []
+    cols: list[Column[Any]] = []
     for f in dataclasses.fields(TickRecord):
         cols.append(Column(f.name, _sql_type(f.type), nullable=True))
     return cols

@@ -171,9 +171,8 @@ class WorkerSupervisor:
     def _read(self, proc: BaseProcess, conn: Connection) -> None:
         while True:
             ready = wait([conn, proc.sentinel], timeout=POLL_S)
-            if conn in ready:
-                if not self._receive(conn):
-                    ready = [proc.sentinel]
+            if conn in ready and not self._receive(conn):
+                ready = [proc.sentinel]
             if proc.sentinel in ready or (not ready and not proc.is_alive()):
                 # Keep what the worker managed to send before it died.
                 while True:

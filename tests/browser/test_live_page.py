@@ -5,12 +5,15 @@ from __future__ import annotations
 from typing import Any
 
 
-def test_live_page_receives_and_draws_at_least_50_samples_per_second(server: str, page: Any) -> None:
+def test_live_page_receives_and_draws_at_least_50_samples_per_second(
+    server: str, page: Any
+) -> None:
     page.goto(f"{server}/live")
     page.wait_for_function("window.exostudyLive && window.exostudyLive.samples > 0", timeout=20000)
-    start = page.evaluate("({s: window.exostudyLive.samples, d: window.exostudyLive.draws, t: performance.now()})")
+    probe = "({s: exostudyLive.samples, d: exostudyLive.draws, t: performance.now()})"
+    start = page.evaluate(probe)
     page.wait_for_timeout(3000)
-    end = page.evaluate("({s: window.exostudyLive.samples, d: window.exostudyLive.draws, t: performance.now()})")
+    end = page.evaluate(probe)
     seconds = (end["t"] - start["t"]) / 1000
     rate = (end["s"] - start["s"]) / seconds
     draws = (end["d"] - start["d"]) / seconds

@@ -58,7 +58,10 @@ def test_std_limit_is_on_either_hip() -> None:
     [
         (np.zeros((50, 2)), "at least 100 samples"),
         (np.zeros((200, 3)), "shape"),
-        (np.where(np.arange(400).reshape(200, 2) == 7, np.nan, 0.0), "1 samples with NaN"),
+        (
+            np.where(np.arange(400).reshape(200, 2) == 7, np.nan, 0.0),
+            "NaN or inf in 1 of 200 samples",
+        ),
     ],
 )
 def test_bad_periods_rejected(angles: np.ndarray, message: str) -> None:

@@ -13,12 +13,14 @@ from dtaidistance.subsequence.dtw import subsequence_alignment
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from controller.intent import IntentEstimator, _intent_kernel
 from controller.onset import (
     Match,
     ModelBank,
     ObservationWindow,
     OnsetCriteria,
     OnsetDetector,
+    _bank_kernel,
     match,
 )
 
@@ -390,3 +392,19 @@ def test_observation_window_is_oldest_first_and_contiguous() -> None:
     assert w.full
     w.reset()
     assert len(w) == 0 and w.view().shape == (0, 2)
+
+
+def test_no_compilation_after_warm_up_in_a_tick() -> None:
+    """The outputs a tick hands on are C-contiguous, the layout warm-up compiled for."""
+    means, covs = _models(seed=7)
+    bank, intent, window = ModelBank(means, covs), IntentEstimator(), ObservationWindow(30)
+    bank.warm_up()
+    intent.warm_up()
+    before = (len(_bank_kernel.signatures), len(_intent_kernel.signatures))
+    for q in means[1, :40]:
+        window.push(float(q[0]), float(q[1]))
+        bank.evaluate(window.view())
+        intent.update(bank.D, bank.L, bank.accepted)
+    assert (len(_bank_kernel.signatures), len(_intent_kernel.signatures)) == before
+    for arr in (bank.D, bank.L, bank.s_curr, bank.s_start, bank.accepted, intent.post):
+        assert arr.flags.c_contiguous
