@@ -25,12 +25,13 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=0, le=65535)
 
-    #: `sim`: the simulated exoskeleton runs inside the worker process.
-    #: `udp`: the worker talks to a device over the wire protocol at `device_address`.
-    device_kind: Literal["sim", "udp"] = "sim"
+    #: `udp`: the worker talks to a device over the wire protocol at `device_address`
+    #: (docs/device-protocol.md). `sim`: the simulated exoskeleton runs inside the worker.
+    device_kind: Literal["sim", "udp"] = "udp"
     device_address: str = "127.0.0.1:5555"
     #: With `udp`, start the simulated exoskeleton as its own process on that address.
-    device_spawn_simulator: bool = False
+    #: Set it to false for a real exoskeleton.
+    device_spawn_simulator: bool = True
     device_seed: int = 1
     device_script: str = "paper-evaluation"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)

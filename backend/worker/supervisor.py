@@ -218,7 +218,8 @@ class WorkerSupervisor:
             self.state.exit_code = code
             if not self._stopping:
                 self.state.exit_reason = _describe_exit(code)
-                log.error("worker exited unexpectedly: %s", self.state.exit_reason)
+                level = logging.INFO if code == 0 else logging.ERROR
+                log.log(level, "worker exited without being asked: %s", self.state.exit_reason)
             reason = self.state.exit_reason
         self.callbacks.on_exit(code, reason)
         self.callbacks.on_event("worker", {"alive": False, "exit_code": code, "reason": reason})
