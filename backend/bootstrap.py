@@ -14,7 +14,7 @@ from pathlib import Path
 from controller.motion_model import ModelSet
 from controller.sim.demonstrations import simulated_model_set
 from controller.sim.human_dataset import reference_dataset
-from controller.utilities import UtilitySet, compute_utilities
+from controller.utilities import DEFAULT_OTHER_RULE, UtilitySet, compute_utilities
 
 log = logging.getLogger(__name__)
 
@@ -38,12 +38,23 @@ def utilities_path(folder: Path, precompression_pct: float) -> Path:
 
 
 def ensure_utilities(path: Path, precompression_pct: float) -> UtilitySet:
-    """Load the utility set at `path`, computing it from the reference dataset if missing."""
+    """Load the utility set at `path`, computing it from the reference dataset if missing
+    or if it was computed from another version of the dataset or another `other` rule."""
+    human = reference_dataset()
     if path.is_file():
-        return UtilitySet.load(path)
+        try:
+            cached = UtilitySet.load(path)
+        except (ValueError, KeyError) as exc:
+            log.warning("rebuilding %s: %s", path, exc)
+        else:
+            if (cached.human_version == human.version
+                    and cached.meta.get("other_rule") == DEFAULT_OTHER_RULE
+                    and cached.precompression_pct == precompression_pct):
+                return cached
+            log.info("rebuilding %s: computed from other data or rules", path)
     log.info("computing default utilities for %.1f %% precompression -> %s",
              precompression_pct, path)
-    utilities = compute_utilities(reference_dataset(), precompression_pct)
+    utilities = compute_utilities(human, precompression_pct)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     utilities.save(tmp)

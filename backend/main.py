@@ -6,14 +6,28 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI
-from fastapi.responses import FileResponse, RedirectResponse
+from fastapi import FastAPI, Request
+from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 
-from backend.api.routes import health, live, worker
+from backend.api.deps import SESSION_COOKIE, login_from_token
+from backend.api.routes import (
+    audit,
+    auth,
+    health,
+    live,
+    participant_forms,
+    participants,
+    preferences,
+    questionnaires,
+    sessions,
+    studies,
+    worker,
+)
 from backend.core.config import Settings, get_settings
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
+from backend.questionnaires.catalog import ensure_built_ins
 from backend.runtime import Runtime
 
 log = logging.getLogger(__name__)
@@ -30,6 +44,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.settings = settings
         app.state.engine = engine
         app.state.sessions = make_session_factory(engine)
+        with app.state.sessions() as db:
+            ensure_built_ins(db)
         runtime = Runtime(settings, engine)
         app.state.runtime = runtime
         await runtime.start()
@@ -49,6 +65,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(health.router)
     app.include_router(worker.router)
     app.include_router(live.router)
+    app.include_router(auth.router)
+    app.include_router(studies.router)
+    app.include_router(participants.router)
+    app.include_router(sessions.router)
+    app.include_router(questionnaires.router)
+    app.include_router(preferences.router)
+    app.include_router(participant_forms.router)
+    app.include_router(participant_forms.pages)
+    app.include_router(audit.router)
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"
@@ -63,7 +88,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return RedirectResponse("/live")
 
     @app.get("/live", include_in_schema=False)
-    def live_page() -> FileResponse:
+    def live_page(request: Request) -> Response:
+        # Pages need a login like the API; without one, the login page brings you back.
+        if login_from_token(app.state.sessions, request.cookies.get(SESSION_COOKIE)) is None:
+            return RedirectResponse("/login?next=/live", status_code=303)
         return FileResponse(static / "live.html")
+
+    @app.get("/login", include_in_schema=False)
+    def login_page() -> FileResponse:
+        return FileResponse(static / "login.html")
 
     return app

@@ -8,8 +8,8 @@ Model (controller.md, "E-UMC and PEC"), per hip, state `x = [q, omega]`:
 - `z_k = q_k + v_k` with `v_k ~ N(0, sigma_z^2)`, `sigma_z = 1.05e-3` rad.
 
 Both hips share the same model and are sampled together, so their covariances (and
-gains) are identical: the class propagates one covariance and two states, in plain
-scalar arithmetic (no numpy, no allocation per step).
+gains) are identical: the filter propagates one covariance and two states, in plain
+scalar arithmetic on a preallocated state array (`kalman_step`, compiled, no allocation).
 
 Initialisation: the first finite sample sets `q`, with `omega = 0`, position variance
 `sigma_z^2` and velocity variance `init_omega_std^2` (default (1 rad/s)^2). A sample
@@ -20,6 +20,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+FloatArray = npt.NDArray[np.float64]
+
 #: Encoder-derived measurement noise of a hip angle, rad.
 MEAS_STD = 1.05e-3
 #: Default white-acceleration noise, rad/s^2 (controller.md: 10 to 20).
@@ -27,8 +33,75 @@ ACCEL_STD = 15.0
 DT = 0.01
 
 
+# Filter state, a float64 array so the compiled tick can own it: initialised flag, both
+# hips' (q, omega), the shared covariance and the last gain.
+_INIT, _QL, _WL, _QR, _WR, _P00, _P01, _P11, _K0, _K1 = range(10)
+N_STATE = 10
+# Constants: dt, the process noise Q (q00, q01, q11), R, and the initial velocity variance.
+_DT, _Q00, _Q01, _Q11, _R, _W_VAR0 = range(6)
+N_PARAMS = 6
+
+
+@njit(cache=True, nogil=True)
+def kalman_step(
+    st: FloatArray, prm: FloatArray, q_left: float, q_right: float
+) -> tuple[float, float]:
+    """Filter one sample of both hips in place; (omega_left, omega_right) in rad/s.
+
+    The one implementation of the filter: `HipVelocityFilter` and the compiled control
+    tick (`controller.tick_kernel`) both call it. Plain scalar arithmetic, in the
+    order of the equations in the module docstring.
+    """
+    usable = not (math.isnan(q_left) or math.isnan(q_right))
+    if st[_INIT] == 0.0:
+        if not usable:
+            return math.nan, math.nan
+        st[_INIT] = 1.0
+        st[_QL] = q_left
+        st[_QR] = q_right
+        st[_WL] = 0.0
+        st[_WR] = 0.0
+        st[_P00] = prm[_R]
+        st[_P01] = 0.0
+        st[_P11] = prm[_W_VAR0]
+        return 0.0, 0.0
+    dt = prm[_DT]
+    # Predict.
+    p01 = st[_P01] + dt * st[_P11]
+    p00 = st[_P00] + dt * (st[_P01] + p01) + prm[_Q00]
+    p01 += prm[_Q01]
+    p11 = st[_P11] + prm[_Q11]
+    ql = st[_QL] + dt * st[_WL]
+    qr = st[_QR] + dt * st[_WR]
+    if usable:
+        s = p00 + prm[_R]
+        k0 = p00 / s
+        k1 = p01 / s
+        el = q_left - ql
+        er = q_right - qr
+        ql += k0 * el
+        qr += k0 * er
+        st[_WL] += k1 * el
+        st[_WR] += k1 * er
+        p11 -= k1 * p01
+        p00 *= 1.0 - k0
+        p01 *= 1.0 - k0
+        st[_K0] = k0
+        st[_K1] = k1
+    st[_QL] = ql
+    st[_QR] = qr
+    st[_P00] = p00
+    st[_P01] = p01
+    st[_P11] = p11
+    return st[_WL], st[_WR]
+
+
 class HipVelocityFilter:
-    """Two constant-velocity Kalman filters (left, right hip) with one shared covariance."""
+    """Two constant-velocity Kalman filters (left, right hip) with one shared covariance.
+
+    `state` and `constants` are the arrays `kalman_step` works on; the compiled control
+    tick holds a pair of its own built by `arrays()`.
+    """
 
     def __init__(
         self,
@@ -49,80 +122,43 @@ class HipVelocityFilter:
         self.dt = dt
         self.init_omega_std = init_omega_std
         s2 = accel_std * accel_std
-        self._q00 = s2 * dt**4 / 4.0
-        self._q01 = s2 * dt**3 / 2.0
-        self._q11 = s2 * dt * dt
-        self._r = meas_std * meas_std
-        self.reset()
+        self.constants = np.array([
+            dt, s2 * dt**4 / 4.0, s2 * dt**3 / 2.0, s2 * dt * dt, meas_std * meas_std,
+            init_omega_std * init_omega_std,
+        ])
+        self.state = np.zeros(N_STATE)
 
     def reset(self) -> None:
         """Forget the state; the next finite sample re-initialises it."""
-        self._init = False
-        self._ql = self._wl = self._qr = self._wr = 0.0
-        self._p00 = self._p01 = self._p11 = 0.0
-        self._k0 = self._k1 = 0.0
+        self.state[:] = 0.0
 
     @property
     def initialised(self) -> bool:
         """True once a finite sample has been filtered."""
-        return self._init
+        return bool(self.state[_INIT])
 
     @property
     def gain(self) -> tuple[float, float]:
         """Kalman gain (position, velocity) of the last update."""
-        return self._k0, self._k1
+        return float(self.state[_K0]), float(self.state[_K1])
 
     @property
     def covariance(self) -> tuple[float, float, float]:
         """Posterior covariance (p_qq, p_qw, p_ww), shared by both hips."""
-        return self._p00, self._p01, self._p11
+        st = self.state
+        return float(st[_P00]), float(st[_P01]), float(st[_P11])
 
     @property
     def angles(self) -> tuple[float, float]:
         """Filtered (left, right) hip angles, rad."""
-        return self._ql, self._qr
+        return float(self.state[_QL]), float(self.state[_QR])
 
     def step(self, q_left: float, q_right: float) -> tuple[float, float]:
         """Filter one sample of both hips; return (omega_left, omega_right) in rad/s.
 
         Before the first finite sample the velocities are NaN.
         """
-        usable = not (math.isnan(q_left) or math.isnan(q_right))
-        if not self._init:
-            if not usable:
-                return math.nan, math.nan
-            self._init = True
-            self._ql, self._qr = q_left, q_right
-            self._wl = self._wr = 0.0
-            self._p00 = self._r
-            self._p01 = 0.0
-            self._p11 = self.init_omega_std * self.init_omega_std
-            return 0.0, 0.0
-        dt = self.dt
-        # Predict.
-        p01 = self._p01 + dt * self._p11
-        p00 = self._p00 + dt * (self._p01 + p01) + self._q00
-        p01 += self._q01
-        p11 = self._p11 + self._q11
-        ql = self._ql + dt * self._wl
-        qr = self._qr + dt * self._wr
-        if usable:
-            s = p00 + self._r
-            k0 = p00 / s
-            k1 = p01 / s
-            el = q_left - ql
-            er = q_right - qr
-            ql += k0 * el
-            qr += k0 * er
-            self._wl += k1 * el
-            self._wr += k1 * er
-            p11 -= k1 * p01
-            p00 *= 1.0 - k0
-            p01 *= 1.0 - k0
-            self._k0, self._k1 = k0, k1
-        self._ql, self._qr = ql, qr
-        self._p00, self._p01, self._p11 = p00, p01, p11
-        return self._wl, self._wr
+        return kalman_step(self.state, self.constants, float(q_left), float(q_right))  # type: ignore[no-any-return]
 
 
 class VelocityTrigger:

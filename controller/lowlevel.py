@@ -10,6 +10,34 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+IntArray = npt.NDArray[np.int64]
+
+
+@njit(cache=True, nogil=True)
+def hold_update(
+    left_right: IntArray, hold_ticks: int, request_left: bool, request_right: bool
+) -> tuple[bool, bool]:
+    """Advance the two countdowns `left_right` one tick; return the (left, right) commands.
+
+    The one implementation of the hold: `LockHold` and the compiled control tick
+    (`controller.tick_kernel`) both call it.
+    """
+    if request_left:
+        left_right[0] = hold_ticks
+    if request_right:
+        left_right[1] = hold_ticks
+    out_left = left_right[0] > 0
+    out_right = left_right[1] > 0
+    if out_left:
+        left_right[0] -= 1
+    if out_right:
+        left_right[1] -= 1
+    return out_left, out_right
+
 
 class LockHold:
     """Holds each side's lock request for a fixed number of ticks."""
@@ -22,29 +50,19 @@ class LockHold:
         self.dt = dt
         #: Ticks the output stays on after one request (rounded: 0.3 / 0.01 -> 30).
         self.hold_ticks = max(1, round(hold_s / dt))
-        self._left = 0
-        self._right = 0
+        #: Ticks left on each side, (left, right); the array `hold_update` counts down.
+        self.counters = np.zeros(2, dtype=np.int64)
 
     def reset(self) -> None:
         """Drop any held command (both sides off at the next tick)."""
-        self._left = 0
-        self._right = 0
+        self.counters[:] = 0
 
     def update(self, request_left: bool, request_right: bool) -> tuple[bool, bool]:
         """Advance one tick with this tick's requests; return the (left, right) commands."""
-        if request_left:
-            self._left = self.hold_ticks
-        if request_right:
-            self._right = self.hold_ticks
-        out_left = self._left > 0
-        out_right = self._right > 0
-        if out_left:
-            self._left -= 1
-        if out_right:
-            self._right -= 1
-        return out_left, out_right
+        return hold_update(self.counters, self.hold_ticks, bool(request_left),  # type: ignore[no-any-return]
+                           bool(request_right))
 
     @property
     def remaining(self) -> tuple[int, int]:
         """Ticks each side will still be on without a new request, after this tick."""
-        return self._left, self._right
+        return int(self.counters[0]), int(self.counters[1])

@@ -593,6 +593,31 @@ def match(
     return Match(d, L, n_start, n_curr, i_start, i_curr)
 
 
+@njit(cache=True, nogil=True)
+def window_push(buf: FloatArray, pos_count: IntArray, q_left: float, q_right: float) -> None:
+    """Append one sample to the doubled ring `buf` (2M, 2); `pos_count` = (next slot, count).
+
+    The one implementation of the window: `ObservationWindow` and the compiled control
+    tick (`controller.tick_kernel`) both call it, and read it with `window_start`.
+    """
+    size = buf.shape[0] // 2
+    p = pos_count[0]
+    buf[p, 0] = q_left
+    buf[p, 1] = q_right
+    buf[p + size, 0] = q_left
+    buf[p + size, 1] = q_right
+    p += 1
+    pos_count[0] = 0 if p == size else p
+    if pos_count[1] < size:
+        pos_count[1] += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def window_start(size: int, pos_count: IntArray) -> int:
+    """First row of the window in the doubled ring; it ends at row `pos + size`."""
+    return pos_count[0] + size - pos_count[1]  # type: ignore[no-any-return]
+
+
 class ObservationWindow:
     """The last `M` calibrated hip angles, oldest first, as a contiguous (M, 2) array.
 
@@ -605,37 +630,27 @@ class ObservationWindow:
         if size < 1:
             raise ValueError(f"window size must be >= 1, got {size}")
         self.size = size
-        self._buf = np.zeros((2 * size, 2), dtype=np.float64)
-        self._pos = 0
-        self._count = 0
+        self.buffer = np.zeros((2 * size, 2), dtype=np.float64)
+        #: (next slot, samples held), the array `window_push` updates.
+        self.pos_count = np.zeros(2, dtype=np.int64)
 
     def push(self, q_left: float, q_right: float) -> None:
         """Append the newest sample, dropping the oldest once full."""
-        b = self._buf
-        p = self._pos
-        b[p, 0] = q_left
-        b[p, 1] = q_right
-        b[p + self.size, 0] = q_left
-        b[p + self.size, 1] = q_right
-        p += 1
-        self._pos = 0 if p == self.size else p
-        if self._count < self.size:
-            self._count += 1
+        window_push(self.buffer, self.pos_count, float(q_left), float(q_right))
 
     @property
     def full(self) -> bool:
         """True once `size` samples have been pushed since the last reset."""
-        return self._count == self.size
+        return bool(self.pos_count[1] == self.size)
 
     def __len__(self) -> int:
-        return self._count
+        return int(self.pos_count[1])
 
     def view(self) -> FloatArray:
         """The window, oldest first: (len, 2), valid until the next push."""
-        start = self._pos + self.size - self._count
-        return self._buf[start : self._pos + self.size]
+        pos = int(self.pos_count[0])
+        return self.buffer[pos + self.size - int(self.pos_count[1]) : pos + self.size]
 
     def reset(self) -> None:
         """Forget all samples."""
-        self._pos = 0
-        self._count = 0
+        self.pos_count[:] = 0

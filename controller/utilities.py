@@ -12,7 +12,7 @@ Per leg and motion, from the mean human hip angle `theta(s_n)` and hip extension
 
 Squat: both legs support; stoop_left: the left leg; stoop_right: the right. Walking
 uses the appendix's value iteration (neither leg is assumed to support), and the
-category `other` gets, per action, the minimum over progress of the walking utility.
+category `other` is derived from the walking utilities by `other_rule` (below).
 
 Choices the paper leaves open, made here:
 
@@ -32,6 +32,19 @@ Choices the paper leaves open, made here:
   paper's assumptions hold (locking as soon as possible is optimal for a supporting
   leg, never locking for a non-supporting one). `assumption_gap` in the set's `meta`
   reports, per lifting motion, the largest difference between the two.
+- **`other`: a stated departure from the literal rule** `U(a, other) = min_s U(a,
+  walking, s)` (`other_rule="paper-literal"`, kept as an option). Walking utilities
+  sum over the rest of the cycle, so every action's minimum sits at `s = 0` and the
+  rule compares actions at one arbitrary phase (left heel strike). On the simulated
+  reference data (25 %) that is the right hip's maximal extension, where locking now
+  beats the value-iteration baseline (lock one sample later) by 1.9 Nm^2, so `other`
+  preferred locking: the opposite of the heuristic's purpose. Decisions depend only
+  on differences to no-lock within a category, so the default `"worst-difference"`
+  keeps `U(no_lock, other)` literal and adds, per action, the worst case over walking
+  progress of `U(a, walking, s) - U(no_lock, walking, s)` (walking still by value
+  iteration). All actions tie at the last sample, so this is `<= 0`: a lock is never
+  preferred in `other`, but only penalised if some phase makes it cost (otherwise a
+  tie). `meta` stores the rule and each action's penalty.
 """
 
 from __future__ import annotations
@@ -41,7 +54,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,6 +79,11 @@ SUPPORTING_LEGS: dict[str, tuple[bool, bool]] = {
 ACTION_LOCKS: tuple[tuple[bool, bool], ...] = tuple(a.locks for a in Action)
 
 ProgressCallback = Callable[[float], None]
+
+#: How `U(a, other)` is derived from the walking utilities (see the module docstring).
+OtherRule = Literal["worst-difference", "paper-literal"]
+OTHER_RULES: tuple[OtherRule, ...] = ("worst-difference", "paper-literal")
+DEFAULT_OTHER_RULE: OtherRule = "worst-difference"
 
 
 def _exo_torque_matrix(
@@ -173,11 +191,28 @@ def _leg_table(q_keep: FloatArray, q_lock: FloatArray, leg: int) -> FloatArray:
     return np.stack([q_lock if locks[leg] else q_keep for locks in ACTION_LOCKS])
 
 
+def other_utilities(walking: FloatArray, rule: OtherRule = DEFAULT_OTHER_RULE) -> FloatArray:
+    """`(4,)` U(a, other) from the `(4, N)` walking utilities (rows in `Action` order).
+
+    `"paper-literal"`: `min_s U(a, walking, s)` per action. `"worst-difference"`:
+    `min_s U(no_lock, walking, s) + min_s (U(a, walking, s) - U(no_lock, walking, s))`,
+    which equals the literal value for no-lock and never exceeds it for a lock when
+    the last sample ties (it does for value-iteration utilities).
+    """
+    w = np.asarray(walking, dtype=np.float64)
+    if rule == "paper-literal":
+        return np.asarray(w.min(axis=1), dtype=np.float64)
+    if rule == "worst-difference":
+        base = w[0]
+        return np.asarray(base.min() + (w - base[None, :]).min(axis=1), dtype=np.float64)
+    raise ValueError(f"other_rule must be one of {OTHER_RULES}, got {rule!r}")
+
+
 @dataclass(frozen=True)
 class UtilityTable:
     """`values[a, j, n]` = U(action a+1, category j, s_n), categories in `CATEGORY_NAMES`.
 
-    The `other` column is constant over `n` (minimum over walking progress).
+    The `other` column is constant over `n` (derived from walking, see `other_rule`).
     """
 
     values: FloatArray
@@ -268,6 +303,7 @@ def compute_utilities(
     precompression_pct: float,
     params: MaccepaParams = PAPER_ACTUATOR,
     progress: ProgressCallback | None = None,
+    other_rule: OtherRule = DEFAULT_OTHER_RULE,
 ) -> UtilitySet:
     """Compute the utility table for one actuator setting.
 
@@ -277,11 +313,16 @@ def compute_utilities(
         params: actuator geometry.
         progress: optional callback receiving the fraction done (0..1), so a
             background job can report; called a handful of times.
+        other_rule: how `U(a, other)` is derived from walking (module docstring).
 
     Returns:
         The set, with `meta["assumption_gap"]` (per lifting motion, the largest
-        `|value iteration - closed form|` over legs, actions and progress, Nm^2).
+        `|value iteration - closed form|` over legs, actions and progress, Nm^2),
+        `meta["other_rule"]` and `meta["other_penalty"]` (per action name,
+        `U(a, other) - U(no_lock, other)`, Nm^2).
     """
+    if other_rule not in OTHER_RULES:
+        raise ValueError(f"other_rule must be one of {OTHER_RULES}, got {other_rule!r}")
     values = np.zeros((len(Action), len(CATEGORY_NAMES), N_PROGRESS))
     gap: dict[str, float] = {}
     steps = 2 * len(HUMAN_MOTIONS)
@@ -316,7 +357,8 @@ def compute_utilities(
         walking += _leg_table(keep, lock, leg)
         done += 1
         report()
-    values[:, CATEGORY_NAMES.index("other"), :] = walking.min(axis=1)[:, None]
+    other = other_utilities(walking, other_rule)
+    values[:, CATEGORY_NAMES.index("other"), :] = other[:, None]
     done = steps
     report()
     return UtilitySet(
@@ -326,5 +368,11 @@ def compute_utilities(
         human_source=human.source,
         human_version=human.version,
         created=datetime.now(UTC).isoformat(timespec="seconds"),
-        meta={"assumption_gap": gap},
+        meta={
+            "assumption_gap": gap,
+            "other_rule": other_rule,
+            "other_penalty": {
+                name: float(other[a] - other[0]) for a, name in enumerate(ACTION_NAMES)
+            },
+        },
     )

@@ -30,6 +30,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
+from numba import njit
 
 from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
 from controller.device.base import Status
@@ -39,10 +41,100 @@ PULL_IN_S = 0.02
 NOISE_DEG = 0.04
 HARDWARE_SEED = 2024  # one exoskeleton for every simulated participant
 _EPS = 1e-12
+FloatArray = npt.NDArray[np.float64]
+
+
+# One side's mechanism state, a float64 row so that the compiled step can update it in
+# place: link angles, the three booleans as 0/1 and the solenoid's energised tick count.
+_OUTPUT, _CAM, _LOCKED, _HARD_STOP, _SOLENOID, _ENERGISED = range(6)
+N_STATE = 6
+# One side's constants: ratchet pitch, tooth phase, deflection limit, pull-in ticks.
+_PITCH, _PHASE, _ALPHA_MAX, _PULL_IN = range(4)
+N_PARAMS = 4
+LOCKED_LEFT = int(Status.LOCKED_LEFT)
+LOCKED_RIGHT = int(Status.LOCKED_RIGHT)
+HARD_STOP_LEFT = int(Status.HARD_STOP_LEFT)
+HARD_STOP_RIGHT = int(Status.HARD_STOP_RIGHT)
+SOLENOID_LEFT = int(Status.SOLENOID_LEFT)
+SOLENOID_RIGHT = int(Status.SOLENOID_RIGHT)
+
+
+@njit(cache=True, nogil=True)
+def next_tooth(angle: float, pitch: float, phase: float) -> float:
+    """The first tooth position at or above `angle` in the flexion direction."""
+    k = math.ceil((angle - phase) / pitch - 1e-9)
+    return phase + k * pitch
+
+
+@njit(cache=True, nogil=True)
+def hip_step(st: FloatArray, prm: FloatArray, solenoid: bool, intended: float) -> None:
+    """Advance one side's state `st` one tick (the mechanism of the module docstring).
+
+    The one implementation of the ratchet: `HipModule` (live simulator) and the batch
+    replay both call it, so a replayed lock has exactly the effect it has live.
+    `min(intended, limit)` is spelled out with Python's tie and NaN rule (the first
+    argument unless the second is smaller).
+    """
+    st[_SOLENOID] = 1.0 if solenoid else 0.0
+    st[_ENERGISED] = st[_ENERGISED] + 1.0 if solenoid else 0.0
+    cam = st[_CAM]
+    if st[_LOCKED] != 0.0:
+        limit = cam + prm[_ALPHA_MAX]
+        hard = intended >= limit - _EPS
+        output = limit if limit < intended else intended
+        st[_OUTPUT] = output
+        st[_HARD_STOP] = 1.0 if hard else 0.0
+        if output <= cam:
+            # The pawl spring pushes the pawl out at alpha = 0.
+            st[_LOCKED] = 0.0
+            st[_HARD_STOP] = 0.0
+            st[_CAM] = output
+        return
+    st[_HARD_STOP] = 0.0
+    pawl_on_ratchet = st[_ENERGISED] >= prm[_PULL_IN]
+    if pawl_on_ratchet and intended > cam:
+        tooth = next_tooth(cam, prm[_PITCH], prm[_PHASE])
+        if intended > tooth:
+            st[_LOCKED] = 1.0
+            st[_CAM] = tooth
+            limit = tooth + prm[_ALPHA_MAX]
+            st[_HARD_STOP] = 1.0 if intended >= limit - _EPS else 0.0
+            st[_OUTPUT] = limit if limit < intended else intended
+            return
+    st[_OUTPUT] = intended
+    st[_CAM] = intended
+
+
+@njit(cache=True, nogil=True)
+def plant_step(
+    st: FloatArray, prm: FloatArray, lock_left: bool, lock_right: bool, left: float,
+    right: float,
+) -> int:
+    """Both sides (rows 0 and 1 of `st` and `prm`) one tick; returns the `Status` bits."""
+    hip_step(st[0], prm[0], lock_left, left)
+    hip_step(st[1], prm[1], lock_right, right)
+    status = 0
+    if lock_left:
+        status |= SOLENOID_LEFT
+    if lock_right:
+        status |= SOLENOID_RIGHT
+    if st[0, _LOCKED] != 0.0:
+        status |= LOCKED_LEFT
+    if st[1, _LOCKED] != 0.0:
+        status |= LOCKED_RIGHT
+    if st[0, _HARD_STOP] != 0.0:
+        status |= HARD_STOP_LEFT
+    if st[1, _HARD_STOP] != 0.0:
+        status |= HARD_STOP_RIGHT
+    return status
 
 
 class HipModule:
-    """Ratchet, pawl, springs and hard stop of one side. Angles in radians, joint frame."""
+    """Ratchet, pawl, springs and hard stop of one side. Angles in radians, joint frame.
+
+    The state lives in a float64 row (`state`, see `hip_step`); `ExoPlant` passes a row
+    of its own two-side array so that both sides step in one compiled call.
+    """
 
     def __init__(
         self,
@@ -51,6 +143,8 @@ class HipModule:
         tooth_phase: float = 0.0,
         dt: float = 0.01,
         pull_in_s: float = PULL_IN_S,
+        state: FloatArray | None = None,
+        constants: FloatArray | None = None,
     ) -> None:
         self.precompression_pct = precompression_pct
         self.params = params
@@ -58,23 +152,45 @@ class HipModule:
         self.tooth_phase = tooth_phase
         self.alpha_max = max_deflection(precompression_pct, params)
         self.pull_in_ticks = max(1, round(pull_in_s / dt))
-        self.output = 0.0
-        self.cam = 0.0
-        self.locked = False
-        self.hard_stop = False
-        self.solenoid = False
-        self._energised_ticks = 0
+        self.state = np.zeros(N_STATE) if state is None else state
+        self.constants = np.zeros(N_PARAMS) if constants is None else constants
+        self.constants[:] = (self.pitch, tooth_phase, self.alpha_max, self.pull_in_ticks)
+        self.state[:] = 0.0
 
     def reset(self, angle: float) -> None:
         """Unlocked, both links at `angle`."""
-        self.output = self.cam = angle
-        self.locked = self.hard_stop = self.solenoid = False
-        self._energised_ticks = 0
+        self.state[:] = 0.0
+        self.state[_OUTPUT] = self.state[_CAM] = angle
+
+    @property
+    def output(self) -> float:
+        """Output-link angle (follows the thigh, up to the hard stop)."""
+        return float(self.state[_OUTPUT])
+
+    @property
+    def cam(self) -> float:
+        """Cam-link angle (grounded at a tooth while locked)."""
+        return float(self.state[_CAM])
+
+    @property
+    def locked(self) -> bool:
+        """The pawl holds the ratchet."""
+        return bool(self.state[_LOCKED])
+
+    @property
+    def hard_stop(self) -> bool:
+        """The springs are at their 22 mm compression limit."""
+        return bool(self.state[_HARD_STOP])
+
+    @property
+    def solenoid(self) -> bool:
+        """The last solenoid command."""
+        return bool(self.state[_SOLENOID])
 
     @property
     def alpha(self) -> float:
         """Spring deflection, output minus cam (>= 0)."""
-        return self.output - self.cam
+        return float(self.state[_OUTPUT] - self.state[_CAM])
 
     def torque(self) -> float:
         """Extension torque of the springs (Nm) at the current deflection."""
@@ -84,35 +200,11 @@ class HipModule:
 
     def next_tooth(self, angle: float) -> float:
         """The first tooth position at or above `angle` in the flexion direction."""
-        k = math.ceil((angle - self.tooth_phase) / self.pitch - 1e-9)
-        return self.tooth_phase + k * self.pitch
+        return float(next_tooth(angle, self.pitch, self.tooth_phase))
 
     def step(self, solenoid: bool, intended: float) -> None:
         """Advance one tick with the solenoid command and the thigh's intended link angle."""
-        self.solenoid = solenoid
-        self._energised_ticks = self._energised_ticks + 1 if solenoid else 0
-        if self.locked:
-            limit = self.cam + self.alpha_max
-            self.hard_stop = intended >= limit - _EPS
-            self.output = min(intended, limit)
-            if self.output <= self.cam:
-                # The pawl spring pushes the pawl out at alpha = 0.
-                self.locked = False
-                self.hard_stop = False
-                self.cam = self.output
-            return
-        self.hard_stop = False
-        pawl_on_ratchet = self._energised_ticks >= self.pull_in_ticks
-        if pawl_on_ratchet and intended > self.cam:
-            tooth = self.next_tooth(self.cam)
-            if intended > tooth:
-                self.locked = True
-                self.cam = tooth
-                limit = tooth + self.alpha_max
-                self.hard_stop = intended >= limit - _EPS
-                self.output = min(intended, limit)
-                return
-        self.output = self.cam = intended
+        hip_step(self.state, self.constants, bool(solenoid), float(intended))
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,8 +261,13 @@ class ExoPlant:
     ) -> None:
         r = np.random.default_rng(np.random.SeedSequence([0x7007, HARDWARE_SEED]))
         phases = r.uniform(0.0, params.tooth_angle, 2)
-        self.left = HipModule(precompression_pct, params, float(phases[0]), dt)
-        self.right = HipModule(precompression_pct, params, float(phases[1]), dt)
+        #: Both sides' mechanism state and constants, rows (left, right), for `plant_step`.
+        self.state = np.zeros((2, N_STATE))
+        self.constants = np.zeros((2, N_PARAMS))
+        self.left = HipModule(precompression_pct, params, float(phases[0]), dt,
+                              state=self.state[0], constants=self.constants[0])
+        self.right = HipModule(precompression_pct, params, float(phases[1]), dt,
+                               state=self.state[1], constants=self.constants[1])
         self.layout = layout
         self.encoders = encoders if encoders is not None else EncoderModel.from_seed()
 
@@ -181,26 +278,15 @@ class ExoPlant:
 
     def step(self, lock_left: bool, lock_right: bool, left: float, right: float) -> Status:
         """Advance both sides one tick; returns the mechanism's status bits."""
-        self.left.step(lock_left, left)
-        self.right.step(lock_right, right)
-        status = Status.NONE
-        if lock_left:
-            status |= Status.SOLENOID_LEFT
-        if lock_right:
-            status |= Status.SOLENOID_RIGHT
-        if self.left.locked:
-            status |= Status.LOCKED_LEFT
-        if self.right.locked:
-            status |= Status.LOCKED_RIGHT
-        if self.left.hard_stop:
-            status |= Status.HARD_STOP_LEFT
-        if self.right.hard_stop:
-            status |= Status.HARD_STOP_RIGHT
-        return status
+        return Status(
+            plant_step(self.state, self.constants, bool(lock_left), bool(lock_right),
+                       float(left), float(right))
+        )
 
     def link_angles(self) -> tuple[float, float, float, float]:
         """True (left output, left cam, right output, right cam) angles (rad)."""
-        return self.left.output, self.left.cam, self.right.output, self.right.cam
+        a, b, c, d = self.state[:, :_CAM + 1].ravel().tolist()
+        return a, b, c, d
 
     def counts(self, noise: tuple[float, float, float, float]) -> tuple[int, int, int, int]:
         """Encoder readings of the current link angles; `noise` are standard normal draws."""

@@ -17,11 +17,13 @@ from controller.human_data import HUMAN_MOTIONS, HumanMotionData
 from controller.tick import CATEGORY_NAMES, Action
 from controller.utilities import (
     FORMAT_NAME,
+    OTHER_RULES,
     UtilitySet,
     UtilityTable,
     closed_form_leg_rewards,
     compute_utilities,
     lock_total_reward,
+    other_utilities,
     value_iteration_leg,
 )
 
@@ -176,12 +178,20 @@ def test_compute_utilities_table() -> None:
     np.testing.assert_allclose(v[1, j], lock_l + lock_r)
     np.testing.assert_allclose(v[2, j], keep_l + lock_r)
     np.testing.assert_allclose(v[3, j], lock_l + keep_r)
-    # Other: per action, the minimum over walking progress of the value-iteration utility.
+    # Other (default rule): no-lock's minimum over walking progress of the
+    # value-iteration utility, plus per action the worst difference to no-lock.
     w = HUMAN_MOTIONS.index("walking")
     k0, l0 = value_iteration_leg(human.theta[w, 0], human.tau[w, 0], 25.0)
     k1, l1 = value_iteration_leg(human.theta[w, 1], human.tau[w, 1], 25.0)
     walking = np.stack([k0 + k1, l0 + l1, k0 + l1, l0 + k1])
-    np.testing.assert_allclose(v[:, 3, :], np.repeat(walking.min(axis=1)[:, None], 101, axis=1))
+    other = walking[0].min() + (walking - walking[0]).min(axis=1)
+    np.testing.assert_allclose(v[:, 3, :], np.repeat(other[:, None], 101, axis=1))
+    # The paper-literal rule: per action, the minimum over walking progress.
+    literal = compute_utilities(human, 25.0, other_rule="paper-literal").table.values
+    np.testing.assert_allclose(
+        literal[:, 3, :], np.repeat(walking.min(axis=1)[:, None], 101, axis=1)
+    )
+    np.testing.assert_array_equal(literal[:, :3], v[:, :3])  # lifts do not depend on it
     # The paper's qualitative result: early in a lift lock the supporting side(s).
     best = uset.table.best_actions()
     assert best[0, 2] == Action.LOCK_BOTH
@@ -191,6 +201,7 @@ def test_compute_utilities_table() -> None:
     # After the peak a lock releases at once: exactly a tie, so no lock wins.
     assert (best[:3, 55:] == Action.NO_LOCK).all()
     assert uset.meta["assumption_gap"] == {"squat": 0.0, "stoop_left": 0.0, "stoop_right": 0.0}
+    assert uset.meta["other_rule"] == "worst-difference"
     assert uset.table.utility(Action.LOCK_LEFT, "stoop_left", 3) == v[3, 1, 3]
 
 
@@ -244,3 +255,89 @@ def test_table_rejects_nan() -> None:
     v[1, 2, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         UtilityTable(v)
+
+
+def swing_lock_costs_human() -> HumanMotionData:
+    """`synthetic_human` with a walking cycle in which a lock can only hurt: each hip
+    flexes (swing) under a flexion moment and extends (stance) under none, so a lock
+    in swing pushes against the wearer and one in stance releases at once."""
+    human = synthetic_human()
+    theta, tau = human.theta.copy(), human.tau.copy()
+    w = HUMAN_MOTIONS.index("walking")
+    for leg in range(2):
+        phase = 2.0 * np.pi * (S + 0.5 * leg)
+        theta[w, leg] = 0.2 + 0.3 * np.sin(phase)
+        tau[w, leg] = np.where(np.cos(phase) > 0.0, -20.0 * np.cos(phase), 0.0)
+    return HumanMotionData(theta=theta, tau=tau, source="synthetic-swing", version="1")
+
+
+def test_other_penalises_locks_when_swing_locks_cost() -> None:
+    human = swing_lock_costs_human()
+    other = compute_utilities(human, 25.0).table.values[:, 3, 0]
+    assert (other[1:] < other[0]).all()  # every lock strictly worse than no lock
+    assert other[0] == pytest.approx(-np.sum(human.tau[3] ** 2))  # never locking
+    # The literal rule looks only at s = 0, where the right hip is extending: a lock
+    # there releases at once, so it misses the right side's cost entirely.
+    literal = compute_utilities(human, 25.0, other_rule="paper-literal").table.values[:, 3, 0]
+    assert literal[Action.LOCK_RIGHT - 1] == literal[0]
+    assert literal[Action.LOCK_LEFT - 1] < literal[0]
+    assert other[0] == literal[0]
+
+
+def test_other_rule_on_the_reference_dataset() -> None:
+    """The case the rule was changed for: with the simulated reference data the
+    literal rule prefers locking in `other` (1.93 Nm^2); the default does not."""
+    from controller.sim.human_dataset import reference_dataset
+
+    human = reference_dataset()
+    literal = compute_utilities(human, 25.0, other_rule="paper-literal")
+    default = compute_utilities(human, 25.0)
+    lit = literal.table.values[:, 3, 0]
+    assert lit[1] - lit[0] == pytest.approx(1.9332417, abs=1e-4)
+    assert literal.meta["other_penalty"]["lock_both"] == pytest.approx(1.9332417, abs=1e-4)
+    d = default.table.values[:, 3, 0]
+    assert d[0] == lit[0]
+    assert (d[1:] <= d[0]).all()
+    assert d[1] - d[0] == pytest.approx(-70.711106, abs=1e-4)
+
+
+def test_literal_rule_reproduces_previous_numbers() -> None:
+    """Values of the `other` column computed before `other_rule` existed."""
+    v = compute_utilities(synthetic_human(), 25.0, other_rule="paper-literal").table.values
+    expected = [-161819.01742780843, -161941.1280944481, -161819.01742780843, -161941.1280944481]
+    np.testing.assert_allclose(
+        v[:, 3, :], np.repeat(np.array(expected)[:, None], 101, axis=1), rtol=1e-12
+    )
+
+
+@settings(max_examples=8, deadline=None)
+@given(
+    theta=arrays(np.float64, (2, 101), elements=st.floats(-0.5, 1.9)),
+    tau=arrays(np.float64, (2, 101), elements=st.floats(-80.0, 80.0)),
+    pct=pcts,
+)
+def test_default_other_never_prefers_a_lock(
+    theta: np.ndarray, tau: np.ndarray, pct: float
+) -> None:
+    """For any walking data: no lock ties or beats every lock in `other`, and its own
+    value is the literal one."""
+    k0, l0 = value_iteration_leg(theta[0], tau[0], pct)
+    k1, l1 = value_iteration_leg(theta[1], tau[1], pct)
+    walking = np.stack([k0 + k1, l0 + l1, k0 + l1, l0 + k1])
+    other = other_utilities(walking)
+    assert (other[1:] <= other[0]).all()
+    assert other[0] == other_utilities(walking, "paper-literal")[0]
+
+
+def test_other_rule_is_saved_and_checked(tmp_path: Path) -> None:
+    for rule in OTHER_RULES:
+        uset = compute_utilities(synthetic_human(), 25.0, other_rule=rule)
+        path = tmp_path / f"{rule}.json"
+        uset.save(path)
+        back = UtilitySet.load(path)
+        assert back.meta["other_rule"] == rule
+        penalty = back.meta["other_penalty"]
+        assert set(penalty) == {"no_lock", "lock_both", "lock_right", "lock_left"}
+        np.testing.assert_array_equal(back.table.values, uset.table.values)
+    with pytest.raises(ValueError, match="other_rule"):
+        compute_utilities(synthetic_human(), 25.0, other_rule="max")  # type: ignore[arg-type]

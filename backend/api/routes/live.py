@@ -5,8 +5,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
 
+from backend.api.deps import SESSION_COOKIE, login_from_token
 from backend.runtime import Runtime
 
 router = APIRouter(tags=["live"])
@@ -15,6 +16,13 @@ router = APIRouter(tags=["live"])
 @router.websocket("/ws/live")
 async def live(websocket: WebSocket) -> None:
     """Stream `LiveTicks` and `LiveStatus` messages (see `backend.schemas.live`)."""
+    # Browsers cannot set headers on a WebSocket, so the session cookie is the login;
+    # closing before accepting refuses the handshake (HTTP 403).
+    login = await asyncio.to_thread(login_from_token, websocket.app.state.sessions,
+                                    websocket.cookies.get(SESSION_COOKIE))
+    if login is None:
+        await websocket.close(code=status.WS_1008_POLICY_VIOLATION, reason="not logged in")
+        return
     runtime: Runtime = websocket.app.state.runtime
     await websocket.accept()
     client = runtime.stream.connect()

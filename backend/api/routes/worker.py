@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import asyncio
 
-from fastapi import APIRouter, HTTPException
+from fastapi import APIRouter, Depends, HTTPException
 from pydantic import BaseModel, Field
 
-from backend.api.deps import RuntimeDep
+from backend.api.deps import RuntimeDep, current_user
+from backend.api.errors import AUTH_RESPONSES
 from backend.schemas.live import Health
 from controller.factory import controller_names
 
-router = APIRouter(prefix="/api/worker", tags=["worker"])
+# Every worker route needs a logged-in experimenter: they move a person's exoskeleton.
+router = APIRouter(prefix="/api/worker", tags=["worker"],
+                   dependencies=[Depends(current_user)], responses=AUTH_RESPONSES)
 
 
 class ControllerChoice(BaseModel):

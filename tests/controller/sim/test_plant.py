@@ -148,3 +148,81 @@ def test_counts_round_trip_through_the_layout_within_the_noise() -> None:
     assert np.sqrt(np.mean(err**2)) > 0.02  # but there is noise
     nl_deg = np.degrees(np.abs(nonlin))
     assert nl_deg.max() <= 0.8 and nl_deg.max() > 0.1
+
+
+def _random_drive(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Thigh angles that flex and extend across many teeth, up to past the hard stop,
+    and solenoid commands in blocks of 1..40 ticks (one-tick pulses included)."""
+    t = np.arange(n) * 0.01
+    angles = np.zeros(n)
+    for _ in range(4):
+        amp, freq, phase = rng.uniform(0.1, 0.8), rng.uniform(0.1, 1.5), rng.uniform(0, 6.3)
+        angles += amp * np.sin(2 * np.pi * freq * t + phase)
+    angles += rng.normal(0.0, D(0.3), n)  # small reversals inside every swing
+    commands = np.zeros(n, dtype=bool)
+    k = 0
+    while k < n:
+        length = int(rng.integers(1, 41))
+        commands[k : k + length] = rng.random() < 0.5
+        k += length
+    return angles, commands
+
+
+@pytest.mark.parametrize("precompression", [0.0, 25.0, 60.0, 100.0])
+def test_mechanism_equals_the_reference_python_model_tick_for_tick(
+    precompression: float,
+) -> None:
+    """The mechanism must behave exactly as the reviewed Python model (kept as the
+    oracle in `reference_plant.py`): same links, lock, hard stop and torque, bit for bit."""
+    from tests.controller.sim.reference_plant import ReferenceHipModule
+
+    rng = np.random.default_rng(int(precompression) + 7)
+    for trial in range(6):
+        phase = float(rng.uniform(0.0, PITCH))
+        angles, commands = _random_drive(rng, 3000)
+        hip = HipModule(precompression, tooth_phase=phase)
+        ref = ReferenceHipModule(precompression, tooth_phase=phase)
+        hip.reset(float(angles[0]))
+        ref.reset(float(angles[0]))
+        locks = hard = 0
+        for k in range(angles.size):
+            hip.step(bool(commands[k]), float(angles[k]))
+            ref.step(bool(commands[k]), float(angles[k]))
+            got = (hip.output, hip.cam, hip.locked, hip.hard_stop, hip.solenoid, hip.torque())
+            want = (ref.output, ref.cam, ref.locked, ref.hard_stop, ref.solenoid, ref.torque())
+            assert got == want, (trial, k)
+            locks += ref.locked
+            hard += ref.hard_stop
+        assert locks > 100  # the sequence really exercised the ratchet
+        if precompression < 100.0 and trial == 0:
+            assert hard > 0 or precompression == 0.0
+
+
+def test_plant_status_equals_the_reference_models_on_both_sides() -> None:
+    from tests.controller.sim.reference_plant import ReferenceHipModule
+
+    rng = np.random.default_rng(3)
+    plant = ExoPlant(25.0)
+    refs = [ReferenceHipModule(25.0, tooth_phase=h.tooth_phase) for h in (plant.left, plant.right)]
+    (al, cl), (ar, cr) = _random_drive(rng, 4000), _random_drive(rng, 4000)
+    plant.reset(float(al[0]), float(ar[0]))
+    refs[0].reset(float(al[0]))
+    refs[1].reset(float(ar[0]))
+    seen = Status.NONE
+    for k in range(al.size):
+        status = plant.step(bool(cl[k]), bool(cr[k]), float(al[k]), float(ar[k]))
+        refs[0].step(bool(cl[k]), float(al[k]))
+        refs[1].step(bool(cr[k]), float(ar[k]))
+        want = Status.NONE
+        for ref, sol, lk, hs, cmd in (
+            (refs[0], Status.SOLENOID_LEFT, Status.LOCKED_LEFT, Status.HARD_STOP_LEFT, cl[k]),
+            (refs[1], Status.SOLENOID_RIGHT, Status.LOCKED_RIGHT, Status.HARD_STOP_RIGHT, cr[k]),
+        ):
+            want |= (sol if cmd else Status.NONE) | (lk if ref.locked else Status.NONE)
+            want |= hs if ref.hard_stop else Status.NONE
+        assert status == want, k
+        assert plant.link_angles() == (refs[0].output, refs[0].cam, refs[1].output, refs[1].cam)
+        assert plant.torques() == (refs[0].torque(), refs[1].torque())
+        seen |= status
+    assert seen & Status.LOCKED_LEFT and seen & Status.LOCKED_RIGHT
+    assert seen & Status.HARD_STOP_LEFT and seen & Status.HARD_STOP_RIGHT

@@ -1,0 +1,75 @@
+"""Error answers that name the field and the problem, in FastAPI's own shapes.
+
+404 and 409 carry a sentence in `detail` that starts with the field or entity; 422
+from our own checks uses the same list-of-errors shape as FastAPI's request validation
+(`loc`, `msg`, `type`), so clients handle one format.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NoReturn, TypeVar
+
+from fastapi import HTTPException
+from pydantic import BaseModel
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+T = TypeVar("T")
+
+
+class ErrorMessage(BaseModel):
+    """`detail` is a sentence naming the field or entity, or a list of field errors."""
+
+    detail: str | list[dict[str, Any]] | dict[str, Any]
+
+
+def not_found(entity: str, key: object) -> NoReturn:
+    """404 for an unknown id."""
+    raise HTTPException(404, f"{entity} {key} does not exist")
+
+
+def conflict(field: str, problem: str) -> NoReturn:
+    """409 for a duplicate or a state that forbids the change."""
+    raise HTTPException(409, f"{field}: {problem}")
+
+
+def invalid(loc: list[str | int], problem: str) -> NoReturn:
+    """422 for input that passed the schema but not the domain rules."""
+    raise HTTPException(422, [{"loc": loc, "msg": problem, "type": "value_error"}])
+
+
+def invalid_many(problems: list[tuple[list[str | int], str]]) -> NoReturn:
+    """422 listing every problem at once (a form with three bad answers names three)."""
+    raise HTTPException(422, [{"loc": loc, "msg": msg, "type": "value_error"}
+                              for loc, msg in problems])
+
+
+#: Responses every experimenter route can give, for the OpenAPI schema.
+AUTH_RESPONSES: dict[int | str, dict[str, Any]] = {
+    401: {"model": ErrorMessage, "description": "not logged in"},
+}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorMessage, "description": "an id in the path does not exist"},
+}
+CONFLICT: dict[int | str, dict[str, Any]] = {
+    409: {"model": ErrorMessage, "description": "duplicate, or not allowed in this state"},
+}
+
+
+def one_or_404(db: Session, model: type[T], key: int, entity: str) -> T:
+    """The row with primary key `key`, or 404 naming the entity."""
+    row = db.get(model, key)
+    if row is None:
+        not_found(entity, key)
+    return row
+
+
+def commit_or_conflict(db: Session, field: str, problem: str) -> None:
+    """Commit; a unique constraint that a concurrent request won is a 409, not a 500
+    (the checks before the write cannot see another transaction's row)."""
+    try:
+        db.commit()
+    except IntegrityError as exc:
+        db.rollback()
+        conflict(field, problem)
+        raise AssertionError("unreachable") from exc

@@ -1,0 +1,186 @@
+"""What a participant link opens: the forms due, with blinded labels, and nothing else.
+
+These routes take no login; the unguessable token in the path is the credential, and
+everything they read or write is looked up through that token's link, so a token can
+never reach another participant or an experimenter route.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Path, Request
+from fastapi.responses import FileResponse
+from sqlalchemy import select
+
+from backend import audit
+from backend.api.deps import SessionDep
+from backend.api.errors import CONFLICT, ErrorMessage, conflict, invalid, invalid_many
+from backend.blinding import labels_of
+from backend.core.security import token_digest
+from backend.db.models import (
+    ParticipantLink,
+    Preference,
+    QuestionnaireInstrument,
+    QuestionnaireResponse,
+)
+from backend.questionnaires.definition import InstrumentDefinition
+from backend.questionnaires.scoring import AnswerError, score
+from backend.schemas.questionnaires import (
+    AnswersIn,
+    FormView,
+    ParticipantFormsOut,
+    PreferenceIn,
+    PreferenceView,
+    SubmissionOut,
+)
+
+router = APIRouter(prefix="/api/participant-forms", tags=["participant forms"], responses={
+    404: {"model": ErrorMessage, "description": "no such link"},
+    410: {"model": ErrorMessage, "description": "the link expired or was used"},
+})
+
+Token = Annotated[str, Path(min_length=16, max_length=128, pattern=r"^[A-Za-z0-9_-]+$",
+                            description="the participant's link token")]
+
+NO_PREFERENCE = "none"
+
+
+def _aware(t: datetime) -> datetime:
+    return t if t.tzinfo is not None else t.replace(tzinfo=UTC)
+
+
+def open_link(db: SessionDep, token: str) -> ParticipantLink:
+    """The link behind a token, if it is still open (404 unknown, 410 expired/used)."""
+    link = db.scalars(select(ParticipantLink).where(
+        ParticipantLink.token_hash == token_digest(token))).first()
+    if link is None:
+        raise HTTPException(404, "link does not exist")
+    if link.used_at is not None:
+        raise HTTPException(410, "this link has been used; ask the experimenter for a new one")
+    if _aware(link.expires_at) <= datetime.now(UTC):
+        raise HTTPException(410, "this link has expired; ask the experimenter for a new one")
+    return link
+
+
+def _submitted(db: SessionDep, link: ParticipantLink) -> tuple[set[tuple[str, str, str | None]],
+                                                               bool]:
+    done = {(r.instrument_key, r.instrument_version, r.condition_label)
+            for r in db.scalars(select(QuestionnaireResponse).where(
+                QuestionnaireResponse.link_id == link.id))}
+    pref = db.scalars(select(Preference.id).where(Preference.link_id == link.id)).first()
+    return done, pref is not None
+
+
+def _form_key(form: dict[str, str | None]) -> tuple[str, str, str | None]:
+    return (str(form["instrument_key"]), str(form["instrument_version"]),
+            form["condition_label"])
+
+
+def _choices(link: ParticipantLink, db: SessionDep) -> list[str]:
+    return [*sorted(labels_of(db, link.participant_id)), NO_PREFERENCE]
+
+
+def _instrument(db: SessionDep, key: str, version: str) -> QuestionnaireInstrument:
+    row = db.scalars(select(QuestionnaireInstrument).where(
+        QuestionnaireInstrument.key == key, QuestionnaireInstrument.version == version)).one()
+    return row
+
+
+def _receipt(db: SessionDep, link: ParticipantLink) -> SubmissionOut:
+    """Close the link when everything due is in; the caller commits."""
+    done, pref_done = _submitted(db, link)
+    forms_left = sum(1 for f in link.forms_due if _form_key(f) not in done)
+    pref_left = link.preference_due and not pref_done
+    if forms_left == 0 and not pref_left:
+        link.used_at = datetime.now(UTC)
+    return SubmissionOut(forms_remaining=forms_left, preference_remaining=pref_left,
+                         link_closed=link.used_at is not None)
+
+
+@router.get("/{token}", response_model=ParticipantFormsOut)
+def get_forms(token: Token, db: SessionDep) -> ParticipantFormsOut:
+    """The forms due on this link, with blinded condition labels only."""
+    link = open_link(db, token)
+    done, pref_done = _submitted(db, link)
+    forms = []
+    for i, form in enumerate(link.forms_due):
+        key, version, label = _form_key(form)
+        d = InstrumentDefinition.model_validate(_instrument(db, key, version).definition)
+        forms.append(FormView(index=i, instrument_key=key, instrument_version=version,
+                              title=d.title, instructions=d.instructions,
+                              condition_label=label, items=d.items, scale=d.scale,
+                              provenance=d.provenance, submitted=(key, version, label) in done))
+    return ParticipantFormsOut(
+        forms=forms, expires_at=link.expires_at,
+        preference=PreferenceView(due=link.preference_due, submitted=pref_done,
+                                  choices=_choices(link, db) if link.preference_due else []))
+
+
+@router.post("/{token}/responses", response_model=SubmissionOut, status_code=201,
+             responses=CONFLICT)
+def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionOut:
+    """Answer one form. The answers are validated against the instrument (every bad
+    item is named), scored, and stored with the instrument version; 409 if this form
+    was already answered."""
+    link = open_link(db, token)
+    if body.form >= len(link.forms_due):
+        invalid(["body", "form"], f"this link has {len(link.forms_due)} form(s): "
+                f"0..{len(link.forms_due) - 1}" if link.forms_due else "this link has no forms")
+    key, version, label = _form_key(link.forms_due[body.form])
+    done, _ = _submitted(db, link)
+    if (key, version, label) in done:
+        conflict("form", "this form was already answered")
+    inst = _instrument(db, key, version)
+    definition = InstrumentDefinition.model_validate(inst.definition)
+    try:
+        result = score(definition, body.answers)
+    except AnswerError as exc:
+        invalid_many([(["body", "answers", item], msg) for item, msg in exc.problems.items()])
+    stored = {k: int(v) if float(v).is_integer() else v for k, v in result.answers.items()}
+    resp = QuestionnaireResponse(
+        participant_id=link.participant_id, link_id=link.id, instrument_id=inst.id,
+        instrument_key=key, instrument_version=version, condition_label=label,
+        answers=stored, score=result.score, subscale_scores=result.subscales)
+    db.add(resp)
+    db.flush()
+    audit.record(db, f"participant link {link.id}", "submit", "questionnaire_response",
+                 resp.id, {"participant_id": link.participant_id, "instrument": key,
+                           "version": version, "condition_label": label,
+                           "substituted": list(result.substituted)})
+    receipt = _receipt(db, link)
+    db.commit()
+    return receipt
+
+
+@router.post("/{token}/preference", response_model=SubmissionOut, status_code=201,
+             responses=CONFLICT)
+def submit_preference(token: Token, body: PreferenceIn, db: SessionDep) -> SubmissionOut:
+    """Say which condition was preferred: a label as shown, or "none"."""
+    link = open_link(db, token)
+    if not link.preference_due:
+        conflict("preference", "this link does not ask for a preference")
+    _, pref_done = _submitted(db, link)
+    if pref_done:
+        conflict("preference", "the preference was already given")
+    choices = _choices(link, db)
+    if body.choice not in choices:
+        invalid(["body", "choice"], f"choose one of {choices}")
+    pref = Preference(participant_id=link.participant_id, link_id=link.id, choice=body.choice)
+    db.add(pref)
+    db.flush()
+    audit.record(db, f"participant link {link.id}", "submit", "preference", pref.id,
+                 {"participant_id": link.participant_id, "choice": body.choice})
+    receipt = _receipt(db, link)
+    db.commit()
+    return receipt
+
+
+pages = APIRouter()
+
+
+@pages.get("/forms/{token}", include_in_schema=False)
+def form_page(token: Token, request: Request) -> FileResponse:
+    """The participant's form page; it reads its token from the address."""
+    return FileResponse(request.app.state.settings.frontend_dir / "static" / "form.html")

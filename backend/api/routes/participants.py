@@ -1,0 +1,130 @@
+"""Participants of a study, and each participant's blinding key."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter
+from fastapi.encoders import jsonable_encoder
+from sqlalchemy import select
+
+from backend import audit
+from backend.api.deps import CurrentUser, SessionDep
+from backend.api.errors import (
+    AUTH_RESPONSES,
+    CONFLICT,
+    NOT_FOUND,
+    commit_or_conflict,
+    conflict,
+    invalid,
+    one_or_404,
+)
+from backend.api.params import ParticipantId, StudyId
+from backend.db.models import ConditionLabel, Participant, Study
+from backend.schemas.participants import (
+    ConditionIn,
+    ConditionOut,
+    ParticipantIn,
+    ParticipantOut,
+    ParticipantUpdate,
+)
+from controller.factory import controller_names
+
+router = APIRouter(tags=["participants"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+
+
+def _code_taken(db: SessionDep, study_id: int, code: str, but: int | None = None) -> bool:
+    found = db.scalars(select(Participant.id).where(
+        Participant.study_id == study_id, Participant.code == code)).first()
+    return found is not None and found != but
+
+
+@router.get("/api/studies/{study_id}/participants", response_model=list[ParticipantOut])
+def list_participants(study_id: StudyId, user: CurrentUser, db: SessionDep
+                      ) -> list[Participant]:
+    """The participants of a study, by code."""
+    one_or_404(db, Study, study_id, "study")
+    return list(db.scalars(select(Participant).where(Participant.study_id == study_id)
+                           .order_by(Participant.code)))
+
+
+@router.post("/api/studies/{study_id}/participants", response_model=ParticipantOut,
+             status_code=201, responses=CONFLICT)
+def create_participant(study_id: StudyId, body: ParticipantIn, user: CurrentUser,
+                       db: SessionDep) -> Participant:
+    """Enrol a participant under a pseudonymous code; 409 if the code exists in the
+    study."""
+    one_or_404(db, Study, study_id, "study")
+    if _code_taken(db, study_id, body.code):
+        conflict("code", f"participant {body.code!r} exists in study {study_id}")
+    p = Participant(study_id=study_id, **body.model_dump())
+    db.add(p)
+    db.flush()
+    audit.record(db, user, "create", "participant", p.id, body.model_dump(mode="json"))
+    commit_or_conflict(db, "code", f"participant {body.code!r} exists in study {study_id}")
+    return p
+
+
+@router.get("/api/participants/{participant_id}", response_model=ParticipantOut)
+def get_participant(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
+                    ) -> Participant:
+    """One participant."""
+    return one_or_404(db, Participant, participant_id, "participant")
+
+
+@router.patch("/api/participants/{participant_id}", response_model=ParticipantOut,
+              responses=CONFLICT)
+def update_participant(participant_id: ParticipantId, body: ParticipantUpdate,
+                       user: CurrentUser, db: SessionDep) -> Participant:
+    """Correct a participant's record; `null` clears an optional field."""
+    p = one_or_404(db, Participant, participant_id, "participant")
+    changes: dict[str, Any] = body.model_dump(exclude_unset=True)
+    for required in ("code", "notes"):
+        if required in changes and changes[required] is None:
+            invalid(["body", required], "cannot be null")
+    if "code" in changes and _code_taken(db, p.study_id, changes["code"], but=p.id):
+        conflict("code", f"participant {changes['code']!r} exists in study {p.study_id}")
+    before = {k: getattr(p, k) for k in changes}
+    for field, value in changes.items():
+        setattr(p, field, value)
+    audit.record(db, user, "update", "participant", p.id, {
+        "before": jsonable_encoder(before),
+        "after": body.model_dump(mode="json", exclude_unset=True)})
+    commit_or_conflict(db, "code", "this code exists in the study")
+    return p
+
+
+@router.get("/api/participants/{participant_id}/conditions",
+            response_model=list[ConditionOut])
+def list_conditions(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
+                    ) -> list[ConditionLabel]:
+    """The blinding key: which controller each label stands for."""
+    one_or_404(db, Participant, participant_id, "participant")
+    return list(db.scalars(select(ConditionLabel).where(
+        ConditionLabel.participant_id == participant_id).order_by(ConditionLabel.label)))
+
+
+@router.post("/api/participants/{participant_id}/conditions", response_model=ConditionOut,
+             status_code=201, responses=CONFLICT)
+def add_condition(participant_id: ParticipantId, body: ConditionIn, user: CurrentUser,
+                  db: SessionDep) -> ConditionLabel:
+    """Blind a controller behind a label; 409 if the label or controller already has an
+    entry for this participant (a key never changes once forms may use it)."""
+    one_or_404(db, Participant, participant_id, "participant")
+    if body.controller not in controller_names():
+        invalid(["body", "controller"],
+                f"unknown controller {body.controller!r}; one of {list(controller_names())}")
+    existing = db.scalars(select(ConditionLabel).where(
+        ConditionLabel.participant_id == participant_id)).all()
+    if any(c.label == body.label for c in existing):
+        conflict("label", f"label {body.label!r} is already used for this participant")
+    if any(c.controller == body.controller for c in existing):
+        conflict("controller", f"{body.controller!r} already has a label for this participant")
+    c = ConditionLabel(participant_id=participant_id, label=body.label,
+                       controller=body.controller)
+    db.add(c)
+    db.flush()
+    audit.record(db, user, "create", "condition_label", c.id,
+                 {"participant_id": participant_id, **body.model_dump()})
+    commit_or_conflict(db, "label", "this label or controller is already used")
+    return c

@@ -1,0 +1,29 @@
+"""Preferences given by participants, unblinded for the experimenter."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from sqlalchemy import select
+
+from backend.api.deps import CurrentUser, SessionDep
+from backend.api.errors import AUTH_RESPONSES, NOT_FOUND, one_or_404
+from backend.api.params import ParticipantId
+from backend.blinding import labels_of
+from backend.db.models import Participant, Preference
+from backend.schemas.questionnaires import PreferenceOut
+
+router = APIRouter(tags=["preferences"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+
+
+@router.get("/api/participants/{participant_id}/preferences",
+            response_model=list[PreferenceOut])
+def list_preferences(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
+                     ) -> list[PreferenceOut]:
+    """The participant's preferences with the controller each label stands for."""
+    one_or_404(db, Participant, participant_id, "participant")
+    labels = labels_of(db, participant_id)
+    rows = db.scalars(select(Preference).where(Preference.participant_id == participant_id)
+                      .order_by(Preference.id))
+    return [PreferenceOut(id=p.id, participant_id=p.participant_id, choice=p.choice,
+                          controller=labels.get(p.choice), submitted_at=p.submitted_at)
+            for p in rows]

@@ -1,0 +1,168 @@
+"""The instrument definition format: what a questionnaire file must say to be scored.
+
+A definition is data a study can read and import, not code: items, the response scale,
+reverse-scored items, subscales, how scores aggregate, the score range it promises and
+what to do with a missing answer. Validation catches the mistakes that would silently
+give wrong scores (a reverse item that does not exist, a declared range the aggregation
+cannot produce).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+KEY_PATTERN = r"^[a-z][a-z0-9_-]{0,63}$"
+VERSION_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,31}$"
+ITEM_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$"
+
+
+class _Strict(BaseModel):
+    # An unknown field in a definition file is almost always a typo ("reversed" for
+    # "reverse_scored"); refusing it beats scoring without it.
+    model_config = ConfigDict(extra="forbid")
+
+
+class Item(_Strict):
+    """One statement or question the participant answers on the response scale."""
+
+    id: str = Field(pattern=ITEM_ID_PATTERN)
+    text: str = Field(min_length=1, max_length=1000)
+
+
+class ScaleLabel(_Strict):
+    """The words shown at one point of the scale (usually the two ends)."""
+
+    value: int
+    label: str = Field(min_length=1, max_length=200)
+
+
+class ResponseScale(_Strict):
+    """Integer answers from `min` to `max` inclusive."""
+
+    min: int = Field(ge=-1000, le=1000)
+    max: int = Field(ge=-1000, le=1000)
+    labels: list[ScaleLabel] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ResponseScale:
+        if self.max <= self.min:
+            raise ValueError(f"max ({self.max}) must be greater than min ({self.min})")
+        for lab in self.labels:
+            if not self.min <= lab.value <= self.max:
+                raise ValueError(f"label value {lab.value} is outside {self.min}..{self.max}")
+        return self
+
+
+class Aggregation(_Strict):
+    """How item values become a score.
+
+    Each answer is first reversed if its item is reverse-scored (`min + max - answer`),
+    then, with `from_min`, shifted so the scale starts at 0 (`value - min`); the values
+    are summed or averaged and multiplied by `multiplier`. SUS is `sum`, `from_min`,
+    `multiplier` 2.5; a mean of 0-10 ratings is `mean` with multiplier 1.
+    """
+
+    method: Literal["sum", "mean"]
+    from_min: bool = False
+    multiplier: float = Field(default=1.0, gt=0.0, le=1e6)
+
+
+class Subscale(_Strict):
+    """A named subset of items scored on its own (aggregation defaults to the
+    instrument's)."""
+
+    id: str = Field(pattern=ITEM_ID_PATTERN)
+    title: str = Field(min_length=1, max_length=200)
+    items: list[str] = Field(min_length=1)
+    aggregation: Aggregation | None = None
+
+
+class ScoreRange(_Strict):
+    """The lowest and highest score the instrument can give."""
+
+    min: float
+    max: float
+
+
+class MissingPolicy(_Strict):
+    """What an unanswered item does: `reject` the form (default) or substitute
+    `neutral_value` (the scale midpoint if not given)."""
+
+    policy: Literal["reject", "neutral"] = "reject"
+    neutral_value: float | None = None
+
+
+class Provenance(_Strict):
+    """Where the item wording comes from, shown to experimenters with the instrument.
+
+    `standard`: the published wording; `project`: written by the ExoStudy project;
+    `study`: supplied by a study (for example its transcription of published items).
+    """
+
+    wording: Literal["standard", "project", "study"]
+    source: str = Field(default="", max_length=1000)
+    note: str = Field(default="", max_length=2000)
+
+
+class InstrumentDefinition(_Strict):
+    """A complete questionnaire definition (the format of an importable file)."""
+
+    key: str = Field(pattern=KEY_PATTERN, description="short name, e.g. sus")
+    version: str = Field(pattern=VERSION_PATTERN, description="e.g. 1.0")
+    title: str = Field(min_length=1, max_length=200)
+    instructions: str = Field(default="", max_length=4000)
+    items: list[Item] = Field(min_length=1, max_length=200)
+    scale: ResponseScale
+    reverse_scored: list[str] = Field(default_factory=list)
+    aggregation: Aggregation
+    subscales: list[Subscale] = Field(default_factory=list)
+    score_range: ScoreRange
+    missing: MissingPolicy = Field(default_factory=MissingPolicy)
+    provenance: Provenance
+
+    @model_validator(mode="after")
+    def _consistent(self) -> InstrumentDefinition:
+        ids = [it.id for it in self.items]
+        dupes = sorted({i for i in ids if ids.count(i) > 1})
+        if dupes:
+            raise ValueError(f"items: duplicate item ids {dupes}")
+        known = set(ids)
+        unknown = sorted(set(self.reverse_scored) - known)
+        if unknown:
+            raise ValueError(f"reverse_scored: unknown item ids {unknown}")
+        sub_ids = [s.id for s in self.subscales]
+        if len(set(sub_ids)) != len(sub_ids):
+            raise ValueError("subscales: duplicate subscale ids")
+        for sub in self.subscales:
+            bad = sorted(set(sub.items) - known)
+            if bad:
+                raise ValueError(f"subscales.{sub.id}.items: unknown item ids {bad}")
+        n = self.missing.neutral_value
+        if n is not None and not self.scale.min <= n <= self.scale.max:
+            raise ValueError(f"missing.neutral_value {n} is outside the scale "
+                             f"{self.scale.min}..{self.scale.max}")
+        lo, hi = self.reachable_range()
+        if not (math.isclose(lo, self.score_range.min, abs_tol=1e-9)
+                and math.isclose(hi, self.score_range.max, abs_tol=1e-9)):
+            raise ValueError(f"score_range: declared {self.score_range.min}..{self.score_range.max}"
+                             f" but the aggregation gives {lo:g}..{hi:g}")
+        return self
+
+    def reachable_range(self) -> tuple[float, float]:
+        """The score of the worst and of the best possible answers."""
+        from backend.questionnaires.scoring import aggregate
+
+        n = len(self.items)
+        lo = self.scale.min - (self.scale.min if self.aggregation.from_min else 0)
+        hi = self.scale.max - (self.scale.min if self.aggregation.from_min else 0)
+        return aggregate([lo] * n, self.aggregation), aggregate([hi] * n, self.aggregation)
+
+    @property
+    def neutral(self) -> float:
+        """The value substituted for a missing answer under the `neutral` policy."""
+        if self.missing.neutral_value is not None:
+            return self.missing.neutral_value
+        return (self.scale.min + self.scale.max) / 2

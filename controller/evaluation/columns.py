@@ -1,0 +1,203 @@
+"""Tick data as typed columns: the one input every evaluation function reads.
+
+The backend reads ticks from SQL, the CLI from CSV, a virtual study straight from the
+controllers; all three can hand over a mapping `field name -> array` with the field
+names of `controller.tick.TickRecord`. This module checks that mapping once and gives
+typed arrays, so the metrics never guess whether `lock_left` arrived as bools, 0/1
+integers or strings from a CSV file.
+
+Columns that a caller did not provide are simply absent; a metric that needs one
+raises `ValueError` naming it. Unknown names (a database `id`, a `session_id`) are
+ignored rather than rejected, so callers can pass their rows as they are.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import fields
+from typing import Any, TypeAlias
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from controller.tick import TickRecord
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+StrArray = NDArray[np.str_]
+
+#: Nominal tick period (s); used only where the device timestamp is missing.
+DEFAULT_DT = 0.01
+
+# TickRecord is declared with `from __future__ import annotations`, so the field
+# types are the annotation strings.
+_KIND: dict[str, str] = {f.name: str(f.type) for f in fields(TickRecord)}
+_TRUE_STRINGS = frozenset({"1", "true", "t", "yes", "y"})
+
+
+def _to_bool(name: str, raw: ArrayLike) -> BoolArray:
+    a = np.asarray(raw)
+    if a.dtype.kind in "US":
+        return np.asarray([str(x).strip().lower() in _TRUE_STRINGS for x in a], dtype=bool)
+    if a.dtype.kind == "O":
+        return np.asarray([bool(x) if x is not None else False for x in a], dtype=bool)
+    if a.dtype.kind == "f" and np.isnan(a).any():
+        raise ValueError(f"boolean column {name!r} contains NaN")
+    return a.astype(bool)
+
+
+def _to_int(name: str, raw: ArrayLike) -> IntArray:
+    a = np.asarray(raw)
+    if a.dtype.kind == "O":
+        a = np.asarray([-1 if x is None else x for x in a])
+    if a.dtype.kind in "US":
+        a = a.astype(np.float64)
+    if a.dtype.kind == "f":
+        if not np.isfinite(a).all():
+            raise ValueError(f"integer column {name!r} contains NaN or inf")
+        if (a != np.round(a)).any():
+            raise ValueError(f"integer column {name!r} contains fractions")
+    return a.astype(np.int64)
+
+
+def _to_float(raw: ArrayLike) -> FloatArray:
+    a = np.asarray(raw)
+    if a.dtype.kind == "O":
+        a = np.asarray([math.nan if x is None else x for x in a])
+    if a.dtype.kind in "US":
+        a = np.asarray([math.nan if str(x).strip() == "" else float(x) for x in a])
+    return np.asarray(a, dtype=np.float64)
+
+
+def _to_str(raw: ArrayLike) -> StrArray:
+    a = np.asarray(raw)
+    if a.dtype.kind == "O":
+        a = np.asarray(["" if x is None else str(x) for x in a])
+    return np.asarray(a, dtype=np.str_)
+
+
+class TickColumns:
+    """Typed, equal-length tick columns keyed by `TickRecord` field names.
+
+    Args:
+        data: field name to a 1-D array-like. Only `TickRecord` names are kept.
+
+    Raises:
+        ValueError: a column is not 1-D, the columns differ in length, or a value
+            cannot be read as its field's type.
+
+    >>> cols = TickColumns({"t": [0.0, 0.01], "lock_left": [0, 1]})
+    >>> len(cols), cols.bool_("lock_left").tolist()
+    (2, [False, True])
+    """
+
+    def __init__(self, data: Mapping[str, ArrayLike]) -> None:
+        self._data: dict[str, np.ndarray[Any, Any]] = {}
+        n: int | None = None
+        for name, raw in data.items():
+            kind = _KIND.get(name)
+            if kind is None:
+                continue
+            if kind == "bool":
+                arr: np.ndarray[Any, Any] = _to_bool(name, raw)
+            elif kind == "int":
+                arr = _to_int(name, raw)
+            elif kind == "float":
+                arr = _to_float(raw)
+            else:
+                arr = _to_str(raw)
+            if arr.ndim != 1:
+                raise ValueError(f"column {name!r} must be 1-D, got shape {arr.shape}")
+            if n is None:
+                n = int(arr.shape[0])
+            elif arr.shape[0] != n:
+                raise ValueError(
+                    f"column {name!r} has {arr.shape[0]} values, the others {n}"
+                )
+            arr.setflags(write=False)
+            self._data[name] = arr
+        self._n = 0 if n is None else n
+
+    @classmethod
+    def of(cls, data: TickColumns | Mapping[str, ArrayLike]) -> TickColumns:
+        """`data` itself if it is already checked, else a checked copy."""
+        return data if isinstance(data, TickColumns) else cls(data)
+
+    @classmethod
+    def from_records(cls, records: Sequence[TickRecord]) -> TickColumns:
+        """Columns from tick records, as a controller loop produces them."""
+        names = TickRecord.field_names()
+        rows = [r.as_tuple() for r in records]
+        return cls({n: [row[i] for row in rows] for i, n in enumerate(names)})
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._data
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The fields present."""
+        return tuple(self._data)
+
+    def _get(self, name: str) -> np.ndarray[Any, Any]:
+        try:
+            return self._data[name]
+        except KeyError:
+            if name not in _KIND:
+                raise ValueError(f"{name!r} is not a TickRecord field") from None
+            raise ValueError(f"tick column {name!r} is needed but was not provided") from None
+
+    def float_(self, name: str) -> FloatArray:
+        """A float column (NaN = not computed at that tick)."""
+        return np.asarray(self._get(name), dtype=np.float64)
+
+    def bool_(self, name: str) -> BoolArray:
+        """A boolean column."""
+        return np.asarray(self._get(name), dtype=bool)
+
+    def int_(self, name: str) -> IntArray:
+        """An integer column."""
+        return np.asarray(self._get(name), dtype=np.int64)
+
+    def str_(self, name: str) -> StrArray:
+        """A string column."""
+        return np.asarray(self._get(name), dtype=np.str_)
+
+    def time(self) -> FloatArray:
+        """Device time per tick (s), with gaps filled.
+
+        Bad samples can carry a NaN timestamp; those are interpolated over the tick
+        index from their neighbours, so durations stay measured in device time. With
+        no usable `t` at all the ticks are assumed `DEFAULT_DT` apart from 0.
+        """
+        idx = np.arange(self._n, dtype=np.float64)
+        if "t" not in self._data:
+            return idx * DEFAULT_DT
+        t = self.float_("t")
+        ok = np.isfinite(t)
+        if ok.all():
+            return t
+        if ok.sum() == 0:
+            return idx * DEFAULT_DT
+        if ok.sum() == 1:
+            k = int(np.flatnonzero(ok)[0])
+            return t[k] + (idx - k) * DEFAULT_DT
+        return np.asarray(np.interp(idx, idx[ok], t[ok]), dtype=np.float64)
+
+    def select(self, start: int, stop: int) -> TickColumns:
+        """Ticks `start..stop-1` as new columns (for a figure of a stretch)."""
+        if not 0 <= start <= stop <= self._n:
+            raise ValueError(f"need 0 <= start <= stop <= {self._n}, got {start}, {stop}")
+        return TickColumns({k: v[start:stop] for k, v in self._data.items()})
+
+    def as_dict(self) -> dict[str, np.ndarray[Any, Any]]:
+        """The typed columns (read-only arrays)."""
+        return dict(self._data)
+
+
+#: What the public functions accept: checked columns or a plain mapping.
+Columns: TypeAlias = TickColumns | Mapping[str, ArrayLike]
