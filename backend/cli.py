@@ -6,6 +6,8 @@
     exostudy simulate --seed S --script NAME --out FILE.csv
     exostudy replay --angles IN.csv --controller umc ... --out TICKS.csv
     exostudy human-dataset --out FILE.json     the simulated reference human data
+    exostudy user add NAME                     create an experimenter (password on stdin)
+    exostudy user list                         list the experimenter accounts
 """
 
 from __future__ import annotations
@@ -67,6 +69,53 @@ def _human_dataset(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read_password(prompt_twice: bool) -> str:
+    """The password from standard input: asked twice at a terminal, else the first line
+    (so `printf '%s\n' "$PW" | exostudy user add NAME` works in scripts)."""
+    if prompt_twice:
+        import getpass
+
+        first = getpass.getpass("password: ")
+        if getpass.getpass("again: ") != first:
+            raise ValueError("password: the two entries differ")
+        return first
+    return sys.stdin.readline().rstrip("\r\n")
+
+
+def _user(args: argparse.Namespace) -> int:
+    from sqlalchemy import select
+
+    from backend import accounts, audit
+    from backend.core.config import Settings
+    from backend.db import migrate
+    from backend.db.engine import make_engine, make_session_factory
+    from backend.db.models import User
+
+    url = Settings().database_url
+    migrate.upgrade(url)
+    engine = make_engine(url)
+    try:
+        with make_session_factory(engine)() as session:
+            if args.action == "list":
+                for u in session.scalars(select(User).order_by(User.username)):
+                    print(f"{u.username}\t{'active' if u.active else 'disabled'}")
+                return 0
+            if not args.name:
+                raise ValueError("user add: give the NAME of the account")
+            password = _read_password(sys.stdin.isatty())
+            try:
+                user = accounts.create_user(session, args.name, password)
+            except accounts.AccountError as exc:
+                raise ValueError(str(exc)) from exc
+            audit.record(session, "command line", "create", "user", user.id,
+                         {"username": user.username})
+            session.commit()
+            print(f"created experimenter {user.username!r}")
+            return 0
+    finally:
+        engine.dispose()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
@@ -98,6 +147,12 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--out", required=True)
     h.add_argument("--seed", type=int, default=0)
     h.set_defaults(func=_human_dataset)
+
+    u = sub.add_parser("user", help="experimenter accounts: `user add NAME` reads the "
+                       "password from standard input; `user list`")
+    u.add_argument("action", choices=["add", "list"])
+    u.add_argument("name", nargs="?", default=None)
+    u.set_defaults(func=_user)
 
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")

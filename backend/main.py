@@ -16,17 +16,21 @@ from backend.api.routes import (
     auth,
     health,
     live,
+    model_sets,
     participant_forms,
     participants,
     preferences,
     questionnaires,
+    recordings,
     sessions,
     studies,
+    trials,
     worker,
 )
 from backend.core.config import Settings, get_settings
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
+from backend.jobs import JobRunner
 from backend.questionnaires.catalog import ensure_built_ins
 from backend.runtime import Runtime
 
@@ -48,11 +52,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             ensure_built_ins(db)
         runtime = Runtime(settings, engine)
         app.state.runtime = runtime
+        app.state.jobs = JobRunner(app.state.sessions)
         await runtime.start()
         try:
             yield
         finally:
             await runtime.stop()
+            app.state.jobs.shutdown()
             engine.dispose()
 
     app = FastAPI(
@@ -74,6 +80,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(participant_forms.router)
     app.include_router(participant_forms.pages)
     app.include_router(audit.router)
+    app.include_router(recordings.router)
+    app.include_router(model_sets.router)
+    app.include_router(trials.router)
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

@@ -21,6 +21,18 @@ from controller.tick import TickRecord
 log = logging.getLogger(__name__)
 
 
+def _summarise(config: dict[str, object]) -> dict[str, object]:
+    """The run's configuration without inline model and utility documents (the trial
+    keeps those by reference); their versions are kept."""
+    out = dict(config)
+    for key in ("models", "utilities"):
+        doc = out.get(key)
+        if isinstance(doc, dict):
+            out[key] = {"inline": True, "version": doc.get("version"),
+                        "created": doc.get("created")}
+    return out
+
+
 class TickRecorder:
     """Buffers tick batches and inserts them on a background thread."""
 
@@ -59,7 +71,7 @@ class TickRecorder:
                     started_at=datetime.now(UTC),
                     device_kind=device_kind,
                     controller=msg.controller,
-                    config_json=json.dumps(msg.controller_config, default=str),
+                    config_json=json.dumps(_summarise(msg.controller_config), default=str),
                     worker_pid=msg.pid,
                     tick_count=0,
                 )

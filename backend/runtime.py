@@ -43,6 +43,7 @@ class Runtime:
         host, port = settings.device_host_port
         self.calibration: CalibrationResult | None = None
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
+        self._run_waiters: list[tuple[str, asyncio.Future[int]]] = []
         self.worker_config = WorkerConfig(
             device_kind=settings.device_kind,
             device_host=host,
@@ -50,6 +51,7 @@ class Runtime:
             device_seed=settings.device_seed,
             device_script=settings.device_script,
             precompression_pct=settings.precompression_pct,
+            device_speed=settings.device_speed,
             models_path=str(settings.models_path),
         )
         self.recorder = TickRecorder(engine, settings.db_flush_interval)
@@ -101,6 +103,52 @@ class Runtime:
     def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
         """Switch the worker's controller (a new run starts)."""
         self.supervisor.set_controller(name, self.controller_config(name, overrides))
+
+    async def switch_controller(
+        self, name: str, config: dict[str, Any], timeout: float = 20.0
+    ) -> int:
+        """Switch to `name` with a complete `config` and wait until the worker runs it;
+        returns the new run's id. Raises RuntimeError if the worker is down or refuses."""
+        if not self.supervisor.state.alive:
+            raise RuntimeError("the worker is not running: restart it first")
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[int] = loop.create_future()
+        errors_before = len(self.supervisor.state.errors)
+        self._run_waiters.append((name, fut))
+        self.supervisor.set_controller(name, config)
+        try:
+            deadline = loop.time() + timeout
+            while not fut.done():
+                if len(self.supervisor.state.errors) > errors_before:
+                    raise RuntimeError(self.supervisor.state.errors[-1])
+                if loop.time() > deadline or not self.supervisor.state.alive:
+                    raise RuntimeError(f"the worker did not start {name}")
+                await asyncio.sleep(0.02)
+            return fut.result()
+        finally:
+            self._run_waiters = [(n, f) for n, f in self._run_waiters if f is not fut]
+
+    async def set_simulation(self, seed: int, script: str) -> None:
+        """Put another virtual participant (seed) or script on the simulated device. The
+        worker (in-process simulator) or the device process (UDP) restarts; the current
+        controller is kept."""
+        from controller.sim.scripts import get_script
+
+        get_script(script)  # ValueError naming the valid scripts
+        self.settings = self.settings.model_copy(update={"device_seed": seed,
+                                                         "device_script": script})
+        self.worker_config = replace(self.supervisor.config, device_seed=seed,
+                                     device_script=script)
+        self.supervisor.config = self.worker_config
+        if self.settings.device_kind == "sim":
+            await asyncio.to_thread(self.supervisor.restart)
+        elif self.settings.device_spawn_simulator:
+            if self.device_process is not None:
+                self.device_process.terminate()
+                await asyncio.to_thread(self.device_process.wait, 3.0)
+            await asyncio.to_thread(self.start_device_simulator)
+        else:
+            raise ValueError("the device is real hardware: there is no simulation to change")
 
     async def calibrate(self, seconds: float, max_std_deg: float) -> CalibrationResult:
         """Ask the worker to calibrate and wait for the outcome."""
@@ -187,6 +235,16 @@ class Runtime:
     def _on_run_started(self, msg: RunStarted) -> None:
         run_id = self.recorder.run_started(msg, msg.device_kind)
         self.stream.run_id = run_id
+        loop = self.stream._loop
+        for name, fut in list(self._run_waiters):
+            if name == msg.controller and loop is not None:
+
+                def resolve(f: asyncio.Future[int] = fut) -> None:
+                    if not f.done():
+                        f.set_result(run_id)
+
+                loop.call_soon_threadsafe(resolve)
+                break
         self._on_event("run", {"run_id": run_id, "controller": msg.controller})
 
     def _on_exit(self, code: int | None, reason: str) -> None:

@@ -10,9 +10,34 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+from numba import njit
+
 from controller.device.base import ENCODER_COUNTS
 
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
+_HALF_TURN = ENCODER_COUNTS // 2
+
+
+@njit("float64(int64, int64, int64)", cache=True, nogil=True)
+def count_to_angle(count: int, offset: int, direction: int) -> float:
+    """Angle (rad, in [-pi, pi)) of a count; the arithmetic of `EncoderLayout.angle`.
+
+    Compiled so the control tick (`controller.tick_kernel`) decodes counts with the very
+    code the layout uses; the count must already be known to lie in range.
+    """
+    diff = (count - offset) % ENCODER_COUNTS
+    if diff >= _HALF_TURN:
+        diff -= ENCODER_COUNTS
+    return direction * diff * RAD_PER_COUNT  # type: ignore[no-any-return]
+
+
+@njit("int64(float64, int64, int64)", cache=True, nogil=True)
+def angle_to_count(angle: float, offset: int, direction: int) -> int:
+    """The count an ideal encoder reads at `angle` (rad); rounds halves to even, like
+    Python's `round`, so the layout and the batch replay quantise identically."""
+    steps = int(np.rint(angle / RAD_PER_COUNT))
+    return (offset + direction * steps) % ENCODER_COUNTS  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,15 +59,11 @@ class EncoderLayout:
         """Angle in radians of encoder `index` reading `count`, in [-pi, pi)."""
         if not 0 <= count < ENCODER_COUNTS:
             raise ValueError(f"encoder {index}: count {count} outside 0..{ENCODER_COUNTS - 1}")
-        diff = (count - self.offsets[index]) % ENCODER_COUNTS
-        if diff >= ENCODER_COUNTS // 2:
-            diff -= ENCODER_COUNTS
-        return self.directions[index] * diff * RAD_PER_COUNT
+        return float(count_to_angle(int(count), self.offsets[index], self.directions[index]))
 
     def count(self, index: int, angle: float) -> int:
         """Inverse of `angle`: the count an ideal encoder reads at `angle` radians."""
-        raw = self.offsets[index] + self.directions[index] * round(angle / RAD_PER_COUNT)
-        return int(raw % ENCODER_COUNTS)
+        return int(angle_to_count(float(angle), self.offsets[index], self.directions[index]))
 
     def joint_angles(self, counts: tuple[int, int, int, int]) -> tuple[float, float, float, float]:
         """(theta_left, alpha_left, theta_right, alpha_right): hip flexion from the output

@@ -42,7 +42,8 @@ _DT, _Q00, _Q01, _Q11, _R, _W_VAR0 = range(6)
 N_PARAMS = 6
 
 
-@njit(cache=True, nogil=True)
+@njit("UniTuple(float64, 2)(float64[::1], float64[::1], float64, float64)", cache=True,
+      nogil=True)
 def kalman_step(
     st: FloatArray, prm: FloatArray, q_left: float, q_right: float
 ) -> tuple[float, float]:

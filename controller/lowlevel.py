@@ -17,7 +17,7 @@ from numba import njit
 IntArray = npt.NDArray[np.int64]
 
 
-@njit(cache=True, nogil=True)
+@njit("UniTuple(boolean, 2)(int64[::1], int64, boolean, boolean)", cache=True, nogil=True)
 def hold_update(
     left_right: IntArray, hold_ticks: int, request_left: bool, request_right: bool
 ) -> tuple[bool, bool]:

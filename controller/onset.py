@@ -524,6 +524,18 @@ class ModelBank:
             _as_obs(obs)  # raises with the offending index
             raise ValueError("observations contain NaN or inf")
 
+    @property
+    def radius(self) -> int:
+        """The Sakoe-Chiba radius as the kernels take it (-1: no band)."""
+        return self._radius
+
+    def kernel_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
+                                     IntArray, FloatArray, npt.NDArray[np.bool_]]:
+        """(parameters, criteria, scratch, D, ints, s, accepted): the arguments of
+        `_bank_kernel` after the window and radius, for a compiled caller (the control
+        tick) that evaluates the bank into these very arrays."""
+        return (self._prm, self._crit, self._acc, self.D, self._ints, self._s, self.accepted)
+
     def match(self, k: int) -> Match:
         """The last `evaluate` result for model `k` as a `Match`."""
         L, n_start, n_curr, i_start, i_curr = self._ints[:, k].tolist()
@@ -593,7 +605,7 @@ def match(
     return Match(d, L, n_start, n_curr, i_start, i_curr)
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, ::1], int64[::1], float64, float64)", cache=True, nogil=True)
 def window_push(buf: FloatArray, pos_count: IntArray, q_left: float, q_right: float) -> None:
     """Append one sample to the doubled ring `buf` (2M, 2); `pos_count` = (next slot, count).
 

@@ -1,12 +1,14 @@
 """The Passive Exoskeleton Controller (PEC): a passive device with a passive torque
 generator, emulated. It locks both sides whenever both hips flex at >= 1 rad/s (the
-paper's trigger), so walking, where the hips move in anti-phase, stays free."""
+paper's trigger), so walking, where the hips move in anti-phase, stays free.
+
+It runs inside the compiled tick (`controller.tick_kernel`, mode `MODE_PEC`)."""
 
 from __future__ import annotations
 
 from controller.config import ControllerConfig, ticks_per_run
-from controller.pipeline import Decision, PipelineController
-from controller.tick import Action
+from controller.pipeline import PipelineController
+from controller.tick_kernel import MODE_PEC, TickCore
 
 
 class PEC(PipelineController):
@@ -15,11 +17,9 @@ class PEC(PipelineController):
     name = "pec"
 
     def __init__(self, config: ControllerConfig | None = None) -> None:
-        super().__init__(config)
-        self.divider = ticks_per_run(self.config.pec_rate_hz)
+        c = config or ControllerConfig()
+        self.divider = ticks_per_run(c.pec_rate_hz)
+        super().__init__(c)
 
-    def _decide(self, trigger: bool, d: Decision) -> None:
-        if self.tick_index % self.divider != 0:
-            return
-        d.ran = True
-        d.action = int(Action.LOCK_BOTH if trigger else Action.NO_LOCK)
+    def _make_core(self) -> TickCore:
+        return TickCore(self.config, MODE_PEC, self.divider)

@@ -7,7 +7,7 @@ from alembic import context
 
 from backend.core.config import get_settings
 from backend.db.engine import make_engine
-from backend.db.models import Base
+from backend.db.tables import Base
 
 config = context.config
 url = config.get_main_option("sqlalchemy.url") or get_settings().database_url

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from fastapi.testclient import TestClient
 
 from backend.core.config import Settings
 
@@ -36,3 +38,23 @@ def settings(db_url: str, default_sets: tuple[Path, Path]) -> Settings:
         database_url=db_url, start_worker=False, models_path=models, utilities_dir=folder,
         device_kind="sim", _env_file=None,
     )
+
+
+@pytest.fixture
+def experimenter(db_url: str) -> dict[str, str]:
+    """An experimenter account in the test database (migrated here to hold it); the
+    credentials as the login endpoint takes them."""
+    from tests.login import create_experimenter
+
+    return create_experimenter(db_url)
+
+
+@pytest.fixture
+def client(settings: Settings, experimenter: dict[str, str]) -> Iterator[TestClient]:
+    """A TestClient logged in as `experimenter` (session cookie), no worker."""
+    from backend.main import create_app
+    from tests.login import log_in
+
+    with TestClient(create_app(settings)) as c:
+        log_in(c, experimenter)
+        yield c

@@ -51,6 +51,14 @@ AUTH_RESPONSES: dict[int | str, dict[str, Any]] = {
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorMessage, "description": "an id in the path does not exist"},
 }
+INVALID: dict[int | str, dict[str, Any]] = {
+    422: {"model": ErrorMessage,
+          "description": "a parameter or field is invalid; `loc` names it"},
+}
+BODY: dict[int | str, dict[str, Any]] = {
+    400: {"model": ErrorMessage, "description": "the body is not parseable JSON"},
+    **INVALID,
+}
 CONFLICT: dict[int | str, dict[str, Any]] = {
     409: {"model": ErrorMessage, "description": "duplicate, or not allowed in this state"},
 }

@@ -35,6 +35,8 @@ class Settings(BaseSettings):
     device_seed: int = 1
     device_script: str = "paper-evaluation"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
+    #: With `sim`: run the simulated wearer this many times faster than real time.
+    device_speed: float = Field(default=1.0, ge=0.1, le=100.0)
 
     #: Controller the worker starts with: none, umc, eumc or pec.
     controller: str = "none"

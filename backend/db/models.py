@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 from datetime import UTC, date, datetime
 from typing import Any
-from typing import Any
 
 from sqlalchemy import (
     JSON,

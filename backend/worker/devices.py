@@ -17,6 +17,7 @@ def make_device(config: WorkerConfig) -> Device:
             realtime=True,
             loop=True,
             precompression_pct=config.precompression_pct,
+            speed=config.device_speed,
         )
     if config.device_kind == "udp":
         from controller.device.udp import UdpDevice

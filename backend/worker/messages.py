@@ -19,6 +19,8 @@ class WorkerConfig:
     device_seed: int = 1
     device_script: str = "paper-evaluation"
     precompression_pct: float = 25.0
+    #: In-process simulator only: samples this many times faster than real time.
+    device_speed: float = 1.0
     controller: str = "none"
     controller_config: dict[str, Any] = field(default_factory=dict)
     #: The model set used for calibration when the running controller has none.

@@ -28,7 +28,13 @@ class SimulatedDevice(Device):
         loop: bool = True,
         precompression_pct: float = 25.0,
         layout: EncoderLayout = DEFAULT_LAYOUT,
+        speed: float = 1.0,
     ) -> None:
+        if not 0.1 <= speed <= 100.0:
+            raise ValueError(f"speed must be within 0.1..100 times real time, got {speed}")
+        #: Samples come `speed` times faster than real time (device time still steps
+        #: 10 ms): rehearsals and tests of long protocols in less wall time.
+        self.speed = speed
         self.exo = SimulatedExoskeleton(
             seed=seed,
             script=script,
@@ -59,7 +65,7 @@ class SimulatedDevice(Device):
             return None
         if self.realtime:
             assert self._start is not None
-            due = self._start + self.exo.seq * self.exo.dt
+            due = self._start + self.exo.seq * self.exo.dt / self.speed
             wait = due - time.monotonic()
             if wait > timeout:
                 if timeout > 0:

@@ -59,14 +59,14 @@ SOLENOID_LEFT = int(Status.SOLENOID_LEFT)
 SOLENOID_RIGHT = int(Status.SOLENOID_RIGHT)
 
 
-@njit(cache=True, nogil=True)
+@njit("float64(float64, float64, float64)", cache=True, nogil=True)
 def next_tooth(angle: float, pitch: float, phase: float) -> float:
     """The first tooth position at or above `angle` in the flexion direction."""
     k = math.ceil((angle - phase) / pitch - 1e-9)
     return phase + k * pitch
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[::1], float64[::1], boolean, float64)", cache=True, nogil=True)
 def hip_step(st: FloatArray, prm: FloatArray, solenoid: bool, intended: float) -> None:
     """Advance one side's state `st` one tick (the mechanism of the module docstring).
 
@@ -105,7 +105,10 @@ def hip_step(st: FloatArray, prm: FloatArray, solenoid: bool, intended: float) -
     st[_CAM] = intended
 
 
-@njit(cache=True, nogil=True)
+@njit(
+    "int64(float64[:, ::1], float64[:, ::1], boolean, boolean, float64, float64)",
+    cache=True, nogil=True,
+)
 def plant_step(
     st: FloatArray, prm: FloatArray, lock_left: bool, lock_right: bool, left: float,
     right: float,

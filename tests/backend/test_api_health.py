@@ -7,6 +7,7 @@ from fastapi.testclient import TestClient
 
 from backend.core.config import Settings
 from backend.main import create_app
+from tests.login import log_in
 
 
 def test_health_without_a_worker_is_degraded(settings: Settings) -> None:
@@ -19,8 +20,14 @@ def test_health_without_a_worker_is_degraded(settings: Settings) -> None:
     assert body["device"]["kind"] == "sim"
 
 
-def test_live_page_and_uplot_are_served_locally(settings: Settings) -> None:
+def test_live_page_and_uplot_are_served_locally(
+    settings: Settings, experimenter: dict[str, str]
+) -> None:
     with TestClient(create_app(settings)) as client:
+        anonymous = client.get("/live", follow_redirects=False)
+        assert anonymous.status_code == 303
+        assert anonymous.headers["location"] == "/login?next=/live"
+        log_in(client, experimenter)
         page = client.get("/live")
         assert page.status_code == 200
         assert "/vendor/uplot/uPlot.min.css" in page.text
@@ -30,8 +37,19 @@ def test_live_page_and_uplot_are_served_locally(settings: Settings) -> None:
         assert client.get("/", follow_redirects=False).headers["location"] == "/live"
 
 
-def test_unknown_controller_is_refused_with_its_name(settings: Settings) -> None:
+def test_login_page_is_served_without_a_login(settings: Settings) -> None:
     with TestClient(create_app(settings)) as client:
+        page = client.get("/login")
+    assert page.status_code == 200 and "/api/auth/login" not in page.text
+    assert "/static/login.js" in page.text
+
+
+def test_unknown_controller_is_refused_with_its_name(
+    settings: Settings, experimenter: dict[str, str]
+) -> None:
+    with TestClient(create_app(settings)) as client:
+        assert client.post("/api/worker/controller", json={"name": "pec"}).status_code == 401
+        log_in(client, experimenter)
         r = client.post("/api/worker/controller", json={"name": "telepathy"})
     assert r.status_code == 422
     assert "telepathy" in r.json()["detail"]

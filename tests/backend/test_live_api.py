@@ -14,6 +14,7 @@ from backend.core.config import Settings
 from backend.db.engine import make_engine
 from backend.db.models import ticks_table
 from backend.main import create_app
+from tests.login import log_in
 
 pytestmark = pytest.mark.slow
 
@@ -29,10 +30,11 @@ def _wait_healthy(client: TestClient, timeout: float = 60.0) -> dict:
     raise AssertionError(f"never healthy: {body}")
 
 
-def test_health_websocket_and_storage(settings: Settings) -> None:
+def test_health_websocket_and_storage(settings: Settings, experimenter: dict[str, str]) -> None:
     settings = settings.model_copy(update={"start_worker": True})
     with TestClient(create_app(settings)) as client:
         body = _wait_healthy(client)
+        log_in(client, experimenter)
         assert body["worker"]["alive"] and body["device"]["alive"]
         assert isinstance(body["worker"]["pid"], int)
         assert body["worker"]["period_mean_ms"] is not None  # timing itself: see bench/
@@ -54,3 +56,15 @@ def test_health_websocket_and_storage(settings: Settings) -> None:
             stored = conn.execute(select(func.count()).select_from(ticks_table)).scalar_one()
         engine.dispose()
         assert stored >= 150
+
+
+def test_websocket_refuses_a_caller_without_login(settings: Settings) -> None:
+    from starlette.websockets import WebSocketDisconnect
+
+    with TestClient(create_app(settings)) as client:
+        with pytest.raises(WebSocketDisconnect) as refused, client.websocket_connect("/ws/live"):
+            pass
+        assert refused.value.code == 1008
+        client.cookies.set("exostudy_session", "not-a-real-token")
+        with pytest.raises(WebSocketDisconnect), client.websocket_connect("/ws/live"):
+            pass

@@ -16,6 +16,7 @@ from backend.db.engine import make_engine
 from backend.db.models import Run, ticks_table
 from backend.main import create_app
 from controller.tick import TickFlag
+from tests.login import log_in
 
 pytestmark = pytest.mark.slow
 
@@ -29,10 +30,12 @@ def _wait(cond: object, timeout: float, what: str) -> None:
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def test_pec_then_eumc_with_calibration(settings: Settings) -> None:
+def test_pec_then_eumc_with_calibration(settings: Settings, experimenter: dict[str, str]
+                                       ) -> None:
     settings = settings.model_copy(update={"start_worker": True, "controller": "pec",
                                            "device_script": "squat-sequence"})
     with TestClient(create_app(settings)) as client:
+        log_in(client, experimenter)
         _wait(lambda: client.get("/api/health").json()["worker"]["ticks"] > 10, 60, "ticks")
         # PEC: the lock command follows the velocity trigger (both hips >= 1 rad/s).
         with client.websocket_connect("/ws/live") as ws:

@@ -8,7 +8,7 @@ from sqlalchemy import inspect
 
 from backend.db import migrate
 from backend.db.engine import make_engine
-from backend.db.models import Base
+from backend.db.tables import Base
 from controller.tick import TickRecord
 
 
@@ -16,7 +16,9 @@ def test_upgrade_head_then_downgrade_base(db_url: str) -> None:
     migrate.upgrade(db_url)
     assert migrate.current(db_url) is not None
     engine = make_engine(db_url)
-    assert {"runs", "ticks"} <= set(inspect(engine).get_table_names())
+    assert {"runs", "ticks", "recordings", "trials", "participants"} <= set(
+        inspect(engine).get_table_names()
+    )
     migrate.downgrade(db_url)
     assert migrate.current(db_url) is None
     assert set(inspect(engine).get_table_names()) <= {"alembic_version"}

@@ -49,7 +49,7 @@ def browser() -> Iterator[Any]:
 
 
 @pytest.fixture
-def server(settings: Settings) -> Iterator[str]:
+def server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
     """The app with a real worker and the in-process simulated exoskeleton."""
     with running_server(settings.model_copy(update={"start_worker": True})) as url:
         yield url
@@ -80,3 +80,16 @@ def page(browser: Any, request: pytest.FixtureRequest) -> Iterator[Any]:
     context.close()
     assert not outside, f"the page tried to reach the internet: {outside}"
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+@pytest.fixture
+def logged_in(server: str, page: Any, experimenter: dict[str, str]) -> str:
+    """Log `page` in through the login page, as an experimenter would: opening the
+    console without a login lands on the login page, which leads back to it."""
+    page.goto(f"{server}/live")
+    page.wait_for_url("**/login?next=/live")
+    page.fill("#username", experimenter["username"])
+    page.fill("#password", experimenter["password"])
+    page.click("#submit")
+    page.wait_for_url(f"{server}/live")
+    return server

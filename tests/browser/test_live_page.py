@@ -6,9 +6,8 @@ from typing import Any
 
 
 def test_live_page_receives_and_draws_at_least_50_samples_per_second(
-    server: str, page: Any
+    logged_in: str, page: Any
 ) -> None:
-    page.goto(f"{server}/live")
     page.wait_for_function("window.exostudyLive && window.exostudyLive.samples > 0", timeout=20000)
     probe = "({s: exostudyLive.samples, d: exostudyLive.draws, t: performance.now()})"
     start = page.evaluate(probe)
@@ -26,13 +25,15 @@ def test_live_page_receives_and_draws_at_least_50_samples_per_second(
     assert n_points >= 1
 
 
-def test_killing_the_worker_shows_on_the_page_and_restart_recovers(server: str, page: Any) -> None:
+def test_killing_the_worker_shows_on_the_page_and_restart_recovers(
+    logged_in: str, page: Any
+) -> None:
     import os
     import signal
 
     import httpx
 
-    page.goto(f"{server}/live")
+    server = logged_in
     page.wait_for_function("window.exostudyLive.samples > 20", timeout=20000)
     pid = httpx.get(f"{server}/api/health").json()["worker"]["pid"]
     os.kill(pid, signal.SIGKILL)

@@ -8,11 +8,11 @@ from fastapi import APIRouter, Query
 from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep
-from backend.api.errors import AUTH_RESPONSES
+from backend.api.errors import AUTH_RESPONSES, INVALID
 from backend.db.models import AuditEntry
 from backend.schemas.audit import AuditOut
 
-router = APIRouter(prefix="/api/audit", tags=["audit"], responses=AUTH_RESPONSES)
+router = APIRouter(prefix="/api/audit", tags=["audit"], responses={**AUTH_RESPONSES, **INVALID})
 
 
 @router.get("", response_model=list[AuditOut])

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 from datetime import UTC, datetime
+from typing import Any
 
 from fastapi import APIRouter, HTTPException, Request, Response
 
 from backend import accounts, audit
 from backend.api.deps import SESSION_COOKIE, CurrentLogin, CurrentUser, SessionDep
-from backend.api.errors import AUTH_RESPONSES, ErrorMessage
+from backend.api.errors import AUTH_RESPONSES, BODY, ErrorMessage
 from backend.schemas.auth import Credentials, LoginOut, TokenOut, UserOut
 
 router = APIRouter(prefix="/api/auth", tags=["auth"])
 
-_BAD_LOGIN = {401: {"model": ErrorMessage, "description": "wrong username or password"}}
+_BAD_LOGIN: dict[int | str, dict[str, Any]] = {
+    401: {"model": ErrorMessage, "description": "wrong username or password"}}
 
 
 def _login(db: SessionDep, creds: Credentials, kind: accounts.TokenKind
@@ -28,7 +30,7 @@ def _login(db: SessionDep, creds: Credentials, kind: accounts.TokenKind
     return token, row.expires_at, UserOut.model_validate(user)
 
 
-@router.post("/login", response_model=LoginOut, responses=_BAD_LOGIN)
+@router.post("/login", response_model=LoginOut, responses={**_BAD_LOGIN, **BODY})
 def login(creds: Credentials, db: SessionDep, request: Request, response: Response
           ) -> LoginOut:
     """Log in from a browser: sets the httponly session cookie."""
@@ -41,7 +43,7 @@ def login(creds: Credentials, db: SessionDep, request: Request, response: Respon
     return LoginOut(user=user, expires_at=expires)
 
 
-@router.post("/token", response_model=TokenOut, responses=_BAD_LOGIN)
+@router.post("/token", response_model=TokenOut, responses={**_BAD_LOGIN, **BODY})
 def token(creds: Credentials, db: SessionDep) -> TokenOut:
     """Log in from a script: returns a bearer token (`Authorization: Bearer ...`)."""
     tok, expires, user = _login(db, creds, "bearer")

@@ -16,7 +16,7 @@ from sqlalchemy import select
 
 from backend import audit
 from backend.api.deps import SessionDep
-from backend.api.errors import CONFLICT, ErrorMessage, conflict, invalid, invalid_many
+from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
 from backend.blinding import labels_of
 from backend.core.security import token_digest
 from backend.db.models import (
@@ -39,6 +39,7 @@ from backend.schemas.questionnaires import (
 router = APIRouter(prefix="/api/participant-forms", tags=["participant forms"], responses={
     404: {"model": ErrorMessage, "description": "no such link"},
     410: {"model": ErrorMessage, "description": "the link expired or was used"},
+    **BODY,
 })
 
 Token = Annotated[str, Path(min_length=16, max_length=128, pattern=r"^[A-Za-z0-9_-]+$",

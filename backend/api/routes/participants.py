@@ -12,6 +12,7 @@ from backend import audit
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
+    BODY,
     CONFLICT,
     NOT_FOUND,
     commit_or_conflict,
@@ -30,7 +31,7 @@ from backend.schemas.participants import (
 )
 from controller.factory import controller_names
 
-router = APIRouter(tags=["participants"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+router = APIRouter(tags=["participants"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
 
 def _code_taken(db: SessionDep, study_id: int, code: str, but: int | None = None) -> bool:

@@ -6,13 +6,13 @@ from fastapi import APIRouter
 from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep
-from backend.api.errors import AUTH_RESPONSES, NOT_FOUND, one_or_404
+from backend.api.errors import AUTH_RESPONSES, INVALID, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId
 from backend.blinding import labels_of
 from backend.db.models import Participant, Preference
 from backend.schemas.questionnaires import PreferenceOut
 
-router = APIRouter(tags=["preferences"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+router = APIRouter(tags=["preferences"], responses={**AUTH_RESPONSES, **NOT_FOUND, **INVALID})
 
 
 @router.get("/api/participants/{participant_id}/preferences",

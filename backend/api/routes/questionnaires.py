@@ -17,6 +17,8 @@ from backend import audit
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
+    BODY,
+    INVALID,
     CONFLICT,
     NOT_FOUND,
     commit_or_conflict,
@@ -87,7 +89,7 @@ def list_instruments(user: CurrentUser, db: SessionDep) -> list[InstrumentSummar
 
 
 @router.post("/api/instruments", response_model=InstrumentOut, status_code=201,
-             responses=CONFLICT)
+             responses={**BODY, **CONFLICT})
 def import_instrument(definition: InstrumentDefinition, user: CurrentUser, db: SessionDep
                       ) -> InstrumentOut:
     """Import a study's own definition file (the JSON body). It is validated like the
@@ -108,7 +110,7 @@ def import_instrument(definition: InstrumentDefinition, user: CurrentUser, db: S
 
 
 @router.get("/api/instruments/{key}/{version}", response_model=InstrumentOut,
-            responses=NOT_FOUND)
+            responses={**NOT_FOUND, **INVALID})
 def get_instrument(key: Annotated[str, Path(pattern=KEY_PATTERN)],
                    version: Annotated[str, Path(pattern=VERSION_PATTERN)],
                    user: CurrentUser, db: SessionDep) -> InstrumentOut:
@@ -121,7 +123,7 @@ def get_instrument(key: Annotated[str, Path(pattern=KEY_PATTERN)],
 
 
 @router.post("/api/participants/{participant_id}/links", response_model=LinkCreated,
-             status_code=201, responses=NOT_FOUND)
+             status_code=201, responses={**NOT_FOUND, **BODY})
 def create_link(participant_id: ParticipantId, body: LinkIn, request: Request,
                 user: CurrentUser, db: SessionDep) -> LinkCreated:
     """A single-use link for the participant to fill in the forms due (and, if asked,
@@ -173,7 +175,7 @@ def create_link(participant_id: ParticipantId, body: LinkIn, request: Request,
 
 
 @router.get("/api/participants/{participant_id}/links", response_model=list[LinkOut],
-            responses=NOT_FOUND)
+            responses={**NOT_FOUND, **INVALID})
 def list_links(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
                ) -> list[LinkOut]:
     """The participant's links (without tokens) and whether they were used."""
@@ -182,8 +184,8 @@ def list_links(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
         ParticipantLink.participant_id == participant_id).order_by(ParticipantLink.id))]
 
 
-@router.get("/api/participants/{participant_id}/responses", response_model=list[ResponseOut],
-            responses=NOT_FOUND)
+@router.get("/api/participants/{participant_id}/responses",
+            response_model=list[ResponseOut], responses={**NOT_FOUND, **INVALID})
 def list_responses(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
                    ) -> list[ResponseOut]:
     """The participant's scored responses, unblinded (`controller`)."""

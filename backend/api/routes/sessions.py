@@ -9,12 +9,12 @@ from sqlalchemy import select
 
 from backend import audit
 from backend.api.deps import CurrentUser, SessionDep
-from backend.api.errors import AUTH_RESPONSES, NOT_FOUND, one_or_404
+from backend.api.errors import AUTH_RESPONSES, BODY, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId, SessionId
 from backend.db.models import Participant, StudySession
 from backend.schemas.sessions import SessionIn, SessionOut, SessionUpdate
 
-router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
 
 @router.get("/api/participants/{participant_id}/sessions", response_model=list[SessionOut])

@@ -9,6 +9,8 @@ from backend import audit
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
+    BODY,
+    INVALID,
     CONFLICT,
     NOT_FOUND,
     commit_or_conflict,
@@ -33,7 +35,8 @@ def list_studies(user: CurrentUser, db: SessionDep) -> list[Study]:
     return list(db.scalars(select(Study).order_by(Study.id)))
 
 
-@router.post("", response_model=StudyOut, status_code=201, responses=CONFLICT)
+@router.post("", response_model=StudyOut, status_code=201,
+             responses={**BODY, **CONFLICT})
 def create_study(body: StudyIn, user: CurrentUser, db: SessionDep) -> Study:
     """Create a study; 409 if the name is taken."""
     if _name_taken(db, body.name):
@@ -46,13 +49,14 @@ def create_study(body: StudyIn, user: CurrentUser, db: SessionDep) -> Study:
     return study
 
 
-@router.get("/{study_id}", response_model=StudyOut, responses=NOT_FOUND)
+@router.get("/{study_id}", response_model=StudyOut, responses={**NOT_FOUND, **INVALID})
 def get_study(study_id: StudyId, user: CurrentUser, db: SessionDep) -> Study:
     """One study."""
     return one_or_404(db, Study, study_id, "study")
 
 
-@router.patch("/{study_id}", response_model=StudyOut, responses={**NOT_FOUND, **CONFLICT})
+@router.patch("/{study_id}", response_model=StudyOut,
+              responses={**NOT_FOUND, **BODY, **CONFLICT})
 def update_study(study_id: StudyId, body: StudyUpdate, user: CurrentUser, db: SessionDep
                  ) -> Study:
     """Rename a study or change its description."""

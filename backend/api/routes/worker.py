@@ -103,3 +103,22 @@ async def calibrate(req: CalibrationRequest, runtime: RuntimeDep) -> Calibration
     if not r.ok:
         raise HTTPException(422, out.model_dump())
     return out
+
+
+class SimulationChoice(BaseModel):
+    """The virtual participant and what they do."""
+
+    seed: int = Field(ge=0, le=2**31 - 1, description="virtual participant")
+    script: str = Field(description="squat-sequence, stoop-sequence, walking, stairs, "
+                        "paper-evaluation")
+
+
+@router.post("/simulation", response_model=Health,
+             responses={422: {"description": "unknown script, or the device is hardware"}})
+async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
+    """Change the simulated wearer (seed) or script; the simulator restarts."""
+    try:
+        await runtime.set_simulation(choice.seed, choice.script)
+    except ValueError as exc:
+        raise HTTPException(422, f"script: {exc}") from exc
+    return runtime.health()

@@ -1,0 +1,69 @@
+"""Import a lab's own human motion data (hip angle and torque per motion and leg) from CSV.
+
+Columns: `motion,leg,n,theta_rad,tau_nm` with motion in squat, stoop_left, stoop_right,
+walking; leg in left, right; n = 0..100 (progress s = n / 100); torque in Nm, hip
+extension positive. Every motion and leg needs all 101 samples. Errors name the row
+(1 is the header) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+
+import numpy as np
+
+from controller.human_data import HUMAN_MOTIONS, LEGS, N_PROGRESS, HumanMotionData
+
+COLUMNS = ("motion", "leg", "n", "theta_rad", "tau_nm")
+
+
+class CsvError(ValueError):
+    """A malformed upload; `row` and `column` say where."""
+
+    def __init__(self, row: int, column: str, problem: str) -> None:
+        super().__init__(f"row {row}, column {column}: {problem}")
+        self.row, self.column, self.problem = row, column, problem
+
+
+def parse_human_data(text: str, source: str) -> HumanMotionData:
+    """Parse and validate; raises `CsvError` at the first problem."""
+    reader = csv.DictReader(io.StringIO(text))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    for c in COLUMNS:
+        if c not in header:
+            raise CsvError(1, c, f"missing column; expected {','.join(COLUMNS)}")
+    theta = np.full((len(HUMAN_MOTIONS), len(LEGS), N_PROGRESS), np.nan)
+    tau = np.full_like(theta, np.nan)
+    for row_no, raw in enumerate(reader, start=2):
+        row = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
+        motion = row["motion"]
+        if motion not in HUMAN_MOTIONS:
+            raise CsvError(row_no, "motion", f"{motion!r} is not one of {', '.join(HUMAN_MOTIONS)}")
+        leg = row["leg"]
+        if leg not in LEGS:
+            raise CsvError(row_no, "leg", f"{leg!r} is not left or right")
+        try:
+            n = int(row["n"])
+        except ValueError:
+            raise CsvError(row_no, "n", f"not an integer: {row['n']!r}") from None
+        if not 0 <= n < N_PROGRESS:
+            raise CsvError(row_no, "n", f"{n} outside 0..{N_PROGRESS - 1}")
+        i, j = HUMAN_MOTIONS.index(motion), LEGS.index(leg)
+        if not np.isnan(theta[i, j, n]):
+            raise CsvError(row_no, "n", f"duplicate sample {motion}/{leg}/n={n}")
+        for col, arr, limit in (("theta_rad", theta, 2 * math.pi), ("tau_nm", tau, 1000.0)):
+            try:
+                v = float(row[col])
+            except ValueError:
+                raise CsvError(row_no, col, f"not a number: {row[col]!r}") from None
+            if not math.isfinite(v) or abs(v) > limit:
+                raise CsvError(row_no, col, f"{v} is not finite or beyond +-{limit:g}")
+            arr[i, j, n] = v
+    missing = np.argwhere(np.isnan(theta))
+    if missing.size:
+        i, j, n = missing[0]
+        raise CsvError(0, "n", f"missing {len(missing)} samples, first {HUMAN_MOTIONS[i]}/"
+                       f"{LEGS[j]}/n={n}; every motion and leg needs n = 0..100")
+    return HumanMotionData(theta=theta, tau=tau, source=source, version="imported")

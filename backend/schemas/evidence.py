@@ -1,0 +1,206 @@
+"""Request and response bodies for recordings, segments, model sets, utility sets, jobs
+and trials (the ORM rows stay in `backend.db.evidence`)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
+TrialController = Literal["umc", "eumc", "pec"]
+
+
+class RecordingIn(BaseModel):
+    """Start a recording of demonstrations (the worker records with no locks)."""
+
+    label: str = Field(default="", max_length=200)
+    notes: str = Field(default="", max_length=5000)
+
+
+class RecordingOut(BaseModel):
+    """A recording and where its ticks are."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    session_id: int
+    run_id: int | None
+    label: str
+    status: str
+    started_at: datetime
+    ended_at: datetime | None
+    first_tick_id: int | None
+    last_tick_id: int | None
+    notes: str
+
+
+class SegmentIn(BaseModel):
+    """A lift as sample indices from the recording's first tick."""
+
+    start: int = Field(ge=0)
+    peak: int = Field(ge=0)
+    end: int = Field(ge=0)
+    label: SegmentLabel = "unlabelled"
+
+    @model_validator(mode="after")
+    def _ordered(self) -> SegmentIn:
+        if not self.start < self.peak < self.end:
+            raise ValueError("indices must satisfy start < peak < end")
+        return self
+
+
+class SegmentUpdate(BaseModel):
+    """Move a segment's edges or relabel it."""
+
+    start: int | None = Field(default=None, ge=0)
+    peak: int | None = Field(default=None, ge=0)
+    end: int | None = Field(default=None, ge=0)
+    label: SegmentLabel | None = None
+
+
+class SegmentOut(BaseModel):
+    """A lift segment."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    recording_id: int
+    start: int
+    peak: int
+    end: int
+    label: str
+    source: str
+    updated_at: datetime
+
+
+class RecordingAngles(BaseModel):
+    """A recording's hip angles, for plotting it with its segments."""
+
+    t: list[float]
+    q_left: list[float | None]
+    q_right: list[float | None]
+    truth_activity: list[str]
+
+
+class ModelSetIn(BaseModel):
+    """Fit a model set from labelled segments (a background job)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    segment_ids: list[int] = Field(min_length=6, max_length=10_000)
+    latent_dim: int | None = Field(default=None, ge=1, le=200)
+    explained_variance: float = Field(default=0.95, gt=0.0, lt=1.0)
+
+
+class ModelSetOut(BaseModel):
+    """A model set; `document` is the full versioned JSON once fitted."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    study_id: int
+    name: str
+    status: str
+    params: dict[str, Any]
+    segment_ids: list[int]
+    error: str
+    created_at: datetime
+    job_id: int | None = None
+
+
+class UtilitySetIn(BaseModel):
+    """Compute utilities for a precompression from the built-in simulated human dataset
+    (`human_source="simulated"`) or an imported one (upload CSV first)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    precompression_pct: float = Field(ge=0.0, le=100.0)
+
+
+class UtilitySetOut(BaseModel):
+    """A utility set."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    study_id: int
+    name: str
+    precompression_pct: float
+    human_source: str
+    status: str
+    error: str
+    created_at: datetime
+    job_id: int | None = None
+
+
+class UtilityCurves(BaseModel):
+    """Utility of each action minus that of "no lock", per motion, over progress (the
+    paper's utility figure)."""
+
+    progress: list[float]
+    differences: dict[str, dict[str, list[float]]]
+    other: dict[str, float]
+
+
+class JobOut(BaseModel):
+    """A background job."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    kind: str
+    target_id: int
+    status: str
+    progress: float
+    message: str
+    created_at: datetime
+    finished_at: datetime | None
+
+
+class TrialPlanIn(BaseModel):
+    """Plan an evaluation session's trials in the study's counterbalanced order."""
+
+    tasks: list[str] = Field(default_factory=lambda: ["squat-sequence", "stoop-sequence",
+                                                      "walking", "stairs"],
+                             min_length=1, max_length=20)
+    include_eumc: bool = True
+    model_set_id: int | None = None
+    utility_set_id: int | None = None
+
+
+class TrialStartIn(BaseModel):
+    """Options for starting a trial."""
+
+    rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
+                                  description="every controller at this rate; paper's if unset")
+
+
+class TrialStopIn(BaseModel):
+    """End a trial."""
+
+    outcome: Literal["completed", "aborted"] = "completed"
+    reason: str = Field(default="", max_length=2000)
+
+
+class TrialOut(BaseModel):
+    """A trial and the exact configuration it ran with."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    session_id: int
+    controller: str
+    task: str
+    planned_order: int
+    status: str
+    model_set_id: int | None
+    utility_set_id: int | None
+    run_id: int | None
+    config_snapshot: dict[str, Any] | None
+    started_at: datetime | None
+    ended_at: datetime | None
+    end_reason: str
+
+
+class LockEventOut(BaseModel):
+    """A lock command or mechanism change in a trial."""
+
+    model_config = ConfigDict(from_attributes=True)
+    t: float
+    side: str
+    kind: str
+    torque_peak: float | None

@@ -1,0 +1,29 @@
+// Log in with the JSON endpoint (it sets the httponly session cookie), then go back to
+// the page that sent us here. Only same-site paths are followed, never another origin.
+const form = document.getElementById("login");
+const error = document.getElementById("login-error");
+
+function nextPath() {
+  const next = new URLSearchParams(location.search).get("next") || "/live";
+  return next.startsWith("/") && !next.startsWith("//") ? next : "/live";
+}
+
+form.addEventListener("submit", async (event) => {
+  event.preventDefault();
+  error.textContent = "";
+  const body = {
+    username: document.getElementById("username").value,
+    password: document.getElementById("password").value,
+  };
+  const r = await fetch("/api/auth/login", {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify(body),
+  });
+  if (r.ok) {
+    location.assign(nextPath());
+  } else {
+    const detail = (await r.json().catch(() => ({}))).detail;
+    error.textContent = typeof detail === "string" ? detail : "login failed";
+  }
+});

@@ -1,0 +1,141 @@
+"""A study through the API alone, on a real worker and the simulated wearer (sped up):
+record demonstrations, segment them, fit models, compute utilities, plan the
+counterbalanced evaluation, run trials and export their ticks."""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from backend.core.config import Settings
+from backend.main import create_app
+from tests.login import log_in
+
+pytestmark = pytest.mark.slow
+
+
+def _ok(r: Any, code: int = 200) -> Any:
+    assert r.status_code == code, r.text
+    return r.json()
+
+
+def _job(client: TestClient, job_id: int, timeout: float = 60.0) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        job = _ok(client.get(f"/api/jobs/{job_id}"))
+        if job["status"] in ("done", "failed"):
+            return job  # type: ignore[no-any-return]
+        time.sleep(0.2)
+    raise AssertionError("job did not finish")
+
+
+def _wait_ticks(client: TestClient) -> None:
+    deadline = time.monotonic() + 60
+    while client.get("/api/health").json()["worker"]["ticks"] < 20:
+        assert time.monotonic() < deadline, "worker never ticked"
+        time.sleep(0.2)
+
+
+def _record(client: TestClient, session_id: int, script: str, seconds: float) -> int:
+    _ok(client.post("/api/worker/simulation", json={"seed": 21, "script": script}))
+    _wait_ticks(client)
+    rec = _ok(client.post(f"/api/sessions/{session_id}/recordings",
+                          json={"label": script}), 201)
+    time.sleep(seconds)
+    rec = _ok(client.post(f"/api/recordings/{rec['id']}/stop"))
+    assert rec["status"] == "stopped" and rec["last_tick_id"] > rec["first_tick_id"]
+    return int(rec["id"])
+
+
+def test_a_study_from_participant_to_exported_ticks(
+    settings: Settings, experimenter: dict[str, str]
+) -> None:
+    settings = settings.model_copy(update={"start_worker": True, "device_speed": 5.0,
+                                           "device_script": "squat-sequence"})
+    with TestClient(create_app(settings)) as client:
+        log_in(client, experimenter)
+        study = _ok(client.post("/api/studies", json={"name": "Lifting study"}), 201)
+        p1 = _ok(client.post(f"/api/studies/{study['id']}/participants",
+                             json={"code": "P01", "age": 30, "sex": "female", "height_m": 1.7,
+                                   "mass_kg": 65, "consent_date": "2026-11-20"}), 201)
+        p2 = _ok(client.post(f"/api/studies/{study['id']}/participants",
+                             json={"code": "P02", "age": 41, "sex": "male", "height_m": 1.82,
+                                   "mass_kg": 80, "consent_date": "2026-11-21"}), 201)
+        dc = _ok(client.post(f"/api/participants/{p1['id']}/sessions",
+                             json={"kind": "data_collection", "precompression_pct": 25}), 201)
+
+        # 1. Data collection: squats, then stoops, each recorded and segmented.
+        segments: list[dict[str, Any]] = []
+        for script, seconds in (("squat-sequence", 7.0), ("stoop-sequence", 12.0)):
+            rid = _record(client, dc["id"], script, seconds)
+            angles = _ok(client.get(f"/api/recordings/{rid}/angles"))
+            assert len(angles["t"]) > 500
+            found = _ok(client.post(f"/api/recordings/{rid}/segment"))
+            assert found, f"no lifts found in {script}"
+            segments += found
+        labels = [s["label"] for s in segments]
+        assert {"squat", "stoop_left", "stoop_right"} <= set(labels)
+        # The experimenter moves an edge: the segment is marked as edited.
+        edited = _ok(client.patch(f"/api/segments/{segments[0]['id']}",
+                                  json={"start": segments[0]["start"] + 1}))
+        assert edited["source"] == "edited"
+        bad = client.patch(f"/api/segments/{segments[0]['id']}", json={"end": 10**7})
+        assert bad.status_code == 422 and "end" in bad.text
+
+        # 2. Models and utilities as background jobs.
+        ms = _ok(client.post(f"/api/studies/{study['id']}/model-sets",
+                             json={"name": "P01 demos", "segment_ids": [s["id"] for s in
+                                                                        segments]}), 202)
+        assert _job(client, ms["job_id"])["status"] == "done"
+        doc = _ok(client.get(f"/api/model-sets/{ms['id']}/document"))
+        assert doc["format"] == "exostudy.motion_model_set"
+        us = _ok(client.post(f"/api/studies/{study['id']}/utility-sets",
+                             json={"name": "sim 25", "precompression_pct": 25}), 202)
+        assert _job(client, us["job_id"])["status"] == "done"
+        curves = _ok(client.get(f"/api/utility-sets/{us['id']}/curves"))
+        assert set(curves["differences"]) == {"squat", "stoop_left", "stoop_right"}
+
+        # 3. Evaluation: counterbalanced across participants.
+        plans = []
+        for p in (p1, p2):
+            ev = _ok(client.post(f"/api/participants/{p['id']}/sessions",
+                                 json={"kind": "evaluation", "precompression_pct": 25}), 201)
+            plan = _ok(client.post(f"/api/sessions/{ev['id']}/trials/plan",
+                                   json={"tasks": ["squat-sequence"], "model_set_id": ms["id"],
+                                         "utility_set_id": us["id"]}), 201)
+            plans.append(plan)
+        assert [t["controller"] for t in plans[0]] == ["umc", "pec", "eumc"]
+        assert [t["controller"] for t in plans[1]] == ["pec", "umc", "eumc"]
+
+        pec = next(t for t in plans[0] if t["controller"] == "pec")
+        _ok(client.post("/api/worker/simulation", json={"seed": 22, "script": "squat-sequence"}))
+        _wait_ticks(client)
+        started = _ok(client.post(f"/api/trials/{pec['id']}/start", json={}))
+        assert started["status"] == "running"
+        assert started["config_snapshot"]["settings"]["pec_rate_hz"] == 100
+        busy = client.post(f"/api/sessions/{dc['id']}/recordings", json={})
+        assert busy.status_code == 409 and "still running" in busy.text
+        time.sleep(6.0)
+        stopped = _ok(client.post(f"/api/trials/{pec['id']}/stop",
+                                  json={"outcome": "completed"}))
+        assert stopped["status"] == "completed"
+        events = _ok(client.get(f"/api/trials/{pec['id']}/lock-events"))
+        assert any(e["kind"] == "command_on" for e in events)
+
+        # The E-UMC refuses to start before a calibration.
+        eumc = next(t for t in plans[0] if t["controller"] == "eumc")
+        r = client.post(f"/api/trials/{eumc['id']}/start", json={})
+        assert r.status_code == 409 and "calibration" in r.text
+
+        # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
+        text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text
+        rows = list(csv.DictReader(io.StringIO(text)))
+        as_json = _ok(client.get(f"/api/trials/{pec['id']}/ticks.json"))["columns"]
+        assert len(rows) == len(as_json["t"]) > 500
+        assert any(r["lock_left"] == "1" for r in rows)
+        assert float(rows[10]["t"]) == pytest.approx(as_json["t"][10])
