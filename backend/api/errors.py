@@ -55,10 +55,10 @@ INVALID: dict[int | str, dict[str, Any]] = {
     422: {"model": ErrorMessage,
           "description": "a parameter or field is invalid; `loc` names it"},
 }
-BODY: dict[int | str, dict[str, Any]] = {
+MALFORMED: dict[int | str, dict[str, Any]] = {
     400: {"model": ErrorMessage, "description": "the body is not parseable JSON"},
-    **INVALID,
 }
+BODY: dict[int | str, dict[str, Any]] = {**MALFORMED, **INVALID}
 CONFLICT: dict[int | str, dict[str, Any]] = {
     409: {"model": ErrorMessage, "description": "duplicate, or not allowed in this state"},
 }

@@ -4,7 +4,7 @@ A pure analysis package (NumPy, SciPy, Matplotlib on an offscreen Agg canvas; no
 from the backend), so that the backend, the CLI and a virtual study compute the
 evaluation the same way. The flow:
 
-1. Tick data as columns (`TickColumns`, field names of `controller.tick.TickRecord`).
+1. Tick data as columns (`TickData`, field names of `controller.tick.TickRecord`).
 2. Ground truth: `lifts_from_truth` / `trials_from_truth` for a simulated recording,
    `lifts_from_segments` / `whole_recording_trial` for an experimenter's segments.
 3. `evaluate_recording` per recording, labelled with participant and controller.
@@ -15,7 +15,7 @@ evaluation the same way. The flow:
 The metric definitions are in `controller.evaluation.metrics`.
 """
 
-from controller.evaluation.columns import Columns, TickColumns
+from controller.evaluation.columns import Columns, TickData
 from controller.evaluation.figures import onset_to_lock_figure, peak_torque_figure
 from controller.evaluation.lifts import (
     CORRECT_ACTION,
@@ -90,7 +90,7 @@ __all__ = [
     "RecordingEvaluation",
     "RenderedFigure",
     "Table",
-    "TickColumns",
+    "TickData",
     "Trial",
     "TrialKind",
     "controller_label",

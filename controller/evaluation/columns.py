@@ -78,8 +78,11 @@ def _to_str(raw: ArrayLike) -> StrArray:
     return np.asarray(a, dtype=np.str_)
 
 
-class TickColumns:
+class TickData:
     """Typed, equal-length tick columns keyed by `TickRecord` field names.
+
+    Accepts `controller.tick.TickColumns` (the batch replay's plain dict, strings as
+    object arrays), the backend's query result, or any mapping of lists.
 
     Args:
         data: field name to a 1-D array-like. Only `TickRecord` names are kept.
@@ -88,7 +91,7 @@ class TickColumns:
         ValueError: a column is not 1-D, the columns differ in length, or a value
             cannot be read as its field's type.
 
-    >>> cols = TickColumns({"t": [0.0, 0.01], "lock_left": [0, 1]})
+    >>> cols = TickData({"t": [0.0, 0.01], "lock_left": [0, 1]})
     >>> len(cols), cols.bool_("lock_left").tolist()
     (2, [False, True])
     """
@@ -121,12 +124,12 @@ class TickColumns:
         self._n = 0 if n is None else n
 
     @classmethod
-    def of(cls, data: TickColumns | Mapping[str, ArrayLike]) -> TickColumns:
+    def of(cls, data: TickData | Mapping[str, ArrayLike]) -> TickData:
         """`data` itself if it is already checked, else a checked copy."""
-        return data if isinstance(data, TickColumns) else cls(data)
+        return data if isinstance(data, TickData) else cls(data)
 
     @classmethod
-    def from_records(cls, records: Sequence[TickRecord]) -> TickColumns:
+    def from_records(cls, records: Sequence[TickRecord]) -> TickData:
         """Columns from tick records, as a controller loop produces them."""
         names = TickRecord.field_names()
         rows = [r.as_tuple() for r in records]
@@ -188,11 +191,11 @@ class TickColumns:
             return t[k] + (idx - k) * DEFAULT_DT
         return np.asarray(np.interp(idx, idx[ok], t[ok]), dtype=np.float64)
 
-    def select(self, start: int, stop: int) -> TickColumns:
+    def select(self, start: int, stop: int) -> TickData:
         """Ticks `start..stop-1` as new columns (for a figure of a stretch)."""
         if not 0 <= start <= stop <= self._n:
             raise ValueError(f"need 0 <= start <= stop <= {self._n}, got {start}, {stop}")
-        return TickColumns({k: v[start:stop] for k, v in self._data.items()})
+        return TickData({k: v[start:stop] for k, v in self._data.items()})
 
     def as_dict(self) -> dict[str, np.ndarray[Any, Any]]:
         """The typed columns (read-only arrays)."""
@@ -200,4 +203,4 @@ class TickColumns:
 
 
 #: What the public functions accept: checked columns or a plain mapping.
-Columns: TypeAlias = TickColumns | Mapping[str, ArrayLike]
+Columns: TypeAlias = TickData | Mapping[str, ArrayLike]

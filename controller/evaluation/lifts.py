@@ -20,7 +20,7 @@ from typing import Literal
 
 import numpy as np
 
-from controller.evaluation.columns import Columns, TickColumns
+from controller.evaluation.columns import Columns, TickData
 from controller.sim.activities import GAIT_KINDS
 from controller.tick import MODEL_NAMES, Action
 
@@ -59,6 +59,7 @@ _TRIAL_ALIASES: dict[str, TrialKind] = {
     "stairs": "stair_walking",
     "stair": "stair_walking",
     "sw": "stair_walking",
+    "stairs_walking": "stair_walking",
 }
 _STAIR_ACTIVITIES = frozenset({"stairs_up", "stairs_down"})
 
@@ -188,7 +189,7 @@ def lifts_from_truth(columns: Columns) -> list[Lift]:
         ValueError: a lift's ticks are not contiguous, or carry an activity that is
             not a lift, or more than one.
     """
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     lift = cols.int_("truth_lift")
     act = cols.str_("truth_activity")
     out: list[Lift] = []
@@ -207,23 +208,32 @@ def lifts_from_truth(columns: Columns) -> list[Lift]:
 
 
 def lifts_from_segments(
-    segments: Iterable[tuple[int, int, str]], n_ticks: int | None = None
+    segments: Iterable[tuple[int, int, str]],
+    n_ticks: int | None = None,
+    ignore_labels: Iterable[str] = ("other",),
 ) -> list[Lift]:
     """Lifts from an experimenter's segments `(start, end, label)`, `end` inclusive.
 
     Segments are sorted by start and numbered 0, 1, ... in that order (the same
     numbering the simulation uses within a recording). Labels go through
-    `lift_kind`, so "SQ" or "Stoop left" are accepted.
+    `lift_kind`, so "SQ" or "Stoop left" are accepted. Segments labelled as in
+    `ignore_labels` (by default "other": a stretch the experimenter marked as no
+    lift) are left out; any other label that is not a lift, "unlabelled" included,
+    is an error, so an unfinished labelling cannot silently shrink the counts.
 
     Args:
-        segments: (start, end, label) per lift.
+        segments: (start, end, label) per segment.
         n_ticks: the recording's length; when given, segments must lie inside it.
+        ignore_labels: labels of segments that are not lifts of the evaluation.
 
     Raises:
         ValueError: a bad label, `start > end`, a segment outside the recording, or
             two segments that overlap (a tick cannot belong to two lifts).
     """
-    items = sorted((int(s), int(e), lift_kind(lbl)) for s, e, lbl in segments)
+    skip = {_norm(x) for x in ignore_labels}
+    items = sorted(
+        (int(s), int(e), lift_kind(lbl)) for s, e, lbl in segments if _norm(lbl) not in skip
+    )
     out: list[Lift] = []
     for i, (s, e, kind) in enumerate(items):
         if n_ticks is not None and e >= n_ticks:
@@ -245,7 +255,7 @@ def trials_from_truth(columns: Columns, min_duration_s: float = 5.0) -> list[Tri
     before and after a bout is not part of the trial; for a recording that is one
     trial from end to end use `whole_recording_trial`.
     """
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     act = cols.str_("truth_activity")
     t = cols.time()
     gait = np.isin(act, np.asarray(GAIT_KINDS))
@@ -266,7 +276,7 @@ def whole_recording_trial(columns: Columns | int, kind: str) -> Trial:
         columns: the recording's columns, or its number of ticks.
         kind: a label accepted by `trial_kind`.
     """
-    n = columns if isinstance(columns, int) else len(TickColumns.of(columns))
+    n = columns if isinstance(columns, int) else len(TickData.of(columns))
     if n < 1:
         raise ValueError("an empty recording has no trial")
     return Trial(trial_kind(kind), 0, n - 1)

@@ -42,7 +42,7 @@ from typing import Literal
 
 import numpy as np
 
-from controller.evaluation.columns import BoolArray, Columns, FloatArray, TickColumns
+from controller.evaluation.columns import BoolArray, Columns, FloatArray, TickData
 from controller.evaluation.lifts import Lift, Trial
 from controller.tick import Action
 
@@ -105,18 +105,18 @@ def _nanmax(a: FloatArray) -> float:
 
 def lock_decisions(columns: Columns) -> BoolArray:
     """Per tick: the controller ran and decided a locking action (2, 3 or 4)."""
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     return cols.bool_("controller_ran") & np.isin(cols.int_("action"), _LOCK_ACTIONS)
 
 
 def estimates_intent(columns: Columns) -> bool:
     """True if any model posterior was computed anywhere in the recording."""
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     names = [f"post_{k}" for k in ("squat", "stoop_left", "stoop_right")]
     return any(n in cols and bool(np.isfinite(cols.float_(n)).any()) for n in names)
 
 
-def _torque(cols: TickColumns, side: str, lift: Lift) -> float:
+def _torque(cols: TickData, side: str, lift: Lift) -> float:
     name = f"torque_{side}"
     return _nanmax(cols.float_(name)[lift.ticks]) if name in cols else math.nan
 
@@ -139,7 +139,7 @@ def evaluate_lift(
             columns (`estimates_intent`). Pass it when evaluating one lift of a
             recording out of context.
     """
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     if lift.end >= len(cols):
         raise ValueError(f"lift {lift.index} ends at tick {lift.end}, beyond {len(cols)} ticks")
     t = cols.time()
@@ -193,7 +193,7 @@ def evaluate_lift(
 
 def evaluate_lifts(columns: Columns, lifts: Sequence[Lift]) -> list[LiftOutcome]:
     """`evaluate_lift` for every lift of one recording, in the given order."""
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     intent = estimates_intent(cols)
     return [evaluate_lift(cols, lf, intent) for lf in lifts]
 
@@ -244,7 +244,7 @@ def count_false_positives(columns: Columns, trials: Sequence[Trial]) -> list[Fal
     (see `FalsePositives`). Edges are found over the whole recording, so a command
     that was already held when the trial started is not counted as a new one.
     """
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     n = len(cols)
     left, right = cols.bool_("lock_left"), cols.bool_("lock_right")
     either = left | right

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from controller.evaluation.columns import Columns, TickColumns
+from controller.evaluation.columns import Columns, TickData
 from controller.evaluation.lifts import Lift, Trial
 from controller.evaluation.metrics import (
     FalsePositives,
@@ -59,7 +59,7 @@ def evaluate_recording(
     """Evaluate one recording: its lifts (`evaluate_lifts`) and its gait trials
     (`count_false_positives`). A lifting trial passes only `lifts`, a walking trial
     only `trials`; a simulated whole protocol can pass both."""
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     return RecordingEvaluation(
         participant=str(participant),
         controller=str(controller),

@@ -3,8 +3,9 @@
 (A) the motion models in the plane of left versus right hip flexion, means and 95 %
 confidence ellipses at a few progress points, with the wearer's hip trajectory on top;
 (B) the hip angles over time; (C) the four posteriors; (D) the progress estimate
-`s_curr` of the most probable model (none while "other" is the most probable category); (E) the control signals: the decided action and
-the held lock command per side.
+`s_curr` of the most probable model (none while "other" is the most probable
+category); (E) the control signals: the decided action and the held lock command per
+side.
 
 As in the paper, when the lifts of the stretch are given the hip-flexion part of each
 lift (onset to peak flexion, the peak being the largest mean of both hips within the
@@ -24,7 +25,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Ellipse, Patch
 from scipy.stats import chi2
 
-from controller.evaluation.columns import Columns, FloatArray, TickColumns
+from controller.evaluation.columns import Columns, FloatArray, TickData
 from controller.evaluation.lifts import LIFT_KINDS, Lift
 from controller.evaluation.rendering import DEFAULT_DPI, KIND_COLOURS, KIND_LABELS, new_figure
 from controller.tick import ACTION_NAMES, CATEGORY_NAMES
@@ -157,7 +158,7 @@ def controller_output_figure(
 
     Time runs from the stretch's first tick. Angles are shown in degrees.
     """
-    full = TickColumns.of(columns)
+    full = TickData.of(columns)
     stop = len(full) if stop is None else stop
     cols = full.select(start, stop)
     n = len(cols)

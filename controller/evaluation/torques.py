@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque
-from controller.evaluation.columns import Columns, FloatArray, TickColumns
+from controller.evaluation.columns import Columns, FloatArray, TickData
 
 #: The pipeline's default: a side counts as locked above this deflection (rad).
 DEFAULT_LOCK_DEADBAND = math.radians(0.5)
@@ -26,7 +26,7 @@ def recompute_torques(
     precompression_pct: float,
     params: MaccepaParams = PAPER_ACTUATOR,
     lock_deadband: float = DEFAULT_LOCK_DEADBAND,
-) -> TickColumns:
+) -> TickData:
     """The columns with `torque_left/right` recomputed by the actuator model.
 
     A side produces torque while it is locked: `locked_<side>` when recorded, else a
@@ -40,7 +40,7 @@ def recompute_torques(
         lock_deadband: deflection (rad) above which a side counts as locked when the
             `locked_*` columns are absent.
     """
-    cols = TickColumns.of(columns)
+    cols = TickData.of(columns)
     data = cols.as_dict()
     for side in ("left", "right"):
         alpha = cols.float_(f"alpha_{side}")
@@ -52,4 +52,4 @@ def recompute_torques(
         )
         torque[~ok] = math.nan
         data[f"torque_{side}"] = torque
-    return TickColumns(data)
+    return TickData(data)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import time
+import zipfile
 from typing import Any
 
 import pytest
@@ -139,3 +141,21 @@ def test_a_study_from_participant_to_exported_ticks(
         assert len(rows) == len(as_json["t"]) > 500
         assert any(r["lock_left"] == "1" for r in rows)
         assert float(rows[10]["t"]) == pytest.approx(as_json["t"][10])
+
+        # 5. The whole study as a zip: what went in comes back out, unit for unit.
+        r = client.get(f"/api/studies/{study['id']}/export.zip")
+        assert r.status_code == 200
+        zf = zipfile.ZipFile(io.BytesIO(r.content))
+        names = set(zf.namelist())
+        assert {"participants.csv", "trials.csv", "lift_segments.csv", "README.md",
+                "data_dictionary.csv", f"ticks/trial-{pec['id']}.csv",
+                f"model_sets/{ms['id']}.json", f"utility_sets/{us['id']}.json"} <= names
+        people = list(csv.DictReader(io.StringIO(zf.read("participants.csv").decode())))
+        assert [(p["code"], float(p["height_m"]), float(p["mass_kg"]), p["consent_date"])
+                for p in people] == [("P01", 1.7, 65.0, "2026-11-20"),
+                                     ("P02", 1.82, 80.0, "2026-11-21")]
+        exported_ticks = zf.read(f"ticks/trial-{pec['id']}.csv").decode()
+        assert exported_ticks == text
+        segs = list(csv.DictReader(io.StringIO(zf.read("lift_segments.csv").decode())))
+        assert len(segs) == len(segments)
+        assert json.loads(zf.read(f"model_sets/{ms['id']}.json")) == doc

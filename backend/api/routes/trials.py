@@ -14,7 +14,7 @@ from backend import audit, lock_events, tick_queries
 from backend.activity import ensure_idle
 from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
-from backend.api.params import MAX_ID, SessionId
+from backend.api.params import MAX_ID, SessionId, StudyId
 from backend.counterbalance import blinded_labels, controller_order
 from backend.db.evidence import LockEvent, ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, StudySession
@@ -220,3 +220,22 @@ def trial_ticks_json(trial_id: TrialId, request: Request, user: CurrentUser,
             for k, v in cols.items()}
     return Response(json.dumps({"trial_id": trial_id, "columns": body}),
                     media_type="application/json")
+
+
+@router.get("/api/studies/{study_id}/export.zip", response_class=Response, responses={
+    200: {"content": {"application/zip": {}},
+          "description": "tables as CSV, documents as JSON, ticks, data dictionary"}})
+def export_study(study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep
+                 ) -> Response:
+    """The whole study as a zip (see README.md inside for every column's meaning)."""
+    from backend.db.models import Study
+    from backend.export import study_zip
+
+    one_or_404(db, Study, study_id, "study")
+    runtime: Any = request.app.state.runtime
+    runtime.recorder.flush()
+    data = study_zip(request.app.state.engine, study_id)
+    audit.record(db, user, "export", "study", study_id, {"bytes": len(data)})
+    db.commit()
+    return Response(data, media_type="application/zip", headers={
+        "Content-Disposition": f'attachment; filename="study-{study_id}.zip"'})

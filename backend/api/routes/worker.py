@@ -8,7 +8,7 @@ from fastapi import APIRouter, Depends, HTTPException
 from pydantic import BaseModel, Field
 
 from backend.api.deps import RuntimeDep, current_user
-from backend.api.errors import AUTH_RESPONSES
+from backend.api.errors import AUTH_RESPONSES, BODY, MALFORMED
 from backend.schemas.live import Health
 from controller.factory import controller_names
 
@@ -44,7 +44,7 @@ def controllers() -> list[str]:
     return list(controller_names())
 
 
-@router.post("/controller", response_model=Health)
+@router.post("/controller", response_model=Health, responses=BODY)
 def set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
     """Switch controller; a new run starts in the database. `config` overrides controller
     settings (rates, thresholds, priors: see `controller.config.ControllerConfig`)."""
@@ -79,7 +79,7 @@ class CalibrationOutcome(BaseModel):
 
 
 @router.post("/calibrate", response_model=CalibrationOutcome,
-             responses={409: {"description": "no worker running"},
+             responses={**MALFORMED, 409: {"description": "no worker running"},
                         422: {"description": "the wearer moved, or too few samples"}})
 async def calibrate(req: CalibrationRequest, runtime: RuntimeDep) -> CalibrationOutcome:
     """E-UMC calibration: record the next seconds of standing still and compute the
@@ -114,7 +114,8 @@ class SimulationChoice(BaseModel):
 
 
 @router.post("/simulation", response_model=Health,
-             responses={422: {"description": "unknown script, or the device is hardware"}})
+             responses={**MALFORMED,
+                        422: {"description": "unknown script, or the device is hardware"}})
 async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
     """Change the simulated wearer (seed) or script; the simulator restarts."""
     try:
