@@ -11,6 +11,7 @@ from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from backend.api.deps import SESSION_COOKIE, login_from_token
+from backend.api.openapi import document_framework_errors
 from backend.api.routes import (
     audit,
     auth,
@@ -83,6 +84,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(recordings.router)
     app.include_router(model_sets.router)
     app.include_router(trials.router)
+    document_framework_errors(app)
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

@@ -5,17 +5,17 @@ Plain SQL over the tick table in id order; the columns are `TickRecord`'s fields
 
 from __future__ import annotations
 
+import csv
 import io
 from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Connection, Engine, select
+from sqlalchemy import Connection, Engine, select, text
 
 from backend.db.models import ticks_table
 from controller.tick import TickRecord
-from controller.tick_csv import write_ticks_csv
 
 FIELDS = TickRecord.field_names()
 _TYPES = {f: t for f, t in TickRecord.__annotations__.items()}
@@ -56,17 +56,51 @@ def columns(engine: Engine, run_id: int, first_id: int | None = None,
     return out
 
 
-def _cells(row: Sequence[Any]) -> list[Any]:
-    return [float("nan") if v is None else v for v in row]
+_BOOL_INDEX = [i for i, f in enumerate(FIELDS) if _TYPES[f] == "bool"]
 
 
 def csv_text(engine: Engine, run_id: int, first_id: int | None = None,
              last_id: int | None = None) -> str:
-    """A run's ticks as CSV (header of field names; empty cell where not computed)."""
+    """A run's ticks as CSV (header of field names; empty cell where not computed).
+
+    This is the export hot path (60,000 ticks for a 10-minute trial): rows go from the
+    driver to `csv.writer` in chunks without per-value Python work. NULL is written as
+    an empty cell by the csv module itself; SQLite stores booleans as 0/1 already, other
+    databases get them converted.
+    """
+    cols = ", ".join(f'"{f}"' for f in FIELDS)
+    sql = f"SELECT {cols} FROM ticks WHERE run_id = :run"
+    params: dict[str, int] = {"run": run_id}
+    if first_id is not None:
+        sql += " AND id >= :first"
+        params["first"] = first_id
+    if last_id is not None:
+        sql += " AND id <= :last"
+        params["last"] = last_id
+    sql += " ORDER BY id"
     buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(FIELDS)
     with engine.connect() as conn:
-        write_ticks_csv((_cells(r) for r in iter_rows(conn, run_id, first_id, last_id)), buf)
+        convert = conn.dialect.name != "sqlite"
+        result = conn.execute(text(sql), params)
+        while True:
+            part = result.fetchmany(5000)
+            if not part:
+                break
+            if convert:
+                w.writerows(_as_csv_row(r) for r in part)
+            else:
+                w.writerows(part)
     return buf.getvalue()
+
+
+def _as_csv_row(row: Sequence[Any]) -> list[Any]:
+    out = list(row)
+    for i in _BOOL_INDEX:
+        if out[i] is not None:
+            out[i] = int(out[i])
+    return out
 
 
 def tick_id_range(engine: Engine, run_id: int) -> tuple[int | None, int | None]:

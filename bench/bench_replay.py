@@ -14,8 +14,8 @@ is warm; the first run compiles for a minute or so).
    frozen and disabled as the worker loop runs.
 
 Replay timings exclude building the controller (loading the model and utility sets)
-and are the best of three runs, the per-tick one a single run (other work shares the machine's two cores); the
-load average is printed because that other work shows up in the numbers.
+and are the best of three runs, the per-tick one a single run (other work shares the
+machine's two cores); the load average is printed because that work shows up in them.
 """
 
 from __future__ import annotations

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from typing import overload
 
 import numpy as np
-from numpy.typing import NDArray
 from numba import njit
+from numpy.typing import NDArray
 from scipy.optimize import brentq
 
 FloatArray = NDArray[np.float64]
@@ -150,7 +150,7 @@ def torque_at(alpha: float, k: FloatArray) -> float:
     e = math.sqrt(i * i + h * h - R * R)
     lam = math.pi / 2 - math.atan(e / R) + math.atan2(h, i)
     force = k[_K] * (k[_PRE] + e + R * lam - (C - B))
-    return force * C * math.sin(lam - a) / 1000.0  # type: ignore[no-any-return]
+    return force * C * math.sin(lam - a) / 1000.0
 
 
 class TorqueModel:

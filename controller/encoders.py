@@ -29,7 +29,7 @@ def count_to_angle(count: int, offset: int, direction: int) -> float:
     diff = (count - offset) % ENCODER_COUNTS
     if diff >= _HALF_TURN:
         diff -= ENCODER_COUNTS
-    return direction * diff * RAD_PER_COUNT  # type: ignore[no-any-return]
+    return direction * diff * RAD_PER_COUNT
 
 
 @njit("int64(float64, int64, int64)", cache=True, nogil=True)
@@ -37,7 +37,7 @@ def angle_to_count(angle: float, offset: int, direction: int) -> int:
     """The count an ideal encoder reads at `angle` (rad); rounds halves to even, like
     Python's `round`, so the layout and the batch replay quantise identically."""
     steps = int(np.rint(angle / RAD_PER_COUNT))
-    return (offset + direction * steps) % ENCODER_COUNTS  # type: ignore[no-any-return]
+    return (offset + direction * steps) % ENCODER_COUNTS
 
 
 @dataclass(frozen=True, slots=True)

@@ -159,7 +159,7 @@ class HipVelocityFilter:
 
         Before the first finite sample the velocities are NaN.
         """
-        return kalman_step(self.state, self.constants, float(q_left), float(q_right))  # type: ignore[no-any-return]
+        return kalman_step(self.state, self.constants, float(q_left), float(q_right))
 
 
 class VelocityTrigger:

@@ -59,7 +59,7 @@ class LockHold:
 
     def update(self, request_left: bool, request_right: bool) -> tuple[bool, bool]:
         """Advance one tick with this tick's requests; return the (left, right) commands."""
-        return hold_update(self.counters, self.hold_ticks, bool(request_left),  # type: ignore[no-any-return]
+        return hold_update(self.counters, self.hold_ticks, bool(request_left),
                            bool(request_right))
 
     @property

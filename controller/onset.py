@@ -627,7 +627,7 @@ def window_push(buf: FloatArray, pos_count: IntArray, q_left: float, q_right: fl
 @njit(cache=True, nogil=True, inline="always")
 def window_start(size: int, pos_count: IntArray) -> int:
     """First row of the window in the doubled ring; it ends at row `pos + size`."""
-    return pos_count[0] + size - pos_count[1]  # type: ignore[no-any-return]
+    return pos_count[0] + size - pos_count[1]
 
 
 class ObservationWindow:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from abc import abstractmethod
+from typing import Any
 
 from controller.base import Controller
 from controller.config import ControllerConfig
@@ -75,12 +76,10 @@ class PipelineController(Controller):
         for i in _BOOL_COLS:
             vals[i] = vals[i] != 0.0
         tr = sample.truth
-        return TickRecord(
-            sample.seq,
-            t if math.isfinite(t) else NAN,
-            time.time(),
-            c0, c1, c2, c3,
-            *vals,
-            (time.perf_counter() - t0) * 1e6,
-            *(("", -1, NAN) if tr is None else (tr.activity, tr.lift_index, tr.progress)),
-        )
+        fields: list[Any] = [sample.seq, t if math.isfinite(t) else NAN, time.time(),
+                             c0, c1, c2, c3, *vals, (time.perf_counter() - t0) * 1e6]
+        if tr is None:
+            fields += ("", -1, NAN)
+        else:
+            fields += (tr.activity, tr.lift_index, tr.progress)
+        return TickRecord(*fields)

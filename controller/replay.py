@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numba import njit
@@ -196,7 +196,7 @@ def replay_columns(
     status = np.empty(k, dtype=np.int64)
     t_host = time.time()
     t0 = time.perf_counter()
-    replay_kernel(*controller.core.args, device.plant.state, device.plant.constants,
+    cast(Callable[..., None], replay_kernel)(*controller.core.args, device.plant.state, device.plant.constants,
                   layout_array(layout), t, q, out, counts, status)
     per_tick_us = (time.perf_counter() - t0) * 1e6 / k
     device.close()

@@ -23,7 +23,9 @@ not computed at this tick, as in `TickRecord`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -208,8 +210,8 @@ def tick(
     req_l = req_r = False
     if ran:
         ctl[C_LAST] = action
-        req_l = action == _LOCK_BOTH or action == _LOCK_LEFT
-        req_r = action == _LOCK_BOTH or action == _LOCK_RIGHT
+        req_l = action in (_LOCK_BOTH, _LOCK_LEFT)
+        req_r = action in (_LOCK_BOTH, _LOCK_RIGHT)
     lock_l, lock_r = hold_update(hold, cfg_i[I_HOLD], req_l, req_r)
     ctl[C_TICK] += 1
 
@@ -235,6 +237,10 @@ def tick(
     out[O_TORQUE_L] = torque_at(alpha_l, torque_k) if locked_l else 0.0
     out[O_TORQUE_R] = torque_at(alpha_r, torque_k) if locked_r else 0.0
     out[O_FLAGS] = flags
+
+
+#: `tick` for calls that spread `TickCore.args` (numba's typing cannot follow a spread).
+tick_any = cast(Callable[..., None], tick)
 
 
 @dataclass(frozen=True)
@@ -335,9 +341,9 @@ class TickCore:
     def warm_up(self) -> None:
         """Compile `tick` (or load it from the numba cache) without touching the state."""
         scratch = tuple(a.copy() for a in self.args)
-        tick(*scratch, 3100, 3100, 12900, 12900, 0.0, 0, np.empty(N_OUT))
+        tick_any(*scratch, 3100, 3100, 12900, 12900, 0.0, 0, np.empty(N_OUT))
 
     def step(self, c0: int, c1: int, c2: int, c3: int, t: float, status: int) -> FloatArray:
         """One tick; returns the output row (reused: read it before the next step)."""
-        tick(*self.args, c0, c1, c2, c3, t, status, self.out)
+        tick_any(*self.args, c0, c1, c2, c3, t, status, self.out)
         return self.out

@@ -11,7 +11,14 @@ from typing import Any
 
 import numpy as np
 
-from controller.evaluation import Lift, LiftKind
+from controller.evaluation import (
+    Lift,
+    LiftKind,
+    RecordingEvaluation,
+    Trial,
+    evaluate_recording,
+    lifts_from_truth,
+)
 from controller.tick import Action, TickRecord
 
 HOLD_TICKS = 30
@@ -71,3 +78,34 @@ class TickBuilder:
     def columns(self) -> dict[str, np.ndarray[Any, Any]]:
         """A copy of the columns."""
         return {k: v.copy() for k, v in self.cols.items()}
+
+
+def lifting_recording(
+    participant: str, controller: str, good: bool, intent: bool = True
+) -> RecordingEvaluation:
+    """Two squats and two stoops. With `good`, every lift is recognised and decided
+    correctly; otherwise lift 1 (a squat) is unrecognised and missed, lift 2 (stoop
+    left) decided wrong and lift 3 (stoop right) unrecognised. Without `intent` no
+    posterior is recorded (a PEC)."""
+    b = TickBuilder(1000)
+    kinds = ("squat", "squat", "stoop_left", "stoop_right")
+    lifts = [b.lift(i, k, 100 + 200 * i, 199 + 200 * i) for i, k in enumerate(kinds)]  # type: ignore[arg-type]
+    for i, lf in enumerate(lifts):
+        if intent and (good or i in (0, 2)):
+            b.posterior(lf.start + 20, lf.kind, 0.9)
+        if good or i in (0, 3):
+            b.run(lf.start + 30, lf.correct_action)
+        elif i == 2:
+            b.run(lf.start + 30, Action.LOCK_BOTH)
+        b.torque(lf.start + 60, 10.0 + i, 20.0 + i)
+    cols = b.columns()
+    return evaluate_recording(cols, participant, controller, lifts_from_truth(cols))
+
+
+def gait_recording(participant: str, controller: str, locks: int, kind: str) -> RecordingEvaluation:
+    b = TickBuilder(2000)
+    for j in range(locks):
+        b.run(100 + 100 * j, Action.LOCK_RIGHT)
+    return evaluate_recording(
+        b.columns(), participant, controller, trials=[Trial(kind, 0, 1999)]  # type: ignore[arg-type]
+    )

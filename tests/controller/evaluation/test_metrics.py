@@ -1,0 +1,236 @@
+"""The paper's metrics on hand-made tick sequences whose answers are known."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.evaluation import (
+    DecisionOutcome,
+    Lift,
+    Trial,
+    count_false_positives,
+    evaluate_lift,
+    evaluate_lifts,
+    lifts_from_truth,
+    lock_decisions,
+    summarise_onset_to_lock,
+    trials_from_truth,
+)
+from controller.tick import Action
+
+from .tick_builder import TickBuilder
+
+
+def one_lift(kind: str = "squat", start: int = 100, end: int = 199) -> tuple[TickBuilder, Lift]:
+    b = TickBuilder(300)
+    lift = b.lift(0, kind, start, end)  # type: ignore[arg-type]
+    return b, lift
+
+
+def test_first_half_is_start_plus_half_the_duration() -> None:
+    assert Lift(0, "squat", 100, 199).first_half_end == 149  # 100 ticks: 100..149
+    assert Lift(0, "squat", 100, 200).first_half_end == 150  # odd: the middle tick included
+    assert Lift(0, "squat", 7, 7).first_half_end == 7
+
+
+def test_correct_first_decision() -> None:
+    b, lift = one_lift("stoop_left")
+    b.run(120, Action.LOCK_LEFT)
+    b.run(130, Action.LOCK_BOTH)  # locking both later in a stoop is fine (paper)
+    o = evaluate_lift(b.columns(), lift)
+    assert o.decision is DecisionOutcome.CORRECT
+    assert o.first_action is Action.LOCK_LEFT
+    assert o.first_decision_s == pytest.approx(0.20)
+
+
+def test_wrong_first_decision_lock_left_in_a_squat_then_both() -> None:
+    b, lift = one_lift("squat")
+    b.run(115, Action.LOCK_LEFT)
+    b.run(125, Action.LOCK_BOTH)
+    o = evaluate_lift(b.columns(), lift)
+    assert o.decision is DecisionOutcome.WRONG
+    assert o.first_action is Action.LOCK_LEFT
+    # The correct side(s) -- both, for a squat -- are held once the right side follows.
+    assert o.first_lock_s == pytest.approx(0.15)
+    assert o.correct_lock_s == pytest.approx(0.25)
+
+
+def test_late_lock_after_the_first_half_is_missed() -> None:
+    b, lift = one_lift("squat")
+    b.run(150, Action.LOCK_BOTH)  # first tick of the second half
+    o = evaluate_lift(b.columns(), lift)
+    assert o.decision is DecisionOutcome.MISSED
+    assert o.first_action is None and math.isnan(o.first_decision_s)
+    assert o.first_lock_s == pytest.approx(0.50)  # it did lock, late
+
+
+def test_lock_decided_on_the_last_tick_of_the_first_half_counts() -> None:
+    b, lift = one_lift("stoop_right")
+    b.run(149, Action.LOCK_RIGHT)
+    assert evaluate_lift(b.columns(), lift).decision is DecisionOutcome.CORRECT
+
+
+def test_held_action_between_runs_is_not_a_new_decision() -> None:
+    # A lock decided before the lift keeps `action` at 2 on the following ticks, but
+    # those ticks are no decisions: the controller did not run.
+    b, lift = one_lift("stoop_left")
+    b.run(50, Action.LOCK_BOTH)
+    b.run(140, Action.LOCK_LEFT)
+    cols = b.columns()
+    assert cols["action"][120] == int(Action.LOCK_BOTH)
+    assert lock_decisions(cols).sum() == 2
+    assert evaluate_lift(cols, lift).decision is DecisionOutcome.CORRECT
+
+
+def test_no_lock_runs_are_not_lock_decisions() -> None:
+    b, lift = one_lift("squat")
+    for k in range(100, 200):
+        b.run(k, Action.NO_LOCK)  # an idle E-UMC decides "no lock" at 100 Hz
+    o = evaluate_lift(b.columns(), lift)
+    assert o.decision is DecisionOutcome.MISSED
+    assert math.isnan(o.first_lock_s) and math.isnan(o.correct_lock_s)
+
+
+def test_posterior_reaching_half_only_in_the_second_half_is_not_recognised() -> None:
+    b, lift = one_lift("stoop_right")
+    for k in range(100, 150, 10):
+        b.posterior(k, "stoop_right", 0.49)
+    b.posterior(150, "stoop_right", 0.9)
+    o = evaluate_lift(b.columns(), lift)
+    assert o.recognised is False
+    assert o.peak_posterior == pytest.approx(0.49)
+    assert math.isnan(o.recognised_s)
+
+
+def test_posterior_of_exactly_half_in_the_first_half_is_recognised() -> None:
+    b, lift = one_lift("squat")
+    b.posterior(130, "squat", 0.5)
+    o = evaluate_lift(b.columns(), lift)
+    assert o.recognised is True
+    assert o.recognised_s == pytest.approx(0.30)
+
+
+def test_only_the_correct_models_posterior_counts() -> None:
+    b, lift = one_lift("stoop_left")
+    b.posterior(120, "stoop_right", 0.95)
+    assert evaluate_lift(b.columns(), lift).recognised is False
+
+
+def test_no_posteriors_at_all_means_no_recognition_rather_than_false() -> None:
+    b, lift = one_lift("squat")
+    b.run(120, Action.LOCK_BOTH)  # a PEC: decisions, no intent estimation
+    o = evaluate_lift(b.columns(), lift)
+    assert o.recognised is None and math.isnan(o.peak_posterior)
+    assert o.decision is DecisionOutcome.CORRECT
+    # Told explicitly that the controller estimates intent, the same lift is a miss.
+    assert evaluate_lift(b.columns(), lift, with_intent=True).recognised is False
+
+
+def test_peak_torques_over_the_whole_lift() -> None:
+    b, lift = one_lift("stoop_left")
+    b.torque(120, 5.0, 1.0)
+    b.torque(180, 12.5, 2.0)  # second half still counts: the peak of the lift
+    b.torque(250, 40.0, 40.0)  # after the lift
+    b.cols["torque_left"][190] = np.nan
+    o = evaluate_lift(b.columns(), lift)
+    assert (o.peak_torque_left, o.peak_torque_right) == (12.5, 2.0)
+
+
+def test_missing_torque_columns_give_nan_peaks() -> None:
+    b, lift = one_lift()
+    cols = b.columns()
+    del cols["torque_left"], cols["torque_right"]
+    o = evaluate_lift(cols, lift)
+    assert math.isnan(o.peak_torque_left) and math.isnan(o.peak_torque_right)
+
+
+def test_missing_decision_columns_are_named() -> None:
+    b, lift = one_lift()
+    cols = b.columns()
+    del cols["controller_ran"]
+    with pytest.raises(ValueError, match="controller_ran"):
+        evaluate_lift(cols, lift)
+
+
+def test_lift_beyond_the_recording_is_rejected() -> None:
+    b, _ = one_lift()
+    with pytest.raises(ValueError, match="beyond"):
+        evaluate_lift(b.columns(), Lift(3, "squat", 250, 400))
+
+
+def test_lock_during_a_walking_trial_is_a_false_positive() -> None:
+    b = TickBuilder(1200)
+    b.gait(100, 999, "walk")
+    b.run(80, Action.LOCK_BOTH)  # before the trial, held 10 ticks into it: no new signal
+    b.run(300, Action.LOCK_RIGHT)
+    b.run(310, Action.LOCK_RIGHT)  # 0.1 s later, within the hold: the same signal
+    b.run(600, Action.LOCK_LEFT)
+    b.run(610, Action.LOCK_BOTH)  # adds the right side to a held left: one signal, 2 edges
+    b.run(1100, Action.LOCK_BOTH)  # after the trial
+    cols = b.columns()
+    trials = trials_from_truth(cols)
+    assert trials == [Trial("walking", 100, 999)]
+    (fp,) = count_false_positives(cols, trials)
+    assert fp.signals == 2
+    assert (fp.edges_left, fp.edges_right) == (1, 2)
+    assert fp.decisions == 4
+    assert fp.lock_ticks == 10 + 40 + 40
+    assert fp.duration_s == pytest.approx(8.99)
+
+
+def test_stairs_make_a_stair_walking_trial_and_short_walks_are_no_trial() -> None:
+    b = TickBuilder(2000)
+    b.gait(10, 160, "walk")  # 1.5 s between stations
+    b.gait(300, 599, "walk")
+    b.gait(600, 1199, "stairs_up")
+    b.gait(1200, 1499, "turn")
+    b.run(700, Action.LOCK_LEFT)
+    cols = b.columns()
+    trials = trials_from_truth(cols)
+    assert trials == [Trial("stair_walking", 300, 1499)]
+    assert count_false_positives(cols, trials)[0].signals == 1
+    assert trials_from_truth(cols, min_duration_s=1.0)[0] == Trial("walking", 10, 160)
+
+
+def test_no_locks_no_false_positives() -> None:
+    b = TickBuilder(800)
+    b.gait(0, 799, "stairs_down")
+    for k in range(0, 800, 10):
+        b.run(k, Action.NO_LOCK)
+    (fp,) = count_false_positives(b.columns(), trials_from_truth(b.columns()))
+    assert (fp.signals, fp.decisions, fp.lock_ticks) == (0, 0, 0)
+
+
+def test_command_held_at_the_first_tick_is_a_rising_edge() -> None:
+    b = TickBuilder(100)
+    b.run(0, Action.LOCK_LEFT)
+    (fp,) = count_false_positives(b.columns(), [Trial("walking", 0, 99)])
+    assert fp.signals == 1
+
+
+def test_onset_to_lock_summary() -> None:
+    b = TickBuilder(1000)
+    lifts = [b.lift(i, "squat", 100 + 200 * i, 199 + 200 * i) for i in range(4)]
+    for i, delay in enumerate((10, 20, 40)):  # the fourth lift never locks
+        b.run(lifts[i].start + delay, Action.LOCK_BOTH)
+    outs = evaluate_lifts(b.columns(), lifts_from_truth(b.columns()))
+    s = summarise_onset_to_lock(outs, "first")
+    assert (s.n_lifts, s.n_locked) == (4, 3)
+    assert s.median_s == pytest.approx(0.20)
+    assert (s.q25_s, s.q75_s) == (pytest.approx(0.15), pytest.approx(0.30))
+    assert s.iqr_s == pytest.approx(0.15)
+    empty = summarise_onset_to_lock(outs[3:], "correct")
+    assert empty.n_locked == 0 and math.isnan(empty.median_s)
+    with pytest.raises(ValueError):
+        summarise_onset_to_lock(outs, "best")  # type: ignore[arg-type]
+
+
+def test_times_use_the_device_clock_across_a_nan_timestamp() -> None:
+    b, lift = one_lift("squat")
+    b.cols["t"] = b.cols["t"] * 2.0  # 50 Hz device clock
+    b.cols["t"][110] = np.nan  # a bad sample
+    b.run(120, Action.LOCK_BOTH)
+    assert evaluate_lift(b.columns(), lift).first_decision_s == pytest.approx(0.40)
