@@ -22,6 +22,11 @@ Mechanism (`shared/spec/hardware.md`, the paper's "Hardware"):
 Sensors: four AS5048A (14 bit) with Gaussian noise (0.04 deg RMS, plus quantisation
 0.006 deg RMS) and a slow non-linearity of the shaft angle (two harmonics, at most
 0.75 deg in total), encoded through the `EncoderLayout`.
+
+One mechanism model: the per-tick logic is the compiled `hip_step` / `plant_step` on
+state arrays, called by `HipModule` and `ExoPlant` (the live simulator, `ReplayDevice`)
+and by the batch replay's compiled loop (`controller.replay.replay_kernel`), so a lock
+has the same effect on deflection and torque in every path.
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ const DEG = 180 / Math.PI;
 // What the browser tests read: counts, not pixels.
 const stats = (window.exostudyLive = {
   samples: 0, messages: 0, draws: 0, dropped: 0, gaps: 0, latencyMs: null, lastStatus: null,
+  // Latency of each sample (worker read time to arrival here), last 3000, for benchmarks.
+  latencies: [],
 });
 
 const cols = ["t", "q_left", "q_right", "post_squat", "post_stoop_left", "post_stoop_right",
@@ -72,13 +74,23 @@ function append(columns) {
     if (dst.length > CAPACITY) dst.splice(0, dst.length - CAPACITY);
   }
   stats.samples += n;
+  const now = Date.now();
+  for (let i = 0; i < n; i++) {
+    const th = columns.t_host[i];
+    if (th != null) stats.latencies.push(now - th * 1000);
+  }
+  if (stats.latencies.length > 3000) stats.latencies.splice(0, stats.latencies.length - 3000);
   const tHost = columns.t_host[n - 1];
-  if (tHost != null) stats.latencyMs = Date.now() - tHost * 1000;
+  if (tHost != null) stats.latencyMs = now - tHost * 1000;
   dirty = true;
 }
 
-function frame() {
-  if (dirty) {
+// At most ~30 redraws a second: smooth to the eye, and four consoles on a laptop leave
+// the CPU to the control loop.
+let lastDraw = 0;
+function frame(ts) {
+  if (dirty && ts - lastDraw >= 32) {
+    lastDraw = ts;
     dirty = false;
     anglesPlot.setData([buf.t, buf.q_left, buf.q_right]);
     postPlot.setData([buf.t, buf.post_squat, buf.post_stoop_left, buf.post_stoop_right,

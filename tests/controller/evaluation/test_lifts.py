@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controller.device.base import LockCommand
 from controller.evaluation import (
     Lift,
     TickData,
@@ -17,25 +16,10 @@ from controller.evaluation import (
     trials_from_truth,
     whole_recording_trial,
 )
-from controller.pec import PEC
-from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.sim.recording import simulate_angles
-from controller.tick import TickRecord, columns_from_records
+from controller.tick import columns_from_records
 
-from .tick_builder import TickBuilder
-
-
-def simulate_pec(script: str, seed: int) -> list[TickRecord]:
-    ctl = PEC()
-    exo = SimulatedExoskeleton(seed=seed, script=script)
-    cmd: LockCommand | None = None
-    out = []
-    while not exo.finished:
-        s = exo.tick(cmd)
-        r = ctl.step(s)
-        out.append(r)
-        cmd = LockCommand(s.seq, r.lock_left, r.lock_right)
-    return out
+from .tick_builder import TickBuilder, simulate_pec
 
 
 def segments_from_trajectory(script: str, seed: int) -> list[tuple[int, int, str]]:

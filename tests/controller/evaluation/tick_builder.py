@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from controller.device.base import LockCommand
 from controller.evaluation import (
     Lift,
     LiftKind,
@@ -19,6 +20,8 @@ from controller.evaluation import (
     evaluate_recording,
     lifts_from_truth,
 )
+from controller.pec import PEC
+from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.tick import Action, TickRecord
 
 HOLD_TICKS = 30
@@ -109,3 +112,17 @@ def gait_recording(participant: str, controller: str, locks: int, kind: str) -> 
     return evaluate_recording(
         b.columns(), participant, controller, trials=[Trial(kind, 0, 1999)]  # type: ignore[arg-type]
     )
+
+
+def simulate_pec(script: str, seed: int) -> list[TickRecord]:
+    """The PEC on a simulated wearer following `script` (the loop the brief gives)."""
+    ctl = PEC()
+    exo = SimulatedExoskeleton(seed=seed, script=script)
+    cmd: LockCommand | None = None
+    out = []
+    while not exo.finished:
+        s = exo.tick(cmd)
+        r = ctl.step(s)
+        out.append(r)
+        cmd = LockCommand(s.seq, r.lock_left, r.lock_right)
+    return out
