@@ -57,7 +57,7 @@ class JobRunner:
 
         try:
             message = work(progress)
-        except Exception as exc:  # noqa: BLE001 - a failed job is data, not a crash
+        except Exception as exc:
             log.exception("job %s failed", job_id)
             msg = f"{type(exc).__name__}: {exc}"
             if on_failure is not None:

@@ -67,8 +67,9 @@ class PipelineController(Controller):
             c0, c1, c2, c3 = int(c[0]), int(c[1]), int(c[2]), int(c[3])
             row = self.core.step(c0, c1, c2, c3, float(t), status)
         except (OverflowError, TypeError, ValueError):
-            # A count that is not a 64-bit integer: out of range, hence a bad sample.
-            c0 = c1 = c2 = c3 = -1
+            # A count that is not a 64-bit integer: out of range, hence a bad sample
+            # (recorded as given where it is an integer at all).
+            c0, c1, c2, c3 = (x if isinstance(x, int) else -1 for x in c)
             row = self.core.step(-1, -1, -1, -1, float(t), status)
         vals = [x if x == x else NAN for x in row.tolist()]
         for i in _INT_COLS:

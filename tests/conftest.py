@@ -25,9 +25,17 @@ def default_sets(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 @pytest.fixture
-def db_url(tmp_path: Path) -> str:
-    """A new SQLite file per test (migrations are applied by whoever opens it)."""
-    return f"sqlite:///{tmp_path / 'exostudy.db'}"
+def db_url(tmp_path: Path) -> Iterator[str]:
+    """A new, empty database per test (migrations are applied by whoever opens it).
+
+    A SQLite file by default. With `EXOSTUDY_DATABASE_URL` pointing at a PostgreSQL
+    server, a fresh database is created there for each test and dropped after it, so
+    the same suite checks that nothing depends on SQLite.
+    """
+    from tests.databases import fresh_database
+
+    with fresh_database(tmp_path) as url:
+        yield url
 
 
 @pytest.fixture

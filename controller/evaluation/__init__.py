@@ -49,6 +49,7 @@ from controller.evaluation.metrics import (
 from controller.evaluation.rendering import RenderedFigure, render_figure
 from controller.evaluation.study import (
     CONTROLLER_LABELS,
+    ESTIMATES_INTENT,
     RecordingEvaluation,
     controller_label,
     evaluate_recording,
@@ -70,6 +71,7 @@ from controller.evaluation.torques import recompute_torques
 __all__ = [
     "CONTROLLER_LABELS",
     "CORRECT_ACTION",
+    "ESTIMATES_INTENT",
     "LIFT_KINDS",
     "RECOGNITION_THRESHOLD",
     "TRIAL_KINDS",

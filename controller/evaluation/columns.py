@@ -27,6 +27,8 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
 StrArray = NDArray[np.str_]
+#: One column as a caller may hold it: an array, or a list with None for SQL NULL.
+ColumnLike: TypeAlias = ArrayLike | Sequence[Any]
 
 #: Nominal tick period (s); used only where the device timestamp is missing.
 DEFAULT_DT = 0.01
@@ -37,7 +39,7 @@ _KIND: dict[str, str] = {f.name: str(f.type) for f in fields(TickRecord)}
 _TRUE_STRINGS = frozenset({"1", "true", "t", "yes", "y"})
 
 
-def _to_bool(name: str, raw: ArrayLike) -> BoolArray:
+def _to_bool(name: str, raw: ColumnLike) -> BoolArray:
     a = np.asarray(raw)
     if a.dtype.kind in "US":
         return np.asarray([str(x).strip().lower() in _TRUE_STRINGS for x in a], dtype=bool)
@@ -48,7 +50,7 @@ def _to_bool(name: str, raw: ArrayLike) -> BoolArray:
     return a.astype(bool)
 
 
-def _to_int(name: str, raw: ArrayLike) -> IntArray:
+def _to_int(name: str, raw: ColumnLike) -> IntArray:
     a = np.asarray(raw)
     if a.dtype.kind == "O":
         a = np.asarray([-1 if x is None else x for x in a])
@@ -62,7 +64,7 @@ def _to_int(name: str, raw: ArrayLike) -> IntArray:
     return a.astype(np.int64)
 
 
-def _to_float(raw: ArrayLike) -> FloatArray:
+def _to_float(raw: ColumnLike) -> FloatArray:
     a = np.asarray(raw)
     if a.dtype.kind == "O":
         a = np.asarray([math.nan if x is None else x for x in a])
@@ -71,7 +73,7 @@ def _to_float(raw: ArrayLike) -> FloatArray:
     return np.asarray(a, dtype=np.float64)
 
 
-def _to_str(raw: ArrayLike) -> StrArray:
+def _to_str(raw: ColumnLike) -> StrArray:
     a = np.asarray(raw)
     if a.dtype.kind == "O":
         a = np.asarray(["" if x is None else str(x) for x in a])
@@ -96,7 +98,7 @@ class TickData:
     (2, [False, True])
     """
 
-    def __init__(self, data: Mapping[str, ArrayLike]) -> None:
+    def __init__(self, data: Mapping[str, ColumnLike]) -> None:
         self._data: dict[str, np.ndarray[Any, Any]] = {}
         n: int | None = None
         for name, raw in data.items():
@@ -119,12 +121,15 @@ class TickData:
                 raise ValueError(
                     f"column {name!r} has {arr.shape[0]} values, the others {n}"
                 )
+            # A read-only view: the caller's own array (kept without a copy when its
+            # dtype already fits) must stay writable for the caller.
+            arr = arr.view()
             arr.setflags(write=False)
             self._data[name] = arr
         self._n = 0 if n is None else n
 
     @classmethod
-    def of(cls, data: TickData | Mapping[str, ArrayLike]) -> TickData:
+    def of(cls, data: TickData | Mapping[str, ColumnLike]) -> TickData:
         """`data` itself if it is already checked, else a checked copy."""
         return data if isinstance(data, TickData) else cls(data)
 
@@ -203,4 +208,4 @@ class TickData:
 
 
 #: What the public functions accept: checked columns or a plain mapping.
-Columns: TypeAlias = TickData | Mapping[str, ArrayLike]
+Columns: TypeAlias = TickData | Mapping[str, ColumnLike]

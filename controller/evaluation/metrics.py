@@ -9,8 +9,10 @@ where the paper leaves room:
 - **Recognition**: a lift is recognised if the posterior of the correct model,
   `post_<kind>`, is `>= 0.5` at some tick of the first half (the paper:
   `P(model|obs) >= 0.5`). Ticks where the posterior was not computed (NaN) do not
-  count. A recording in which no posterior was computed at all (the PEC) has no
-  recognition: `recognised` is None, not False.
+  count. A controller without intent estimation (the PEC) has no recognition:
+  `recognised` is None, not False. Whether a controller estimates intent is known
+  from its name where possible (`evaluate_recording`), else inferred from the data:
+  any posterior computed anywhere in the recording.
 - **Lock decision**: a tick at which the high-level controller ran
   (`controller_ran`) and decided a locking action (`action` 2, 3 or 4). The `action`
   column holds the last decision between runs, so ticks where the controller did not
@@ -191,10 +193,15 @@ def evaluate_lift(
     )
 
 
-def evaluate_lifts(columns: Columns, lifts: Sequence[Lift]) -> list[LiftOutcome]:
-    """`evaluate_lift` for every lift of one recording, in the given order."""
+def evaluate_lifts(
+    columns: Columns, lifts: Sequence[Lift], with_intent: bool | None = None
+) -> list[LiftOutcome]:
+    """`evaluate_lift` for every lift of one recording, in the given order.
+
+    `with_intent` as in `evaluate_lift`; None infers it once from the whole recording.
+    """
     cols = TickData.of(columns)
-    intent = estimates_intent(cols)
+    intent = estimates_intent(cols) if with_intent is None else with_intent
     return [evaluate_lift(cols, lf, intent) for lf in lifts]
 
 

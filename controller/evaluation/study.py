@@ -24,6 +24,12 @@ from controller.evaluation.metrics import (
 CONTROLLER_LABELS: dict[str, str] = {"pec": "PEC", "umc": "UMC", "eumc": "E-UMC"}
 
 
+#: Which of the project's controllers estimate intent (record posteriors). Known by
+#: name rather than inferred from a recording: an E-UMC whose trigger never fired in a
+#: trial computed no posterior, yet its lifts were not recognised (False, not None).
+ESTIMATES_INTENT: dict[str, bool] = {"pec": False, "umc": True, "eumc": True}
+
+
 def controller_label(name: str) -> str:
     """The display name of a controller ("eumc" -> "E-UMC")."""
     return CONTROLLER_LABELS.get(name.lower(), name)
@@ -55,15 +61,21 @@ def evaluate_recording(
     lifts: Sequence[Lift] = (),
     trials: Sequence[Trial] = (),
     recording: str = "",
+    with_intent: bool | None = None,
 ) -> RecordingEvaluation:
     """Evaluate one recording: its lifts (`evaluate_lifts`) and its gait trials
     (`count_false_positives`). A lifting trial passes only `lifts`, a walking trial
-    only `trials`; a simulated whole protocol can pass both."""
+    only `trials`; a simulated whole protocol can pass both.
+
+    `with_intent`: whether the controller estimates intent; None takes it from
+    `ESTIMATES_INTENT` for a known controller name, else infers it from the data.
+    """
     cols = TickData.of(columns)
+    intent = ESTIMATES_INTENT.get(controller.lower()) if with_intent is None else with_intent
     return RecordingEvaluation(
         participant=str(participant),
         controller=str(controller),
-        lifts=tuple(evaluate_lifts(cols, lifts)),
+        lifts=tuple(evaluate_lifts(cols, lifts, intent)),
         false_positives=tuple(count_false_positives(cols, trials)),
         recording=recording,
     )

@@ -5,7 +5,8 @@ with every count (what a statistics package wants, written by `to_csv()`), and
 `wide()`, the paper's layout with participants as columns (written by
 `to_markdown()`). Where one participant used several controllers, a wide cell lists
 them separated by "/" in the table's controller order, as the paper's "10/10" for
-UMC/E-UMC; "/" alone means the participant has no data for that row.
+UMC/E-UMC; "/" alone means the participant has no data for that row, and "-" a count
+that does not apply (recognitions of a controller without intent estimation).
 """
 
 from __future__ import annotations
@@ -220,7 +221,7 @@ class PerformanceTable:
                         if r is None:
                             continue
                         v = getattr(r, attr)
-                        vals.append("n/a" if v is None else str(v))
+                        vals.append("-" if v is None else str(v))  # "n/a" would read as two cells
                     cells.append(_join(vals))
                 rows.append(tuple(cells))
         labels = "/".join(controller_label(c) for c in self.controllers)

@@ -4,6 +4,7 @@ content types and response schemas."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from backend import accounts
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.main import create_app
+from tests.databases import fresh_database
 from tests.login import create_experimenter, log_in
 
 
@@ -33,8 +35,13 @@ def fuzz_target(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Pa
                 ) -> Iterator[tuple[FastAPI, dict[str, str]]]:
     """One app on one migrated database with a study, a participant with two blinded
     conditions and an open link, so fuzzed ids reach real rows; plus a bearer token."""
+    with fresh_database(tmp_path_factory.mktemp("fuzz")) as url:
+        yield from _fuzz_target(url, default_sets)
+
+
+def _fuzz_target(url: str, default_sets: tuple[Path, Path]
+                 ) -> Iterator[tuple[FastAPI, dict[str, str]]]:
     models, folder = default_sets
-    url = f"sqlite:///{tmp_path_factory.mktemp('fuzz') / 'exostudy.db'}"
     creds = create_experimenter(url)
     app = create_app(Settings(  # type: ignore[call-arg]
         database_url=url, start_worker=False, models_path=models, utilities_dir=folder,
@@ -81,6 +88,10 @@ def _cases() -> list[tuple[str, str, GenerationMode]]:
 # spawn a real control process (both are tested directly elsewhere).
 EXCLUDED = {("POST", "/api/auth/logout"), ("POST", "/api/worker/restart")}
 
+#: Examples per operation and mode: small enough for the suite (< 60 s on two shared
+#: cores); `EXOSTUDY_FUZZ_EXAMPLES=200 pytest tests/backend/test_api_fuzz.py` digs deeper.
+EXAMPLES = int(os.environ.get("EXOSTUDY_FUZZ_EXAMPLES", "6"))
+
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
           response_schema_conformance]
 
@@ -93,8 +104,8 @@ def api_schema(fuzz_target: tuple[FastAPI, dict[str, str]]) -> Any:
 # schemathesis' own pytest plugin (`schema.parametrize`) reads a node attribute pytest 9
 # removed, so the cases are drawn with hypothesis directly from each operation.
 @pytest.mark.parametrize(("method", "path", "mode"), [
-    pytest.param(*c, id=f"{c[0]} {c[1]} {'valid' if c[2] == GenerationMode.POSITIVE else 'invalid'}")
-    for c in _cases()])
+    pytest.param(m, p, g, id=f"{m} {p} {'valid' if g == GenerationMode.POSITIVE else 'invalid'}")
+    for m, p, g in _cases()])
 def test_api_has_no_server_errors(method: str, path: str, mode: GenerationMode,
                                   api_schema: Any,
                                   fuzz_target: tuple[FastAPI, dict[str, str]]) -> None:
@@ -102,7 +113,7 @@ def test_api_has_no_server_errors(method: str, path: str, mode: GenerationMode,
     headers = fuzz_target[1]
 
     @given(case=operation.as_strategy(generation_mode=mode))
-    @settings(max_examples=10, deadline=None, derandomize=True, database=None,
+    @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
               suppress_health_check=list(HealthCheck))
     def run(case: Any) -> None:
         case.call_and_validate(headers=headers, checks=CHECKS)

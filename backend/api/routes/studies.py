@@ -10,8 +10,8 @@ from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
-    INVALID,
     CONFLICT,
+    INVALID,
     NOT_FOUND,
     commit_or_conflict,
     conflict,

@@ -133,5 +133,8 @@ def test_columns_read_what_storage_gives() -> None:
         cols.float_("q_middle")
     with pytest.raises(ValueError, match="fractions"):
         TickData({"action": [1.5]})
+    mine = np.zeros(3)
+    TickData({"t": mine})
+    mine[0] = 1.0  # checking the columns does not freeze the caller's arrays
     assert TickData({}).time().size == 0
     assert TickData({"action": [1, 1]}).time() == pytest.approx([0.0, 0.01])

@@ -14,6 +14,7 @@ from controller.evaluation import (
     count_false_positives,
     evaluate_lift,
     evaluate_lifts,
+    evaluate_recording,
     lifts_from_truth,
     lock_decisions,
     summarise_onset_to_lock,
@@ -234,3 +235,15 @@ def test_times_use_the_device_clock_across_a_nan_timestamp() -> None:
     b.cols["t"][110] = np.nan  # a bad sample
     b.run(120, Action.LOCK_BOTH)
     assert evaluate_lift(b.columns(), lift).first_decision_s == pytest.approx(0.40)
+
+
+def test_intent_estimation_is_known_by_controller_name() -> None:
+    b, lift = one_lift("squat")  # no posterior anywhere: the trigger never fired
+    cols = b.columns()
+    assert evaluate_recording(cols, "1", "eumc", [lift]).lifts[0].recognised is False
+    assert evaluate_recording(cols, "1", "PEC", [lift]).lifts[0].recognised is None
+    assert evaluate_recording(cols, "1", "mine", [lift]).lifts[0].recognised is None
+    b.posterior(20, "squat", 0.9)  # before the lift: the data show intent estimation
+    assert evaluate_recording(b.columns(), "1", "mine", [lift]).lifts[0].recognised is False
+    forced = evaluate_recording(b.columns(), "1", "umc", [lift], with_intent=False)
+    assert forced.lifts[0].recognised is None

@@ -73,7 +73,7 @@ def test_performance_paper_layout(study: list[RecordingEvaluation]) -> None:
                        "recognised": "1", "correct": "1", "wrong": "0", "missed": "1"}
     pec = PerformanceTable.from_evaluations(study, controllers=("pec",))
     assert pec.rows[0].recognised is None
-    assert "| Intent estimation | SQ | n/a |" in pec.to_markdown()
+    assert "| Intent estimation | SQ | - |" in pec.to_markdown()
     assert parse(pec.to_csv())[0]["recognised"] == ""
 
 

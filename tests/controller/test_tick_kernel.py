@@ -1,0 +1,84 @@
+"""The compiled control tick through its owners: `PipelineController` and the batch replay."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controller.config import ControllerConfig
+from controller.device.base import Sample
+from controller.factory import make_controller
+from controller.pec import PEC
+from controller.replay import AngleRecording, replay_columns
+from controller.sim.recording import simulate_angles
+from controller.tick import TickFlag, TickRecord
+from controller.tick_kernel import MODE_UMC, OUT_FIELDS, TickCore
+
+
+@pytest.fixture(scope="module")
+def squats() -> AngleRecording:
+    run = simulate_angles(5, "squat-sequence")
+    return AngleRecording(run.t, run.q, None, None)
+
+
+def _cfg(default_sets: tuple[Path, Path], **settings: object) -> dict[str, object]:
+    models, folder = default_sets
+    return {"models_path": str(models), "utilities_path": str(folder / "utilities-sim-p25.json"),
+            "settings": settings}
+
+
+def test_output_row_covers_the_numeric_record_fields_in_order() -> None:
+    names = TickRecord.field_names()
+    # Everything but identity (seq, times, raw counts), timing and ground truth.
+    assert names[names.index("q_raw_left") : names.index("compute_us")] == OUT_FIELDS
+    n_numeric = len(names) - 7 - 4
+    assert len(OUT_FIELDS) == n_numeric
+
+
+def test_a_count_beyond_64_bits_is_a_bad_sample_not_an_exception() -> None:
+    ctl = PEC()
+    ctl.step(Sample(seq=0, t=0.0, counts=(3100, 3100, 12900, 12900)))
+    r = ctl.step(Sample(seq=1, t=0.01, counts=(3100, 1 << 70, 12900, 12900)))
+    assert r.flags == TickFlag.BAD_SAMPLE and not r.lock_left
+    assert r.count_left_cam == 1 << 70 and r.count_left_output == 3100
+    assert ctl.tick_index == 2
+
+
+def test_the_umc_needs_its_model_bank() -> None:
+    with pytest.raises(ValueError, match="model bank"):
+        TickCore(ControllerConfig(), MODE_UMC, 1)
+    with pytest.raises(ValueError, match="mode"):
+        TickCore(ControllerConfig(), 7, 1)
+
+
+def test_reset_forgets_everything_a_run_left_behind(
+    squats: AngleRecording, default_sets: tuple[Path, Path]
+) -> None:
+    ctl = make_controller("umc", _cfg(default_sets, umc_rate_hz=100))
+    first = replay_columns(squats, ctl)
+    carried = replay_columns(squats, ctl)  # filter, window and holds continue
+    ctl.reset()
+    again = replay_columns(squats, ctl)
+    for name in ("omega_left", "post_squat", "lock_left", "action"):
+        np.testing.assert_array_equal(again[name], first[name], err_msg=name)
+    assert not np.array_equal(carried["omega_left"][:5], first["omega_left"][:5])
+    assert first["omega_left"][0] == 0.0  # a fresh filter starts at rest
+
+
+def test_eumc_runs_the_umc_at_the_rising_edge_then_every_tenth_triggered_tick(
+    squats: AngleRecording, default_sets: tuple[Path, Path]
+) -> None:
+    cols = replay_columns(squats, make_controller(
+        "eumc", _cfg(default_sets, calibration=[0.0, 0.0])))
+    trig = cols["trigger"]
+    evaluated = np.isfinite(cols["post_squat"])
+    assert evaluated.sum() > 20
+    since = -1
+    for k in range(trig.size):
+        since = since + 1 if trig[k] else -1
+        assert evaluated[k] == (trig[k] and since % 10 == 0 and k >= 29), k
+    # Idle ticks decide "no lock" at 100 Hz without evaluating.
+    assert np.all(cols["controller_ran"][~trig]) and np.all(cols["action"][~trig] == 1)
+    assert np.all(cols["flags"] & TickFlag.NOT_CALIBRATED == 0)
