@@ -13,7 +13,7 @@ read each sample, answer with a command at once. Reports
 `--model still` swaps the simulated wearer for a motionless exoskeleton, to separate the
 cost of the link from the cost of the simulation.
 
-    .venv/bin/python bench/bench_udp.py --minutes 1
+    .venv/bin/python bench/bench_udp.py --minutes 1 [--realtime] [--model still]
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from controller.device.base import LockCommand, Sample, Status  # noqa: E402
 from controller.device.udp import UdpDevice  # noqa: E402
+from controller.sim.device_server import request_realtime  # noqa: E402
 
 
 class StillExoskeleton:
@@ -124,7 +125,7 @@ def _drive(port: int, seconds: float) -> dict[str, Any]:
 
 
 def run(
-    minutes: float, seed: int, script: str, model: str
+    minutes: float, seed: int, script: str, model: str, realtime: bool = False
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Start the emulator process, drive it for `minutes`, stop it; (host, device) results."""
     port = _free_port()
@@ -144,7 +145,7 @@ def run(
         sys.executable, "-m", "controller.sim.device_server",
         "--port", str(port), "--seed", str(seed), "--script", script,
         "--duration", str(seconds + 600.0),
-    ]  # fmt: skip
+    ] + (["--realtime"] if realtime else [])  # fmt: skip
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     server = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
     try:
@@ -166,10 +167,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--script", default="paper-evaluation")
     parser.add_argument("--model", choices=("sim", "still"), default="sim")
+    parser.add_argument(
+        "--realtime", action="store_true", help="SCHED_FIFO for host and emulator (root)"
+    )
     args = parser.parse_args(argv)
+    scheduling = "normal"
+    if args.realtime:
+        # Before the emulator starts: a spawned "still" emulator inherits the policy.
+        scheduling = request_realtime()
     load0 = os.getloadavg()
     t0 = time.time()
-    host, dev = run(args.minutes, args.seed, args.script, args.model)
+    host, dev = run(args.minutes, args.seed, args.script, args.model, args.realtime)
     load1 = os.getloadavg()
     h, d = host, dev
     started = time.strftime("%H:%M:%S", time.gmtime(t0))
@@ -180,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [
         ("model / script", f"{args.model} / {args.script} (seed {args.seed})"),
         ("duration", f"{args.minutes:g} min, started {started} UTC"),
+        ("host scheduling", scheduling),
         ("CPUs / load avg start -> end", f"{os.cpu_count()} / {load0[0]:.2f} -> {load1[0]:.2f}"),
         ("samples sent / received", f"{d['samples_sent']} / {h['received']}"),
         ("gaps (missing) / dup / stale", f"{h['gaps']} ({h['missing']}) / {dup_stale}"),

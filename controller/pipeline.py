@@ -39,6 +39,11 @@ class PipelineController(Controller):
         self.offsets = c.calibration if c.calibration is not None else (0.0, 0.0)
         #: Every piece of per-tick state, in arrays the compiled tick updates.
         self.core = self._make_core()
+        # The building blocks whose arrays the tick updates, under their former names.
+        self.velocity = self.core.velocity
+        self.window = self.core.window
+        self.hold = self.core.hold
+        self.torque = self.core.torque
 
     @abstractmethod
     def _make_core(self) -> TickCore:

@@ -247,8 +247,8 @@ tick_any = cast(Callable[..., None], tick)
 class Decider:
     """The compiled decision's inputs for a UMC or E-UMC: model bank, priors, utilities.
 
-    `IntentEstimator` and `decide_fast` scratch arrays are owned here so that the kernel
-    writes into them exactly as the Python objects would.
+    The arrays are the ones `ModelBank`, `IntentEstimator` and the controller already own,
+    so after a tick they hold its results just as the Python calls would have left them.
     """
 
     bank: ModelBank
@@ -293,22 +293,22 @@ class TickCore:
             raise ValueError(f"divider must be >= 1 tick, got {divider}")
         offsets = c.calibration if c.calibration is not None else (0.0, 0.0)
         self.mode = mode
+        self.torque = TorqueModel(c.precompression_pct)
+        # The Python objects own the arrays `tick` updates, so their properties (filtered
+        # angles, gains, remaining hold, the window) show the live state.
+        self.velocity = HipVelocityFilter(accel_std=c.accel_std, meas_std=c.meas_std)
+        self.hold = LockHold(c.hold_s)
+        self.window = ObservationWindow(c.window)
+        self.ctl = np.array([0, -1, _NO_LOCK], dtype=np.int64)
         self.cfg_f = np.array([c.velocity_threshold, offsets[0], offsets[1], c.lock_deadband,
                                Q_RANGE[0], Q_RANGE[1]])
         radius = -1 if c.band is None else int(c.band)
         if decider is not None:
             radius = decider.bank.radius
         self.cfg_i = np.array(
-            [mode, divider, int(c.calibration is not None), LockHold(c.hold_s).hold_ticks,
+            [mode, divider, int(c.calibration is not None), self.hold.hold_ticks,
              radius, *layout_array(c.layout)], dtype=np.int64,
         )
-        self.torque_k = TorqueModel(c.precompression_pct).constants
-        kal = HipVelocityFilter(accel_std=c.accel_std, meas_std=c.meas_std)
-        self.kalman_state, self.kalman_k = kal.state, kal.constants
-        self.hold = np.zeros(2, dtype=np.int64)
-        win = ObservationWindow(c.window)
-        self.window, self.window_pc = win.buffer, win.pos_count
-        self.ctl = np.array([0, -1, _NO_LOCK], dtype=np.int64)
         if decider is not None:
             b = decider.bank
             if b.max_window < c.window:
@@ -322,15 +322,16 @@ class TickCore:
         self.out = np.empty(N_OUT)
         #: The state and constant arguments of `tick`, in its order.
         self.args: tuple[FloatArray | IntArray | BoolArray, ...] = (
-            self.cfg_f, self.cfg_i, self.torque_k, self.kalman_state, self.kalman_k,
-            self.hold, self.window, self.window_pc, self.ctl, *dec,
+            self.cfg_f, self.cfg_i, self.torque.constants, self.velocity.state,
+            self.velocity.constants, self.hold.counters, self.window.buffer,
+            self.window.pos_count, self.ctl, *dec,
         )
 
     def reset(self) -> None:
         """Forget filter, window, held locks, tick count, trigger phase and last action."""
-        self.kalman_state[:] = 0.0
-        self.window_pc[:] = 0
-        self.hold[:] = 0
+        self.velocity.reset()
+        self.window.reset()
+        self.hold.reset()
         self.ctl[:] = (0, -1, _NO_LOCK)
 
     @property

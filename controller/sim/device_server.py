@@ -14,6 +14,7 @@ import argparse
 import copy
 import json
 import math
+import os
 import select
 import signal
 import socket
@@ -299,6 +300,17 @@ def _warm_up(model: ExoskeletonModel) -> None:
         return
 
 
+def request_realtime(priority: int = 10) -> str:
+    """Ask Linux for SCHED_FIFO, as firmware would have. On a shared machine a normally
+    scheduled process can wait a few ms behind CPU-bound neighbours each time a packet
+    wakes it; a real-time one does not. Returns what happened, for the log."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError) as exc:
+        return f"real-time scheduling not available ({exc}); running normally"
+    return f"running with SCHED_FIFO priority {priority}"
+
+
 def _default_bind(host_address: str) -> str:
     return "127.0.0.1" if host_address.startswith("127.") else "0.0.0.0"
 
@@ -374,7 +386,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--precompression", type=float, default=25.0, help="percent of 22 mm")
     parser.add_argument("--no-loop", action="store_true", help="stop when the script ends")
     parser.add_argument("--duration", type=float, default=None, help="stop after this many s")
+    parser.add_argument(
+        "--realtime", action="store_true", help="request SCHED_FIFO (needs CAP_SYS_NICE)"
+    )
     args = parser.parse_args(argv)
+    if args.realtime:
+        print(f"device-sim: {request_realtime()}", file=sys.stderr, flush=True)
     print(
         f"device-sim: listening on {args.bind or _default_bind(args.host)}:{args.port}, "
         f"host {args.host}, script {args.script!r}, seed {args.seed}",

@@ -82,3 +82,19 @@ def test_eumc_runs_the_umc_at_the_rising_edge_then_every_tenth_triggered_tick(
     # Idle ticks decide "no lock" at 100 Hz without evaluating.
     assert np.all(cols["controller_ran"][~trig]) and np.all(cols["action"][~trig] == 1)
     assert np.all(cols["flags"] & TickFlag.NOT_CALIBRATED == 0)
+
+
+def test_the_python_building_blocks_show_the_compiled_state(
+    squats: AngleRecording, default_sets: tuple[Path, Path]
+) -> None:
+    """Window, filter and hold objects own the arrays the tick updates."""
+    ctl = make_controller("pec")
+    cols = replay_columns(squats, ctl)
+    window = ctl.window.view()  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(window[:, 0], cols["q_left"][-30:])
+    np.testing.assert_array_equal(window[:, 1], cols["q_right"][-30:])
+    assert ctl.tick_index == squats.t.size  # type: ignore[attr-defined]
+    assert ctl.velocity.initialised  # type: ignore[attr-defined]
+    last_trigger = int(np.flatnonzero(cols["trigger"])[-1])
+    expected = max(0, 30 - (squats.t.size - last_trigger))
+    assert ctl.hold.remaining == (expected, expected)  # type: ignore[attr-defined]
