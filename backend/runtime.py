@@ -223,6 +223,8 @@ class Runtime:
             "--script", self.settings.device_script,
             "--precompression", str(self.settings.precompression_pct),
             "--bind", host,
+            # The only address the device takes commands from: this machine's worker.
+            "--host", "127.0.0.1" if host in ("127.0.0.1", "localhost") else host,
         ]
         self.device_process = subprocess.Popen(cmd)
         time.sleep(0.3)

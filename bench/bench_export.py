@@ -16,15 +16,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sqlalchemy import select  # noqa: E402
+from sqlalchemy import select
 
-from backend import tick_queries  # noqa: E402
-from backend.db import migrate  # noqa: E402
-from backend.db.engine import make_engine  # noqa: E402
-from backend.db.models import ticks_table  # noqa: E402
-from backend.recorder import TickRecorder  # noqa: E402
-from backend.worker.messages import RunStarted, TickBatch  # noqa: E402
-from controller.tick import TickRecord  # noqa: E402
+from backend import tick_queries
+from backend.db import migrate
+from backend.db.engine import make_engine
+from backend.db.models import ticks_table
+from backend.recorder import TickRecorder
+from backend.worker.messages import RunStarted, TickBatch
+from controller.tick import TickRecord
 
 N = 60_000
 

@@ -52,7 +52,9 @@ def _check_precompression(precompression_pct: float) -> float:
     return precompression_pct
 
 
-def spring_elongation_mm(alpha: FloatArray | float, p: MaccepaParams = PAPER_ACTUATOR) -> FloatArray:
+def spring_elongation_mm(
+    alpha: FloatArray | float, p: MaccepaParams = PAPER_ACTUATOR
+) -> FloatArray:
     """Spring compression added by deflection `alpha` (rad); zero at alpha = 0."""
     a = np.asarray(alpha, dtype=np.float64)
     B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
@@ -124,7 +126,9 @@ def max_deflection(precompression_pct: float, params: MaccepaParams = PAPER_ACTU
     return float(brentq(excess, 0.0, hi, xtol=1e-10))
 
 
-def at_hard_stop(alpha: float, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> bool:
+def at_hard_stop(
+    alpha: float, precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR
+) -> bool:
     """True when the spring is fully compressed at deflection `alpha`."""
     return alpha >= max_deflection(precompression_pct, params) - 1e-9
 

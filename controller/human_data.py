@@ -95,7 +95,9 @@ class HumanMotionData:
                     theta[i, j] = entry["theta_rad"]
                     tau[i, j] = entry["tau_nm"]
                 except KeyError as exc:
-                    raise ValueError(f"human data: missing {exc} for motion {m}, leg {leg}") from exc
+                    raise ValueError(
+                        f"human data: missing {exc} for motion {m}, leg {leg}"
+                    ) from exc
                 except ValueError as exc:
                     raise ValueError(f"human data: motion {m}, leg {leg}: {exc}") from exc
         return cls(

@@ -127,7 +127,7 @@ class ControlLoop:
         self._last_seq = sample.seq
         try:
             record = self.controller.step(sample)
-        except Exception:  # noqa: BLE001 - the loop must survive any controller fault
+        except Exception:
             record = TickRecord(
                 seq=sample.seq, t=sample.t, t_host=time.time(), flags=int(TickFlag.CONTROLLER_ERROR)
             )

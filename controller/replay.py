@@ -280,7 +280,7 @@ def build(
     if name == "eumc" and settings.calibration is None:
         mset = load_models(cfg)
         start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
-        n = int(round(calibrate_seconds * 100))
+        n = round(calibrate_seconds * 100)
         cal = calibrate(rec.q[:n], start)
         settings = settings.with_calibration(cal.offset_left, cal.offset_right)
     cfg["settings"] = settings

@@ -59,10 +59,13 @@ def experimenter(db_url: str) -> dict[str, str]:
 
 @pytest.fixture
 def client(settings: Settings, experimenter: dict[str, str]) -> Iterator[TestClient]:
-    """A TestClient logged in as `experimenter` (session cookie), no worker."""
+    """A TestClient logged in as `experimenter` (session cookie), with neither worker nor
+    simulated device: the study API needs neither, and an idle device process would
+    only compete for the CPU."""
     from backend.main import create_app
     from tests.login import log_in
 
-    with TestClient(create_app(settings)) as c:
+    quiet = settings.model_copy(update={"device_spawn_simulator": False})
+    with TestClient(create_app(quiet)) as c:
         log_in(c, experimenter)
         yield c

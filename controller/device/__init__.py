@@ -1,4 +1,5 @@
-"""Hardware behind an interface: the exoskeleton as a source of samples and a sink of lock commands."""
+"""Hardware behind an interface: the exoskeleton as a source of samples and a sink of
+lock commands."""
 
 from controller.device.base import Device, DeviceError, LockCommand, Sample, Status
 

@@ -30,7 +30,7 @@ class Status(enum.IntFlag):
 
     @property
     def is_fault(self) -> bool:
-        """Faults make a sample unusable for control; locks and hard stops are states, not faults."""
+        """Faults make a sample unusable for control; locks and hard stops are states."""
         return bool(self & (Status.ENCODER_FAULT | Status.SUPPLY_FAULT))
 
 

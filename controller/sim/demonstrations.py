@@ -50,7 +50,7 @@ class Demonstrations:
 def record(seed: int, script: str, layout: EncoderLayout = DEFAULT_LAYOUT) -> Recording:
     """Run one script with no lock commands and decode what the encoders measured."""
     exo = SimulatedExoskeleton(seed=seed, script=script, layout=layout, loop=False)
-    n = int(round(exo.duration / exo.dt))
+    n = round(exo.duration / exo.dt)
     t = np.empty(n)
     q = np.empty((n, 2))
     activity: list[str] = []
@@ -64,7 +64,9 @@ def record(seed: int, script: str, layout: EncoderLayout = DEFAULT_LAYOUT) -> Re
     return Recording(seed, script, t, q, tuple(activity), lift)
 
 
-def label_segments(rec: Recording, segments: Sequence[LiftSegment]) -> list[tuple[str, LiftSegment]]:
+def label_segments(
+    rec: Recording, segments: Sequence[LiftSegment]
+) -> list[tuple[str, LiftSegment]]:
     """Label each segment with the true activity at its peak; drop non-lifts."""
     out = []
     for seg in segments:

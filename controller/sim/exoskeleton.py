@@ -8,6 +8,8 @@ and the UDP device server puts it behind the wire protocol.
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import numpy as np
 
 from controller.device.base import GroundTruth, LockCommand, Sample
@@ -79,6 +81,21 @@ class SimulatedExoskeleton:
         self._lock = (False, False)
         self._i = 0  # index in the chunk of the last sample produced
         self.plant.reset(self._chunk.link_left[0], self._chunk.link_right[0])
+        # A looping simulator prepares its next repetition while this one plays: building
+        # one takes tens of milliseconds, which inside a tick would stall a 100 Hz stream.
+        self._next: Future[_Chunk] | None = None
+        self._pool: ThreadPoolExecutor | None = None
+        if loop:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sim-prefetch")
+            self._prefetch()
+
+    def _prefetch(self) -> None:
+        if self._pool is None:
+            return
+        rep = self._rep + 1
+        t0 = (self._start + self._chunk.n) * DT
+        offset = self._lift_offset + self._chunk.traj.n_lifts
+        self._next = self._pool.submit(self._make_chunk, rep, t0, offset)
 
     def _make_chunk(self, rep: int, t0: float, lift_offset: int) -> _Chunk:
         traj = realise(self.script, self.participant, self.seed, rep, t0, lift_offset)
@@ -105,9 +122,13 @@ class SimulatedExoskeleton:
             if self.loop:
                 self._rep += 1
                 self._lift_offset += chunk.traj.n_lifts
-                self._chunk = chunk = self._make_chunk(self._rep, k * DT, self._lift_offset)
+                if self._next is not None:
+                    self._chunk = chunk = self._next.result()
+                else:
+                    self._chunk = chunk = self._make_chunk(self._rep, k * DT, self._lift_offset)
                 self._start = k
                 i = 0
+                self._prefetch()
             else:
                 i = chunk.n - 1
         self._i = i

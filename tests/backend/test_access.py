@@ -115,3 +115,12 @@ def test_pages_need_a_login(settings: Settings, page: str) -> None:
     with TestClient(create_app(settings)) as anonymous:
         r = anonymous.get(page, follow_redirects=False)
     assert r.status_code == 303 and r.headers["location"].startswith("/login")
+
+
+def test_the_schema_says_which_operations_need_a_login(client: TestClient) -> None:
+    for path, item in client.app.openapi()["paths"].items():  # type: ignore[attr-defined]
+        for method, op in item.items():
+            public = (method, path) in PUBLIC or path.startswith(PARTICIPANT_PREFIX)
+            assert bool(op.get("security")) is not public, f"{method.upper()} {path}"
+            if not public:
+                assert "401" in op["responses"], f"{method.upper()} {path} lacks its 401"

@@ -12,7 +12,7 @@ def test_every_exported_column_has_a_unit_and_a_meaning() -> None:
     for table, cols in EXPORTED_COLUMNS.items():
         for c in cols:
             try:
-                unit, meaning = describe(table, c)
+                _unit, meaning = describe(table, c)
             except KeyError:
                 missing.append(f"{table}.{c}")
                 continue

@@ -21,7 +21,9 @@ TABLE = [
 
 
 @pytest.mark.parametrize(("p", "limit_deg", "t30", "t60"), TABLE)
-def test_torques_match_the_hardware_table(p: float, limit_deg: float, t30: float, t60: float) -> None:
+def test_torques_match_the_hardware_table(
+    p: float, limit_deg: float, t30: float, t60: float
+) -> None:
     assert maccepa_torque(math.radians(30), p) == pytest.approx(t30, abs=0.01)
     assert maccepa_torque(math.radians(60), p) == pytest.approx(t60, abs=0.01)
     assert math.degrees(max_deflection(p)) == pytest.approx(limit_deg, abs=0.1)

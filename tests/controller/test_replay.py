@@ -33,7 +33,10 @@ def squats(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_cli_writes_one_row_per_tick_with_the_required_columns(
-    squats: Path, default_sets: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    squats: Path,
+    default_sets: tuple[Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     models, folder = default_sets
     out = tmp_path / "ticks.csv"

@@ -1,0 +1,26 @@
+// Studies: list them and create one.
+import { get, post } from "/static/api.js";
+import { $, act, fmtDate, formData, h } from "/static/dom.js";
+
+async function load() {
+  const studies = await get("/api/studies");
+  const body = $("#studies tbody");
+  body.replaceChildren(...studies.map((s) => h("tr", { "data-study": s.id },
+    h("td", {}, h("a", { href: `/console/studies/${s.id}` }, s.name)),
+    h("td", {}, s.description || ""),
+    h("td", {}, fmtDate(s.created_at)))));
+  $("#studies-empty").hidden = studies.length > 0;
+}
+
+$("#study-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#study-create"), $("#study-msg"), async () => {
+    const s = await post("/api/studies", formData(ev.target));
+    ev.target.reset();
+    location.assign(`/console/studies/${s.id}`);
+    return `created ${s.name}`;
+  });
+});
+
+get("/api/auth/me").then((me) => { $("#who").textContent = me.username ?? ""; }).catch(() => {});
+load();

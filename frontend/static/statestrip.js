@@ -1,0 +1,63 @@
+// The state strip: which lock each side holds, whether the mechanism engaged, and the
+// controller's action, large enough to read from across the lab.
+
+const ACTIONS = ["no lock", "lock both", "lock right", "lock left"];
+
+export function createStateStrip(root) {
+  root.classList.add("strip");
+  root.innerHTML = `
+    <div class="strip-cell" id="strip-left" data-lock="off"><span class="strip-side">LEFT</span>
+      <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>
+    <div class="strip-cell strip-action" id="strip-action" data-action="0"><span class="strip-side">ACTION</span>
+      <span class="strip-value">no lock</span><span class="strip-sub">trigger –</span></div>
+    <div class="strip-cell" id="strip-right" data-lock="off"><span class="strip-side">RIGHT</span>
+      <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>`;
+  const left = root.querySelector("#strip-left");
+  const right = root.querySelector("#strip-right");
+  const action = root.querySelector("#strip-action");
+  const counts = { lockChanges: 0, lockOnSeen: 0 };
+  let last = null;
+
+  function side(cell, held, engaged) {
+    const state = held ? "on" : "off";
+    cell.dataset.lock = state;
+    cell.dataset.engaged = engaged ? "true" : "false";
+    cell.querySelector(".strip-value").textContent = held ? "LOCK" : "free";
+    cell.querySelector(".strip-sub").textContent = `mechanism ${engaged ? "engaged" : "open"}`;
+  }
+
+  return {
+    counts,
+    // Count lock changes over every tick of a message (a short lock between two
+    // redraws still counts).
+    observe(columns) {
+      const l = columns.lock_left || [];
+      const r = columns.lock_right || [];
+      for (let i = 0; i < l.length; i++) {
+        const key = `${l[i] ? 1 : 0}${r[i] ? 1 : 0}`;
+        if (last !== null && key !== last) counts.lockChanges += 1;
+        if (key !== "00") counts.lockOnSeen += 1;
+        last = key;
+      }
+    },
+    // `tick`: one tick's raw values (lock_left, lock_right, locked_*, action, trigger).
+    update(tick) {
+      if (!tick) return;
+      side(left, tick.lock_left, tick.locked_left);
+      side(right, tick.lock_right, tick.locked_right);
+      const a = tick.action ?? 0;
+      action.dataset.action = String(a);
+      action.querySelector(".strip-value").textContent = ACTIONS[a] ?? String(a);
+      action.querySelector(".strip-sub").textContent = `trigger ${tick.trigger ? "ON" : "off"}`;
+    },
+  };
+}
+
+// The last tick in a columns message, as a plain object.
+export function lastTick(columns) {
+  const n = columns.t.length;
+  if (!n) return null;
+  const out = {};
+  for (const [k, v] of Object.entries(columns)) out[k] = v[n - 1];
+  return out;
+}

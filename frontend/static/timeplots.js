@@ -1,0 +1,130 @@
+// The time plots shared by the live page, replay and the session page: hip angles,
+// velocities with the trigger threshold, posteriors with lock commands, torques.
+// All plots share one cursor (uPlot cursor.sync), so a time reads across them.
+import uPlot from "/vendor/uplot/uPlot.esm.js";
+
+export const DEG = 180 / Math.PI;
+export const LEFT = "#1f6feb";
+export const RIGHT = "#d9480f";
+const SYNC_KEY = "exostudy-time";
+const stepped = uPlot.paths.stepped({ align: 1 });
+
+export function sizeOf(el, height = 220) {
+  return { width: Math.max(300, el.clientWidth - 4), height };
+}
+
+function thresholdLine(getValue) {
+  return (u) => {
+    const v = getValue();
+    if (v == null || u.scales.y.min == null) return;
+    const { ctx } = u;
+    ctx.save();
+    ctx.setLineDash([8, 5]);
+    ctx.lineWidth = 2;
+    ctx.strokeStyle = "#6b7685";
+    for (const y of [v]) {
+      const py = u.valToPos(y, "y", true);
+      ctx.beginPath();
+      ctx.moveTo(u.bbox.left, py);
+      ctx.lineTo(u.bbox.left + u.bbox.width, py);
+      ctx.stroke();
+    }
+    ctx.fillStyle = "#6b7685";
+    ctx.font = `${12 * devicePixelRatio}px system-ui`;
+    ctx.fillText(`trigger ${v} rad/s`, u.bbox.left + 6, u.valToPos(v, "y", true) - 6);
+    ctx.restore();
+  };
+}
+
+const xAxis = { label: "device time (s)" };
+const base = (el, height, onDraw) => ({
+  ...sizeOf(el, height),
+  scales: { x: { time: false } },
+  cursor: { sync: { key: SYNC_KEY, setSeries: false }, drag: { x: false, y: false } },
+  hooks: { draw: [onDraw] },
+  legend: { live: true },
+});
+
+// Which tick columns each plot needs, in series order after t.
+export const PLOT_COLUMNS = {
+  angles: ["q_left", "q_right"],
+  velocities: ["omega_left", "omega_right", "trigger"],
+  posteriors: ["post_squat", "post_stoop_left", "post_stoop_right", "post_other",
+    "lock_left", "lock_right"],
+  torques: ["torque_left", "torque_right"],
+};
+
+// Ticks as they arrive (SI units, booleans) to what the plots draw.
+export function displayValue(name, v) {
+  if (v == null) return null;
+  if (name === "q_left" || name === "q_right") return v * DEG;
+  if (name === "lock_left") return v ? 1 : 0;
+  if (name === "lock_right") return v ? 1.2 : 0.2;
+  if (name === "trigger") return v ? 1 : 0;
+  return v;
+}
+
+export function createTimePlots(containers, { threshold = 1.0, height = 220, onDraw = () => {} } = {}) {
+  const plots = {};
+  const state = { threshold };
+  const c = containers;
+  if (c.angles) {
+    plots.angles = new uPlot({
+      ...base(c.angles, height, onDraw),
+      axes: [xAxis, { label: "hip flexion (deg)" }],
+      series: [{}, { label: "left hip", stroke: LEFT, width: 2 },
+        { label: "right hip", stroke: RIGHT, width: 2 }],
+    }, [[], [], []], c.angles);
+  }
+  if (c.velocities) {
+    plots.velocities = new uPlot({
+      ...base(c.velocities, height, onDraw),
+      hooks: { draw: [onDraw, thresholdLine(() => state.threshold)] },
+      scales: {
+        x: { time: false },
+        y: { range: (u, min, max) => [Math.min(min ?? -1, -1), Math.max(max ?? 1, state.threshold * 1.5)] },
+        trig: { range: [-0.1, 8] },
+      },
+      axes: [xAxis, { label: "hip velocity (rad/s)" }],
+      series: [{}, { label: "left", stroke: LEFT, width: 2 },
+        { label: "right", stroke: RIGHT, width: 2 },
+        { label: "trigger", stroke: "#2b8a3e", fill: "rgba(43,138,62,0.15)", width: 2, scale: "trig", paths: stepped }],
+    }, [[], [], [], []], c.velocities);
+  }
+  if (c.posteriors) {
+    plots.posteriors = new uPlot({
+      ...base(c.posteriors, height, onDraw),
+      scales: { x: { time: false }, p: { range: [0, 1.05] }, lock: { range: [-0.2, 6] } },
+      axes: [xAxis, { scale: "p", label: "P(model | obs)" }],
+      series: [{},
+        { label: "squat", stroke: "#2b8a3e", scale: "p", width: 2, spanGaps: true },
+        { label: "stoop left", stroke: LEFT, scale: "p", width: 2, spanGaps: true, dash: [6, 3] },
+        { label: "stoop right", stroke: RIGHT, scale: "p", width: 2, spanGaps: true, dash: [6, 3] },
+        { label: "other", stroke: "#868e96", scale: "p", width: 2, spanGaps: true },
+        { label: "lock left", stroke: LEFT, scale: "lock", width: 3, paths: stepped },
+        { label: "lock right", stroke: RIGHT, scale: "lock", width: 3, paths: stepped }],
+    }, [[], [], [], [], [], [], []], c.posteriors);
+  }
+  if (c.torques) {
+    plots.torques = new uPlot({
+      ...base(c.torques, height, onDraw),
+      axes: [xAxis, { label: "exoskeleton torque (Nm)" }],
+      series: [{}, { label: "left", stroke: LEFT, width: 2, spanGaps: true },
+        { label: "right", stroke: RIGHT, width: 2, spanGaps: true }],
+    }, [[], [], []], c.torques);
+  }
+
+  return {
+    plots,
+    // `cols`: display-unit arrays by column name, `t` included.
+    setData(cols) {
+      for (const [name, plot] of Object.entries(plots)) {
+        plot.setData([cols.t, ...PLOT_COLUMNS[name].map((n) => cols[n])]);
+      }
+    },
+    setThreshold(v) { state.threshold = v; },
+    resize() {
+      for (const [name, plot] of Object.entries(plots)) plot.setSize(sizeOf(c[name], height));
+    },
+  };
+}
