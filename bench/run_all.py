@@ -1,0 +1,37 @@
+"""Run every benchmark in turn and print what each reports (`make bench`).
+
+Timing figures depend on the machine and on what else runs: each benchmark measures a
+baseline in the same run where one exists, and the README records the figures with the
+conditions they were measured under. Nothing here is a test: it never fails the build.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BENCHES = [
+    ("onset DTW and UMC tick", ["bench_onset.py"]),
+    ("replay of a 10-minute recording", ["bench_replay.py"]),
+    ("simulation speed", ["bench_simulation.py"]),
+    ("CSV export of a 10-minute trial", ["bench_export.py"]),
+    ("UDP device round trip and emulator lateness", ["bench_udp.py", "--minutes", "1"]),
+    ("live path with 0, 3 and 4 browser consoles", ["bench_live.py", "--seconds", "30"]),
+]
+
+
+def main() -> int:
+    for title, args in BENCHES:
+        print(f"\n=== {title} ({' '.join(args)})", flush=True)
+        t0 = time.monotonic()
+        proc = subprocess.run([sys.executable, str(HERE / args[0]), *args[1:]],
+                              cwd=HERE.parent, check=False)
+        print(f"--- exit {proc.returncode}, {time.monotonic() - t0:.0f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

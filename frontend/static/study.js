@@ -1,0 +1,89 @@
+// A study: its participants (create, edit, consent date) and their sessions.
+import { get, patch, post } from "/static/api.js";
+import { $, act, fmtDate, formData, h } from "/static/dom.js";
+
+const studyId = Number(location.pathname.split("/").pop());
+let participants = [];
+let selected = null;
+
+const KIND = { data_collection: "data collection", evaluation: "evaluation" };
+
+async function loadStudy() {
+  const s = await get(`/api/studies/${studyId}`);
+  document.title = `ExoStudy · ${s.name}`;
+  $("#study-title").textContent = s.name;
+  $("#study-description").textContent = s.description;
+  $("#export").href = `/api/studies/${studyId}/export.zip`;
+}
+
+async function loadParticipants() {
+  participants = await get(`/api/studies/${studyId}/participants`);
+  $("#participants tbody").replaceChildren(...participants.map((p) => h("tr",
+    { "data-participant": p.code, class: selected && selected.id === p.id ? "selected" : null },
+    h("td", {}, h("strong", {}, p.code)), h("td", {}, p.age ?? "–"), h("td", {}, p.sex ?? "–"),
+    h("td", {}, p.height_m != null ? `${p.height_m} m` : "–"),
+    h("td", {}, p.mass_kg != null ? `${p.mass_kg} kg` : "–"),
+    h("td", { class: "consent" }, p.consent_date ?? h("span", { class: "warn-text" }, "missing")),
+    h("td", {}, h("button", { type: "button", class: "open", onclick: () => select(p.id) }, "Open")))));
+  $("#participants-empty").hidden = participants.length > 0;
+}
+
+async function select(id) {
+  selected = participants.find((p) => p.id === id);
+  $("#participant-panel").hidden = false;
+  $("#panel-code").textContent = selected.code;
+  const form = $("#edit-form");
+  for (const k of ["code", "age", "sex", "height_m", "mass_kg", "consent_date"]) {
+    form.elements[k].value = selected[k] ?? "";
+  }
+  await loadParticipants();
+  await loadSessions();
+  $("#participant-panel").scrollIntoView({ behavior: "smooth", block: "start" });
+}
+
+async function loadSessions() {
+  const sessions = await get(`/api/participants/${selected.id}/sessions`);
+  $("#sessions tbody").replaceChildren(...sessions.map((s) => h("tr", { "data-session": s.id },
+    h("td", {}, KIND[s.kind] ?? s.kind), h("td", {}, `${s.precompression_pct} %`),
+    h("td", {}, fmtDate(s.started_at)),
+    h("td", {}, h("a", { href: `/console/sessions/${s.id}`, class: "session-link" }, "Open session ›")))));
+}
+
+$("#participant-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#participant-create"), $("#participant-msg"), async () => {
+    const p = await post(`/api/studies/${studyId}/participants`, formData(ev.target));
+    ev.target.reset();
+    await loadParticipants();
+    await select(p.id);
+    return `added ${p.code}`;
+  });
+});
+
+$("#edit-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#edit-save"), $("#edit-msg"), async () => {
+    const body = formData(ev.target);
+    // An emptied field clears it (null), rather than being left as it was.
+    for (const k of ["age", "sex", "height_m", "mass_kg", "consent_date"]) {
+      if (!(k in body)) body[k] = null;
+    }
+    const p = await patch(`/api/participants/${selected.id}`, body);
+    await loadParticipants();
+    selected = p;
+    $("#panel-code").textContent = p.code;
+    return `saved ${p.code}`;
+  });
+});
+
+$("#session-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#session-create"), $("#session-msg"), async () => {
+    const s = await post(`/api/participants/${selected.id}/sessions`, formData(ev.target));
+    await loadSessions();
+    return `created ${KIND[s.kind]} session`;
+  });
+});
+
+loadStudy();
+loadParticipants();
