@@ -75,9 +75,18 @@ class Runtime:
                                         self.settings.precompression_pct)
 
     def prepare_defaults(self) -> None:
-        """Build the default model and utility sets if they are missing (first start)."""
-        bootstrap.ensure_models(self.settings.models_path)
-        bootstrap.ensure_utilities(self.utilities_path(), self.settings.precompression_pct)
+        """Build the default model and utility sets if they are missing (first start),
+        and the demo study in an empty database when the demo is on."""
+        models = bootstrap.ensure_models(self.settings.models_path)
+        utilities = bootstrap.ensure_utilities(self.utilities_path(),
+                                               self.settings.precompression_pct)
+        if self.settings.demo:
+            from sqlalchemy.orm import Session
+
+            from backend.demo import ensure_demo
+
+            with Session(self.recorder.engine) as db:
+                ensure_demo(db, models, utilities, self.settings.precompression_pct)
 
     def controller_config(
         self, name: str, overrides: dict[str, Any] | None = None

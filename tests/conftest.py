@@ -44,7 +44,7 @@ def settings(db_url: str, default_sets: tuple[Path, Path]) -> Settings:
     models, folder = default_sets
     return Settings(  # type: ignore[call-arg]
         database_url=db_url, start_worker=False, models_path=models, utilities_dir=folder,
-        device_kind="sim", _env_file=None,
+        device_kind="sim", demo=False, _env_file=None,
     )
 
 

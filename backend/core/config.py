@@ -54,6 +54,9 @@ class Settings(BaseSettings):
     #: Longest time (s) ticks wait in memory before they are written to the database.
     db_flush_interval: float = Field(default=0.5, gt=0.0, le=1.0)
 
+    #: Create the demo study and account in an empty database (see backend/demo.py).
+    demo: bool = True
+
     #: Start the control worker with the server (tests switch it off).
     start_worker: bool = True
     frontend_dir: Path = PROJECT_ROOT / "frontend"
