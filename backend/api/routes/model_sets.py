@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated, Any
 
 import numpy as np
@@ -34,6 +35,24 @@ router = APIRouter(tags=["models"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 ModelSetId = Annotated[int, Path(ge=1, le=MAX_ID, description="model set id")]
 UtilitySetId = Annotated[int, Path(ge=1, le=MAX_ID, description="utility set id")]
 JobId = Annotated[int, Path(ge=1, le=MAX_ID, description="job id")]
+
+
+Computed = type[ModelSetRecord] | type[UtilitySetRecord]
+
+
+def _set_row(sessions: sessionmaker[Session], model: Computed, row_id: int,
+             **values: Any) -> None:
+    """Update a model or utility set from the job thread (its own transaction)."""
+    with sessions() as s:
+        s.execute(update(model).where(model.id == row_id).values(**values))
+        s.commit()
+
+
+def _failure(sessions: sessionmaker[Session], model: Computed, row_id: int
+             ) -> Callable[[str], None]:
+    """What a failed job leaves on its row: status failed and the reason."""
+    return lambda message: _set_row(sessions, model, row_id, status="failed",
+                                    error=message[:2000])
 
 
 def _study_of_recording(db: Session, recording_id: int) -> int:
@@ -101,19 +120,11 @@ def fit_models(study_id: StudyId, body: ModelSetIn, request: Request, user: Curr
                              explained_variance=body.explained_variance,
                              version=f"study-{study_id}-modelset-{ms_id}", demo_ids=demo_ids,
                              meta={"study_id": study_id, "name": body.name})
-        with sessions() as s:
-            s.execute(update(ModelSetRecord).where(ModelSetRecord.id == ms_id)
-                      .values(document=mset.to_json(), status="ready"))
-            s.commit()
+        _set_row(sessions, ModelSetRecord, ms_id, document=mset.to_json(), status="ready")
         return f"fitted {sum(len(v) for v in demos.values())} demonstrations"
 
-    def failed(message: str) -> None:
-        with sessions() as s:
-            s.execute(update(ModelSetRecord).where(ModelSetRecord.id == ms_id)
-                      .values(status="failed", error=message[:2000]))
-            s.commit()
-
-    job_id, _ = request.app.state.jobs.submit("fit_model_set", ms_id, work, failed)
+    job_id, _ = request.app.state.jobs.submit(
+        "fit_model_set", ms_id, work, _failure(sessions, ModelSetRecord, ms_id))
     return ModelSetOut.model_validate(row).model_copy(update={"job_id": job_id})
 
 
@@ -159,19 +170,11 @@ def _submit_utilities(request: Request, db: Session, user: Any, study_id: int, n
 
     def work(progress: Any) -> str:
         uset = compute_utilities(human, pct, progress=progress)
-        with sessions() as s:
-            s.execute(update(UtilitySetRecord).where(UtilitySetRecord.id == us_id)
-                      .values(document=uset.to_json(), status="ready"))
-            s.commit()
+        _set_row(sessions, UtilitySetRecord, us_id, document=uset.to_json(), status="ready")
         return f"utilities for {pct:g} % precompression"
 
-    def failed(message: str) -> None:
-        with sessions() as s:
-            s.execute(update(UtilitySetRecord).where(UtilitySetRecord.id == us_id)
-                      .values(status="failed", error=message[:2000]))
-            s.commit()
-
-    job_id, _ = request.app.state.jobs.submit("compute_utilities", us_id, work, failed)
+    job_id, _ = request.app.state.jobs.submit(
+        "compute_utilities", us_id, work, _failure(sessions, UtilitySetRecord, us_id))
     return UtilitySetOut.model_validate(row).model_copy(update={"job_id": job_id})
 
 
