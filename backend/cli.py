@@ -8,6 +8,7 @@
     exostudy human-dataset --out FILE.json     the simulated reference human data
     exostudy user add NAME                     create an experimenter (password on stdin)
     exostudy user list                         list the experimenter accounts
+    exostudy virtual-study --participants 8 --seed S --out DIR   the protocol, simulated
 """
 
 from __future__ import annotations
@@ -116,6 +117,20 @@ def _user(args: argparse.Namespace) -> int:
         engine.dispose()
 
 
+def _virtual_study(args: argparse.Namespace) -> int:
+    from backend.virtual_study import DEFAULT_SPEED, VirtualStudyConfig, run
+
+    cfg = VirtualStudyConfig(
+        out=Path(args.out), participants=args.participants,
+        data_participants=args.data_participants, eumc=args.eumc, seed=args.seed,
+        speed=args.speed if args.speed is not None else DEFAULT_SPEED,
+        rates=tuple(args.rates.split(",")), model_evaluation=not args.no_model_evaluation)
+    report = run(cfg, log=lambda m: print(m, flush=True))
+    print(f"virtual study done in {report.wall_s:.0f} s; {len(report.trials)} trials; "
+          f"wrote {len(report.files)} files to {args.out} (see README.md there)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
@@ -153,6 +168,22 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("action", choices=["add", "list"])
     u.add_argument("name", nargs="?", default=None)
     u.set_defaults(func=_user)
+
+    v = sub.add_parser("virtual-study", help="run the paper's protocol on virtual "
+                       "participants through the server, worker and simulated device")
+    v.add_argument("--participants", type=int, default=8, help="evaluation participants")
+    v.add_argument("--data-participants", type=int, default=6,
+                   help="data-collection participants whose demonstrations fit the models")
+    v.add_argument("--eumc", type=int, default=3, help="the first N also evaluate the E-UMC")
+    v.add_argument("--seed", type=int, default=1)
+    v.add_argument("--speed", type=float, default=None,
+                   help="simulator speed-up (default: backend.virtual_study.DEFAULT_SPEED)")
+    v.add_argument("--rates", default="paper-rates,100hz",
+                   help="comma-separated rate settings: paper-rates, 100hz")
+    v.add_argument("--no-model-evaluation", action="store_true",
+                   help="skip the leave-one-participant-out evaluation of the models")
+    v.add_argument("--out", required=True)
+    v.set_defaults(func=_virtual_study)
 
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")

@@ -10,7 +10,7 @@ from fastapi import FastAPI, Request
 from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 
-from backend import console_pages
+from backend import console_pages, viewer
 from backend.api.deps import SESSION_COOKIE, login_from_token
 from backend.api.openapi import document_framework_errors
 from backend.api.routes import (
@@ -24,6 +24,7 @@ from backend.api.routes import (
     preferences,
     questionnaires,
     recordings,
+    results,
     sessions,
     studies,
     trials,
@@ -85,7 +86,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(recordings.router)
     app.include_router(model_sets.router)
     app.include_router(trials.router)
+    app.include_router(results.router)
     app.include_router(console_pages.router)
+    app.include_router(viewer.router)
     document_framework_errors(app)
 
     static = settings.frontend_dir / "static"

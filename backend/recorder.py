@@ -41,6 +41,7 @@ class TickRecorder:
         self.flush_interval = flush_interval
         self._pending: list[tuple[int, TickRecord]] = []
         self._lock = threading.Lock()
+        self._flush_lock = threading.Lock()
         self._runs: dict[int, int] = {}  # worker run token -> runs.id, for the current worker
         self._counts: dict[int, int] = {}
         self.current_run_id: int | None = None
@@ -114,7 +115,17 @@ class TickRecorder:
             self._pending.extend((run_id, r) for r in batch.records)
 
     def flush(self) -> int:
-        """Insert everything pending now; returns the number of ticks written."""
+        """Insert everything pending now; returns the number of ticks written.
+
+        Flushes are serialised: the periodic thread, a run change and an API request
+        (stopping a recording) can all flush, and two overlapping inserts could commit
+        in the wrong order, giving later ticks lower ids than earlier ones (ticks are
+        read back in id order).
+        """
+        with self._flush_lock:
+            return self._flush()
+
+    def _flush(self) -> int:
         with self._lock:
             pending, self._pending = self._pending, []
         if not pending:

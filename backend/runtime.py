@@ -44,6 +44,7 @@ class Runtime:
         self.calibration: CalibrationResult | None = None
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self._run_waiters: list[tuple[str, asyncio.Future[int]]] = []
+        self._runs_started = 0
         self.worker_config = WorkerConfig(
             device_kind=settings.device_kind,
             device_host=host,
@@ -149,6 +150,7 @@ class Runtime:
         self.worker_config = replace(self.supervisor.config, device_seed=seed,
                                      device_script=script)
         self.supervisor.config = self.worker_config
+        runs_before = self._runs_started
         if self.settings.device_kind == "sim":
             await asyncio.to_thread(self.supervisor.restart)
         elif self.settings.device_spawn_simulator:
@@ -158,6 +160,19 @@ class Runtime:
             await asyncio.to_thread(self.start_device_simulator)
         else:
             raise ValueError("the device is real hardware: there is no simulation to change")
+        # Return only once the new simulation streams: a recording or trial started
+        # before that would attach to a run that is about to be replaced.
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 60.0
+        while loop.time() < deadline:
+            st = self.supervisor.state.status
+            restarted = (self.settings.device_kind != "sim"
+                         or self._runs_started > runs_before)
+            # The supervisor clears `status` on restart: any status now is the new worker's.
+            if restarted and st is not None and st.device_alive and self.supervisor.state.alive:
+                return
+            await asyncio.sleep(0.05)
+        raise RuntimeError("the simulated device did not start streaming again")
 
     async def calibrate(self, seconds: float, max_std_deg: float) -> CalibrationResult:
         """Ask the worker to calibrate and wait for the outcome."""
@@ -246,6 +261,7 @@ class Runtime:
     def _on_run_started(self, msg: RunStarted) -> None:
         run_id = self.recorder.run_started(msg, msg.device_kind)
         self.stream.run_id = run_id
+        self._runs_started += 1
         loop = self.stream._loop
         for name, fut in list(self._run_waiters):
             if name == msg.controller and loop is not None:

@@ -1,6 +1,6 @@
 // Studies: list them and create one.
 import { get, post } from "/static/api.js";
-import { $, act, fmtDate, formData, h } from "/static/dom.js";
+import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 
 async function load() {
   const studies = await get("/api/studies");
@@ -23,4 +23,4 @@ $("#study-form").addEventListener("submit", (ev) => {
 });
 
 get("/api/auth/me").then((me) => { $("#who").textContent = me.username ?? ""; }).catch(() => {});
-load();
+load().catch(showFatal);

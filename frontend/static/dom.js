@@ -20,8 +20,9 @@ export function h(tag, attrs = {}, ...children) {
 export const $ = (sel, root = document) => root.querySelector(sel);
 
 // Show what an action did (or why it failed) next to it, and keep the button from being
-// pressed twice while the request runs.
-export async function act(button, msgEl, fn) {
+// pressed twice while the request runs. `after` runs last, for buttons whose state
+// depends on the outcome (a stop button stays disabled once nothing runs).
+export async function act(button, msgEl, fn, after = null) {
   button.disabled = true;
   msgEl.className = "msg";
   msgEl.textContent = "…";
@@ -34,6 +35,7 @@ export async function act(button, msgEl, fn) {
     msgEl.classList.add("msg-bad");
   } finally {
     button.disabled = false;
+    if (after) after();
   }
 }
 
@@ -49,4 +51,11 @@ export function formData(form) {
 
 export function fmtDate(s) {
   return s ? new Date(s).toLocaleString() : "–";
+}
+
+// A page that cannot load its data says so at the top, instead of staying blank.
+export function showFatal(err) {
+  const banner = h("div", { class: "card fatal", role: "alert", id: "fatal" },
+    h("strong", {}, "This page could not load: "), err.message || String(err));
+  document.querySelector("main").prepend(banner);
 }

@@ -133,7 +133,7 @@ async function startReplay(id) {
   const [trial, body] = await Promise.all([
     fetch(`/api/trials/${id}`).then((r) => r.json()),
     fetch(`/api/trials/${id}/ticks.json`).then((r) => {
-      if (!r.ok) throw new Error(`trial ${id} has no ticks`);
+      if (!r.ok) throw new Error(`trial ${id} has no stored ticks (it has not run)`);
       return r.json();
     }),
   ]);
@@ -253,5 +253,11 @@ $("restart").addEventListener("click", async (ev) => {
   }
 });
 
-if (trialId) startReplay(Number(trialId));
+if (trialId) {
+  startReplay(Number(trialId)).catch((err) => {
+    setConn("down", String(err.message || err));
+    $("mode-text").textContent = `replay of trial ${trialId}: ${err.message || err}`;
+    stats.replay = { trialId: Number(trialId), loaded: false, error: String(err.message || err) };
+  });
+}
 else startLive();

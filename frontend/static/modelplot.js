@@ -94,9 +94,6 @@ export function drawModelSet(canvas, doc, { every = 5 } = {}) {
     ctx.beginPath();
     m.mean.forEach(([l, r], i) => (i ? ctx.lineTo(X(l), Y(r)) : ctx.moveTo(X(l), Y(r))));
     ctx.stroke();
-    const [l0, r0] = m.mean[m.mean.length - 1];
-    ctx.fillStyle = colour;
-    ctx.beginPath(); ctx.arc(X(l0), Y(r0), 4, 0, 2 * Math.PI); ctx.fill();
   }
   canvas.dataset.models = String(models.length);
   return models.map((m) => m.name);
@@ -109,3 +106,19 @@ function niceStep(raw) {
 }
 
 export { COLOURS as MODEL_COLOURS };
+
+// What the plot shows before a model set is fitted.
+export function drawEmpty(canvas, text) {
+  const size = canvas.clientWidth || 520;
+  canvas.width = size * (devicePixelRatio || 1);
+  canvas.height = canvas.width;
+  const ctx = canvas.getContext("2d");
+  ctx.scale(devicePixelRatio || 1, devicePixelRatio || 1);
+  ctx.fillStyle = "#f6f7f9";
+  ctx.fillRect(0, 0, size, size);
+  ctx.fillStyle = "#6b7685";
+  ctx.font = "15px system-ui";
+  ctx.textAlign = "center";
+  ctx.fillText(text, size / 2, size / 2);
+  delete canvas.dataset.models;
+}

@@ -1,14 +1,15 @@
 // The state strip: which lock each side holds, whether the mechanism engaged, and the
 // controller's action, large enough to read from across the lab.
 
-const ACTIONS = ["no lock", "lock both", "lock right", "lock left"];
+// Action numbers are the paper's a1..a4 (controller/tick.py Action).
+const ACTIONS = { 1: "no lock", 2: "lock both", 3: "lock right", 4: "lock left" };
 
 export function createStateStrip(root) {
   root.classList.add("strip");
   root.innerHTML = `
     <div class="strip-cell" id="strip-left" data-lock="off"><span class="strip-side">LEFT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>
-    <div class="strip-cell strip-action" id="strip-action" data-action="0"><span class="strip-side">ACTION</span>
+    <div class="strip-cell strip-action" id="strip-action" data-action="1"><span class="strip-side">ACTION</span>
       <span class="strip-value">no lock</span><span class="strip-sub">trigger –</span></div>
     <div class="strip-cell" id="strip-right" data-lock="off"><span class="strip-side">RIGHT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>`;
@@ -45,7 +46,7 @@ export function createStateStrip(root) {
       if (!tick) return;
       side(left, tick.lock_left, tick.locked_left);
       side(right, tick.lock_right, tick.locked_right);
-      const a = tick.action ?? 0;
+      const a = tick.action ?? 1;
       action.dataset.action = String(a);
       action.querySelector(".strip-value").textContent = ACTIONS[a] ?? String(a);
       action.querySelector(".strip-sub").textContent = `trigger ${tick.trigger ? "ON" : "off"}`;

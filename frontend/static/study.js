@@ -1,6 +1,6 @@
 // A study: its participants (create, edit, consent date) and their sessions.
 import { get, patch, post } from "/static/api.js";
-import { $, act, fmtDate, formData, h } from "/static/dom.js";
+import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 
 const studyId = Number(location.pathname.split("/").pop());
 let participants = [];
@@ -85,5 +85,4 @@ $("#session-form").addEventListener("submit", (ev) => {
   });
 });
 
-loadStudy();
-loadParticipants();
+Promise.all([loadStudy(), loadParticipants()]).catch(showFatal);

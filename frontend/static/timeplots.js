@@ -31,7 +31,8 @@ function thresholdLine(getValue) {
     }
     ctx.fillStyle = "#6b7685";
     ctx.font = `${12 * devicePixelRatio}px system-ui`;
-    ctx.fillText(`trigger ${v} rad/s`, u.bbox.left + 6, u.valToPos(v, "y", true) - 6);
+    ctx.textAlign = "right";
+    ctx.fillText(`trigger threshold ${v} rad/s`, u.bbox.left + u.bbox.width - 6, u.valToPos(v, "y", true) - 6);
     ctx.restore();
   };
 }
@@ -94,7 +95,7 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
   if (c.posteriors) {
     plots.posteriors = new uPlot({
       ...base(c.posteriors, height, onDraw),
-      scales: { x: { time: false }, p: { range: [0, 1.05] }, lock: { range: [-0.2, 6] } },
+      scales: { x: { time: false }, p: { range: [0, 1.05] }, lock: { range: [-0.1, 3] } },
       axes: [xAxis, { scale: "p", label: "P(model | obs)" }],
       series: [{},
         { label: "squat", stroke: "#2b8a3e", scale: "p", width: 2, spanGaps: true },
@@ -108,7 +109,7 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
   if (c.torques) {
     plots.torques = new uPlot({
       ...base(c.torques, height, onDraw),
-      axes: [xAxis, { label: "exoskeleton torque (Nm)" }],
+      axes: [xAxis, { label: "torque (Nm)" }],
       series: [{}, { label: "left", stroke: LEFT, width: 2, spanGaps: true },
         { label: "right", stroke: RIGHT, width: 2, spanGaps: true }],
     }, [[], [], []], c.torques);

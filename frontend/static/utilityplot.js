@@ -23,11 +23,14 @@ export function createUtilityPlots(root) {
       ...sizeOf(el, 220),
       scales: { x: { time: false } },
       cursor: { sync: { key: "exostudy-utilities" } },
-      axes: [{ label: "progress (%)" }, { label: "ΔU vs no lock" }],
+      axes: [{ label: "progress (%)" }, { label: "ΔU vs no lock", size: 78 }],
       series: [{}, ...ACTIONS.map(([, label, stroke]) => ({ label, stroke, width: 2 }))],
     }, [[], [], [], []], el);
     return { key, el, plot };
   });
+  const note = document.createElement("p");
+  note.className = "small muted";
+  root.after(note);
   window.addEventListener("resize", () => plots.forEach((p) => p.plot.setSize(sizeOf(p.el, 220))));
   return {
     setCurves(curves) {
@@ -36,6 +39,8 @@ export function createUtilityPlots(root) {
         p.plot.setData([x, ...ACTIONS.map(([a]) => curves.differences[p.key][a])]);
       }
       root.dataset.loaded = "true";
+      const other = ACTIONS.map(([a, label]) => `${label} ${Number(curves.other[a]).toPrecision(3)}`).join(", ");
+      note.textContent = `other motions (constant over progress): ${other}`;
     },
   };
 }

@@ -137,7 +137,9 @@ def auto_segment(recording_id: RecordingId, request: Request, user: CurrentUser,
     if q.shape[0] < 100 or np.isnan(q).all():
         invalid(["recording_id"], "the recording is too short or has no valid angles")
     q = _fill_gaps(q)
-    found = segment_lifts(cols["t"], q)
+    # Segments are sample indices; the sample clock (10 ms a sample) is used instead of
+    # the device's timestamps, which restart if the device restarts mid-recording.
+    found = segment_lifts(np.arange(q.shape[0], dtype=np.float64) * 0.01, q)
     for s in existing:
         db.delete(s)
     out = []

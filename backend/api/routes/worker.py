@@ -122,4 +122,6 @@ async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Healt
         await runtime.set_simulation(choice.seed, choice.script)
     except ValueError as exc:
         raise HTTPException(422, f"script: {exc}") from exc
+    except RuntimeError as exc:
+        raise HTTPException(409, str(exc)) from exc
     return runtime.health()

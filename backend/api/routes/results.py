@@ -1,0 +1,166 @@
+"""Results: the paper's tables and figures of a study, a trial's controller output, the
+what-if replay of a trial, and the leave-one-participant-out evaluation of motion models.
+
+Everything here only reads; the computation lives in `backend.results`.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Path, Query, Request
+from fastapi.responses import Response
+from pydantic import BaseModel, Field
+
+from backend import results
+from backend.api.deps import CurrentUser, SessionDep
+from backend.api.errors import (
+    AUTH_RESPONSES,
+    CONFLICT,
+    INVALID,
+    NOT_FOUND,
+    conflict,
+    invalid,
+    one_or_404,
+)
+from backend.api.params import MAX_ID, StudyId
+from backend.db.evidence import ModelSetRecord, Trial
+from backend.db.models import Study
+from controller.factory import controller_names
+
+router = APIRouter(tags=["results"], responses={**AUTH_RESPONSES, **NOT_FOUND})
+
+TrialId = Annotated[int, Path(ge=1, le=MAX_ID, description="trial id")]
+TableName = Annotated[Literal["performance", "performance_by_kind", "false_positives",
+                              "questionnaires", "onset_to_lock", "lifts"],
+                      Path(description="which table")]
+FigureName = Annotated[Literal["peak_torques", "onset_to_lock"], Path(description="which figure")]
+ImageFormat = Annotated[Literal["png", "svg"], Path(description="png or svg")]
+_MEDIA = {"png": "image/png", "svg": "image/svg+xml", "csv": "text/csv",
+          "md": "text/markdown; charset=utf-8"}
+
+
+class WhatIfIn(BaseModel):
+    """Another configuration for a stored trial's angles."""
+
+    controller: str = Field(description="umc, eumc, pec or none")
+    model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID,
+                                     description="default: the trial's model set")
+    utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID,
+                                       description="default: the trial's utility set")
+    rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
+                                  description="every controller at this rate")
+    settings: dict[str, Any] = Field(default_factory=dict, description=(
+        "ControllerConfig fields to override (s_req, t_req, d_max, priors, "
+        "velocity_threshold, umc_rate_hz, ...)"))
+
+
+def _study_results(request: Request, db: SessionDep, study_id: int) -> results.StudyResults:
+    one_or_404(db, Study, study_id, "study")
+    runtime: Any = getattr(request.app.state, "runtime", None)
+    if runtime is not None:
+        runtime.recorder.flush()  # a trial stopped a moment ago has all its ticks stored
+    # The tables, figures and JSON of one study are often fetched together; evaluating
+    # reads every tick, so the last few evaluations are kept while nothing changed.
+    cache: dict[tuple[Any, ...], results.StudyResults] = getattr(
+        request.app.state, "results_cache", None) or {}
+    request.app.state.results_cache = cache
+    key = results.fingerprint(db, study_id)
+    hit = cache.get(key)
+    if hit is None:
+        hit = results.study_results(request.app.state.engine, db, study_id)
+        if len(cache) >= 4:
+            cache.pop(next(iter(cache)))
+        cache[key] = hit
+    return hit
+
+
+@router.get("/api/studies/{study_id}/results", response_model=dict[str, Any])
+def study_results(study_id: StudyId, request: Request, user: CurrentUser,
+                  db: SessionDep) -> dict[str, Any]:
+    """The paper's tables for the study's completed trials: intent estimation and
+    decision performance (UMC/E-UMC), false positives in walking and stair walking,
+    questionnaires (unblinded through the condition labels), onset to lock; with the
+    ground truth each trial was scored against."""
+    return results.results_document(_study_results(request, db, study_id))
+
+
+@router.get("/api/studies/{study_id}/results/{table}.{fmt}", response_class=Response,
+            responses={200: {"content": {"text/csv": {}, "text/markdown": {}},
+                             "description": "the table"}})
+def study_table(study_id: StudyId, table: TableName,
+                fmt: Annotated[Literal["csv", "md"], Path(description="csv or md")],
+                request: Request, user: CurrentUser, db: SessionDep) -> Response:
+    """One table: CSV in long form (every count), Markdown in the paper's layout."""
+    res = _study_results(request, db, study_id)
+    body = res.csv(table) if fmt == "csv" else res.markdown(table)
+    return Response(body, media_type=_MEDIA[fmt], headers={
+        "Content-Disposition": f'inline; filename="study-{study_id}-{table}.{fmt}"'})
+
+
+@router.get("/api/studies/{study_id}/figures/{name}.{fmt}", response_class=Response,
+            responses={200: {"content": {"image/png": {}, "image/svg+xml": {}},
+                             "description": "the figure"}})
+def study_figure(study_id: StudyId, name: FigureName, fmt: ImageFormat, request: Request,
+                 user: CurrentUser, db: SessionDep) -> Response:
+    """Peak exoskeleton torques per lift, or the onset-to-lock histogram."""
+    fig = _study_results(request, db, study_id).figure(name)
+    return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])
+
+
+@router.get("/api/trials/{trial_id}/figures/timeline.{fmt}", response_class=Response,
+            responses={200: {"content": {"image/png": {}, "image/svg+xml": {}},
+                             "description": "the five-panel figure"}, **CONFLICT})
+def trial_timeline(trial_id: TrialId, fmt: ImageFormat, request: Request, user: CurrentUser,
+                   db: SessionDep) -> Response:
+    """The trial's controller output in five panels (hip angles against the trial's
+    motion models, actions, posteriors, progress, lock commands)."""
+    trial = one_or_404(db, Trial, trial_id, "trial")
+    try:
+        fig = results.timeline_figure(request.app.state.engine, db, trial)
+    except results.ResultsError as exc:
+        conflict(exc.field_name, exc.problem)
+    return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])
+
+
+@router.post("/api/trials/{trial_id}/what-if", response_model=dict[str, Any],
+             responses={**INVALID, **CONFLICT})
+def trial_what_if(trial_id: TrialId, body: WhatIfIn, request: Request, user: CurrentUser,
+                  db: SessionDep) -> dict[str, Any]:
+    """Replay the trial's stored raw hip angles through another controller or settings
+    (the live tick code) and return the original's and the replay's metrics side by
+    side. The stored trial and its ticks are not changed."""
+    trial = one_or_404(db, Trial, trial_id, "trial")
+    if body.controller not in controller_names():
+        invalid(["body", "controller"], f"unknown controller {body.controller!r}; choose one "
+                f"of {', '.join(controller_names())}")
+    if trial.run_id is None:
+        conflict("status", f"trial {trial.id} has not run")
+    try:
+        return results.what_if(request.app.state.engine, db, trial, body.controller,
+                               body.model_set_id, body.utility_set_id, body.rate_hz,
+                               body.settings)
+    except results.ResultsError as exc:
+        invalid(["body", exc.field_name], exc.problem)
+
+
+@router.get("/api/studies/{study_id}/model-evaluation", response_model=dict[str, Any],
+            responses=INVALID)
+def model_evaluation(
+    study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep,
+    model_set_id: Annotated[int, Query(ge=1, le=MAX_ID, description="whose segments")],
+    utility_set_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
+    rate_hz: Annotated[float | None, Query(gt=0.0, le=100.0)] = None,
+) -> dict[str, Any]:
+    """Leave-one-participant-out: models fitted without each data-collection
+    participant, that participant's segments replayed through the UMC; recognition and
+    decision accuracy and confusion matrices."""
+    one_or_404(db, Study, study_id, "study")
+    ms = one_or_404(db, ModelSetRecord, model_set_id, "model set")
+    if ms.study_id != study_id:
+        invalid(["query", "model_set_id"], f"model set {ms.id} belongs to another study")
+    try:
+        return results.leave_one_participant_out(request.app.state.engine, db, model_set_id,
+                                                 utility_set_id, rate_hz)
+    except results.ResultsError as exc:
+        invalid(["query", exc.field_name], exc.problem)

@@ -1,0 +1,469 @@
+// A session, step by step: data collection (record, check the lifts, fit models) or
+// evaluation (plan, calibrate, run the trials); utilities for the session's
+// precompression in both. The live stream feeds a small angle plot, the state strip and
+// the stillness indicator.
+import { del, get, patch, post } from "/static/api.js";
+import { $, act, h, showFatal } from "/static/dom.js";
+import { waitForJob, progressView } from "/static/jobs.js";
+import { connectLive, Ring } from "/static/livestream.js";
+import { createTimePlots, displayValue } from "/static/timeplots.js";
+import { createStateStrip, lastTick } from "/static/statestrip.js";
+import { createSegmentPlot, LABEL_COLOURS } from "/static/segmentplot.js";
+import { drawEmpty, drawModelSet } from "/static/modelplot.js";
+import { createUtilityPlots } from "/static/utilityplot.js";
+import { Stillness } from "/static/stillness.js";
+
+const sessionId = Number(location.pathname.split("/").pop());
+const MODEL_NAMES = ["squat", "stoop_left", "stoop_right"];
+const LABELS = ["squat", "stoop_left", "stoop_right", "other", "unlabelled"];
+const CONTROLLER = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
+
+// What the browser tests read.
+const page = (window.exostudySession = {
+  samples: 0, recordingId: null, segments: [], shownRecording: null, modelSetDrawn: null,
+  utilityCurvesFor: null, stillness: null,
+});
+
+let session = null;
+let participant = null;
+let studyId = null;
+
+// ------------------------------------------------------------ live stream
+const ring = new Ring(["t", "q_left", "q_right"], 1000);
+const livePlots = createTimePlots({ angles: $("#live-angles") }, { height: 180 });
+const strip = createStateStrip($("#strip"));
+page.strip = strip.counts;
+const stillness = new Stillness();
+let latest = null;
+let dirty = false;
+
+connectLive({
+  onTicks(msg) {
+    ring.push(msg.columns, displayValue);
+    stillness.push(msg.columns);
+    strip.observe(msg.columns);
+    latest = lastTick(msg.columns);
+    page.samples += msg.columns.t.length;
+    dirty = true;
+  },
+  onStatus(hlth) {
+    page.health = hlth;
+    $("#worker-line").textContent = hlth.worker.alive
+      ? `· controller ${hlth.worker.controller ?? "none"}` : "· worker stopped";
+    $("#sim-form").hidden = hlth.device.kind !== "sim";
+    $("#sim-follow-row").hidden = hlth.device.kind !== "sim";
+  },
+  onState(state) {
+    const c = $("#conn");
+    c.dataset.state = state;
+    c.className = "pill " + (state === "live" ? "pill-ok" : "pill-bad");
+    $("#conn-text").textContent = state === "live" ? "live" : "disconnected, retrying";
+  },
+});
+
+let lastDraw = 0;
+function frame(ts) {
+  if (dirty && ts - lastDraw >= 40) {
+    lastDraw = ts;
+    dirty = false;
+    livePlots.setData(ring.cols);
+    strip.update(latest);
+    showStillness();
+  }
+  requestAnimationFrame(frame);
+}
+requestAnimationFrame(frame);
+
+function showStillness() {
+  const el = $("#stillness");
+  const s = stillness.state();
+  page.stillness = s;
+  if (!s) return;
+  el.dataset.still = String(s.still);
+  el.textContent = `${s.still ? "✓ still" : "moving"} · std left ${s.stdLeftDeg.toFixed(2)}°, right ${s.stdRightDeg.toFixed(2)}°`;
+}
+
+// ------------------------------------------------------------ session header
+async function loadSession() {
+  session = await get(`/api/sessions/${sessionId}`);
+  participant = await get(`/api/participants/${session.participant_id}`);
+  studyId = participant.study_id;
+  const study = await get(`/api/studies/${studyId}`);
+  const kind = session.kind === "evaluation" ? "Evaluation" : "Data collection";
+  document.title = `ExoStudy · ${participant.code} · ${kind}`;
+  $("#session-title").textContent = `${kind} · participant ${participant.code}`;
+  $("#crumb-study").textContent = study.name;
+  $("#crumb-study").href = `/console/studies/${studyId}`;
+  $("#crumb-participant").textContent = `${participant.code} · session ${session.id}`;
+  $("#pct").value = session.precompression_pct;
+  $("#util-pct").textContent = session.precompression_pct;
+  $("#util-num").textContent = session.kind === "evaluation" ? "1" : "4";
+  for (const sec of document.querySelectorAll("[data-kind]")) sec.hidden = sec.dataset.kind !== session.kind;
+  if (session.kind === "evaluation") $("main").insertBefore($("#utility-step"), $("#plan-step"));
+  $("#fit-name").value = `${participant.code} demonstrations`;
+}
+
+$("#pct-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#pct-save"), $("#pct-msg"), async () => {
+    session = await patch(`/api/sessions/${sessionId}`, { precompression_pct: Number($("#pct").value) });
+    $("#util-pct").textContent = session.precompression_pct;
+    showUtilities(true);
+    return `saved ${session.precompression_pct} %`;
+  });
+});
+
+$("#sim-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#sim-apply"), $("#sim-msg"), async () => {
+    $("#rec-start").disabled = true;
+    try {
+      await applySimulation($("#sim-script").value);
+    } finally {
+      syncRecordButtons();
+    }
+    return `wearer now does ${$("#sim-script").value}`;
+  });
+});
+
+let simScript = null;
+async function applySimulation(script) {
+  const before = latest ? latest.t : Infinity;
+  await post("/api/worker/simulation", { script, seed: Number($("#sim-seed").value) });
+  // The simulator restarts with its clock at zero: wait until the stream shows the new
+  // one running, so that a recording or trial started next holds only its samples.
+  await waitUntil(() => latest && latest.t < before && latest.t > 0.5, 10000);
+  simScript = script;
+  $("#sim-script").value = script;
+}
+
+function waitUntil(cond, timeoutMs) {
+  const until = performance.now() + timeoutMs;
+  return new Promise((resolve, reject) => {
+    const check = () => {
+      if (cond()) resolve();
+      else if (performance.now() > until) reject(new Error("the simulator did not restart in time"));
+      else setTimeout(check, 50);
+    };
+    check();
+  });
+}
+
+// ------------------------------------------------------------ recordings
+let recordings = [];
+const segmentsByRecording = new Map();
+const excluded = new Set();
+
+const segPlot = createSegmentPlot($("#seg-plot"), {
+  async onEdgeMoved(seg, which, index, original) {
+    try {
+      const updated = await patch(`/api/segments/${seg.id}`, { [which]: index });
+      Object.assign(seg, updated);
+      $("#seg-msg").className = "msg msg-ok";
+      $("#seg-msg").textContent = `lift ${seg.id}: ${which} moved to ${segTime(index)} s`;
+    } catch (err) {
+      seg[which] = original;
+      $("#seg-msg").className = "msg msg-bad";
+      $("#seg-msg").textContent = err.message;
+    }
+    showSegments();
+  },
+});
+page.edgeClientPoint = (id, which) => segPlot.edgeClientPoint(id, which);
+
+$("#seg-legend").replaceChildren(...LABELS.map((l) => h("span", {},
+  h("span", { class: "swatch", style: `background: rgb(${LABEL_COLOURS[l]})` }), l.replace("_", " "))));
+
+let shownAngles = null;
+const segTime = (i) => (shownAngles && shownAngles.t[i] != null ? (shownAngles.t[i] - shownAngles.t[0]).toFixed(2) : "–");
+
+async function loadRecordings() {
+  recordings = await get(`/api/sessions/${sessionId}/recordings`);
+  for (const r of recordings) {
+    if (r.status === "stopped" && !segmentsByRecording.has(r.id)) {
+      segmentsByRecording.set(r.id, await get(`/api/recordings/${r.id}/segments`));
+    }
+  }
+  const active = recordings.find((r) => r.status === "recording");
+  setRecordingState(active);
+  $("#recordings tbody").replaceChildren(...recordings.map((r) => h("tr",
+    { "data-recording": r.id, class: page.shownRecording === r.id ? "selected" : null },
+    h("td", {}, r.id), h("td", {}, r.label || "–"),
+    h("td", {}, h("span", { class: "badge", "data-status": r.status }, r.status)),
+    h("td", {}, r.status === "stopped" ? String((segmentsByRecording.get(r.id) || []).length) : "–"),
+    h("td", {}, r.status === "stopped"
+      ? h("button", { type: "button", onclick: () => showRecording(r.id) }, "Show") : ""))));
+  updateFitCounts();
+}
+
+function syncRecordButtons() {
+  setRecordingState(recordings.find((r) => r.status === "recording"));
+}
+
+function setRecordingState(active) {
+  page.recordingId = active ? active.id : null;
+  $("#rec-start").disabled = Boolean(active);
+  $("#rec-stop").disabled = !active;
+  const st = $("#rec-state");
+  st.dataset.recording = String(Boolean(active));
+  st.textContent = active ? `recording #${active.id}…` : "not recording";
+}
+
+$("#rec-start").addEventListener("click", (ev) => act(ev.target, $("#rec-msg"), async () => {
+  const r = await post(`/api/sessions/${sessionId}/recordings`, { label: $("#rec-label").value });
+  await loadRecordings();
+  return `recording #${r.id} started: the worker runs without locks`;
+}, syncRecordButtons));
+
+$("#rec-stop").addEventListener("click", (ev) => act(ev.target, $("#rec-msg"), async () => {
+  const r = await post(`/api/recordings/${page.recordingId}/stop`);
+  await loadRecordings();
+  await showRecording(r.id);
+  await findLifts(false);
+  return `recording #${r.id} stopped and segmented`;
+}, syncRecordButtons));
+
+async function showRecording(id) {
+  shownAngles = await get(`/api/recordings/${id}/angles`);
+  page.shownRecording = id;
+  $("#seg-title").textContent = `· recording #${id}`;
+  segPlot.setRecording(shownAngles);
+  showSegments();
+  document.querySelectorAll("#recordings tbody tr").forEach((tr) =>
+    tr.classList.toggle("selected", Number(tr.dataset.recording) === id));
+}
+
+async function findLifts(replace) {
+  const id = page.shownRecording;
+  const found = await post(`/api/recordings/${id}/segment${replace ? "?replace=true" : ""}`);
+  segmentsByRecording.set(id, found);
+  showSegments();
+  await loadRecordings();
+  return found.length;
+}
+
+$("#seg-run").addEventListener("click", (ev) => act(ev.target, $("#seg-msg"), async () => {
+  if (page.shownRecording == null) throw new Error("record or show a recording first");
+  const edited = (segmentsByRecording.get(page.shownRecording) || []).some((s) => s.source === "edited");
+  if (edited && !confirm("Some lifts were edited by hand. Discard the edits?")) return "kept the edits";
+  return `found ${await findLifts(edited)} lifts`;
+}));
+
+function showSegments() {
+  const list = segmentsByRecording.get(page.shownRecording) || [];
+  for (const s of list) s.excluded = excluded.has(s.id);
+  page.segments = list.map((s) => ({ id: s.id, start: s.start, end: s.end, label: s.label, source: s.source }));
+  segPlot.setSegments(list);
+  $("#segments tbody").replaceChildren(...list.map((s, i) => h("tr", { "data-segment": s.id, "data-source": s.source },
+    h("td", {}, h("input", { type: "checkbox", class: "use", checked: !excluded.has(s.id), "aria-label": `use lift ${i + 1}`,
+      onchange: (ev) => { if (ev.target.checked) excluded.delete(s.id); else excluded.add(s.id); showSegments(); } })),
+    h("td", {}, i + 1), h("td", {}, segTime(s.start)), h("td", {}, segTime(s.end)),
+    h("td", {}, h("select", { class: "label", "aria-label": `label of lift ${i + 1}`,
+      onchange: (ev) => relabel(s, ev.target.value) },
+    ...LABELS.map((l) => h("option", { value: l, selected: l === s.label ? "selected" : null }, l.replace("_", " "))))),
+    h("td", {}, h("span", { class: "badge" }, s.source)),
+    h("td", {}, h("button", { type: "button", class: "danger", onclick: () => removeSegment(s) }, "Delete")))));
+  updateFitCounts();
+}
+
+async function relabel(seg, label) {
+  try {
+    Object.assign(seg, await patch(`/api/segments/${seg.id}`, { label }));
+    $("#seg-msg").className = "msg msg-ok";
+    $("#seg-msg").textContent = `lift ${seg.id} is now ${label.replace("_", " ")}`;
+  } catch (err) {
+    $("#seg-msg").className = "msg msg-bad";
+    $("#seg-msg").textContent = err.message;
+  }
+  showSegments();
+}
+
+async function removeSegment(seg) {
+  await del(`/api/segments/${seg.id}`);
+  const list = segmentsByRecording.get(seg.recording_id) || [];
+  segmentsByRecording.set(seg.recording_id, list.filter((s) => s.id !== seg.id));
+  showSegments();
+  loadRecordings();
+}
+
+// ------------------------------------------------------------ models
+function chosenSegments() {
+  return [...segmentsByRecording.values()].flat()
+    .filter((s) => MODEL_NAMES.includes(s.label) && !excluded.has(s.id));
+}
+
+function updateFitCounts() {
+  const chosen = chosenSegments();
+  const counts = MODEL_NAMES.map((m) => [m, chosen.filter((s) => s.label === m).length]);
+  const short = counts.filter(([, c]) => c < 2);
+  $("#fit-counts").innerHTML = "";
+  $("#fit-counts").append(`${chosen.length} lifts chosen: ` + counts.map(([m, c]) => `${m.replace("_", " ")} ${c}`).join(", "),
+    short.length ? h("span", { class: "warn-text" }, ` · need at least 2 of each`) : "");
+  $("#fit-run").disabled = short.length > 0;
+}
+
+$("#fit-run").addEventListener("click", (ev) => act(ev.target, $("#fit-msg"), async () => {
+  const ms = await post(`/api/studies/${studyId}/model-sets`,
+    { name: $("#fit-name").value || "models", segment_ids: chosenSegments().map((s) => s.id) });
+  await waitForJob(ms.job_id, progressView($("#fit-progress"), $("#fit-caption")));
+  await loadModelSets(ms.id);
+  return `model set “${ms.name}” fitted`;
+}, updateFitCounts));
+
+async function loadModelSets(select) {
+  const sets = await get(`/api/studies/${studyId}/model-sets`);
+  const ready = sets.filter((s) => s.status === "ready");
+  for (const sel of [$("#ms-select"), $("#plan-ms")]) {
+    const keep = select ?? sel.value;
+    sel.replaceChildren(...(sel.id === "plan-ms" ? [h("option", { value: "" }, "none")] : []),
+      ...ready.map((s) => h("option", { value: s.id }, `#${s.id} ${s.name}`)));
+    if (keep && ready.some((s) => String(s.id) === String(keep))) sel.value = String(keep);
+    else if (ready.length) sel.value = String(ready[ready.length - 1].id);
+  }
+  if (session.kind !== "data_collection") return;
+  if (ready.length) await showModelSet(Number($("#ms-select").value));
+  else drawEmpty($("#model-plot"), "no model set yet: fit one above");
+}
+
+async function showModelSet(id) {
+  const doc = await get(`/api/model-sets/${id}/document`);
+  drawModelSet($("#model-plot"), doc);
+  page.modelSetDrawn = id;
+  const counts = doc.fit_params?.counts ?? {};
+  $("#ms-info").replaceChildren(h("h3", { class: "small" }, `Model set ${doc.version}`),
+    h("table", { class: "list" }, h("thead", {}, h("tr", {}, h("th", {}, "motion"), h("th", {}, "demonstrations"),
+      h("th", {}, "latent dim"), h("th", {}, "explained variance"))),
+    h("tbody", {}, ...Object.entries(doc.models).map(([name, m]) => h("tr", {}, h("td", {}, name.replace("_", " ")),
+      h("td", {}, m.n_demonstrations ?? counts[name] ?? "–"), h("td", {}, m.q),
+      h("td", {}, m.explained_variance != null ? `${(m.explained_variance * 100).toFixed(1)} %` : "–"))))));
+}
+$("#ms-select").addEventListener("change", (ev) => showModelSet(Number(ev.target.value)));
+
+// ------------------------------------------------------------ utilities
+const utilPlots = createUtilityPlots($("#util-plots"));
+let utilRun = 0;
+
+async function showUtilities(computeIfMissing) {
+  const run = ++utilRun;
+  const pct = session.precompression_pct;
+  const sets = await get(`/api/studies/${studyId}/utility-sets`);
+  let match = sets.filter((s) => s.status === "ready" && Math.abs(s.precompression_pct - pct) < 1e-9).pop();
+  fillUtilitySelect(sets);
+  if (!match && computeIfMissing) {
+    $("#util-msg").className = "msg";
+    $("#util-msg").textContent = `computing utilities for ${pct} %…`;
+    const us = await post(`/api/studies/${studyId}/utility-sets`, { name: `simulated ${pct} %`, precompression_pct: pct });
+    await waitForJob(us.job_id, (job) => { $("#util-progress").value = job.progress; });
+    if (run !== utilRun) return;
+    match = us;
+    fillUtilitySelect(await get(`/api/studies/${studyId}/utility-sets`));
+    $("#util-msg").className = "msg msg-ok";
+    $("#util-msg").textContent = `computed utilities for ${pct} %`;
+  }
+  if (!match) {
+    $("#util-which").textContent = `no utilities for ${pct} % yet`;
+    return;
+  }
+  const curves = await get(`/api/utility-sets/${match.id}/curves`);
+  if (run !== utilRun) return;
+  $("#util-progress").value = 1;
+  utilPlots.setCurves(curves);
+  page.utilityCurvesFor = pct;
+  $("#util-which").textContent = `utility set #${match.id} “${match.name}”`;
+  if ($("#plan-us")) $("#plan-us").value = String(match.id);
+}
+
+function fillUtilitySelect(sets) {
+  const sel = $("#plan-us");
+  const keep = sel.value;
+  sel.replaceChildren(h("option", { value: "" }, "none"), ...sets.filter((s) => s.status === "ready").map((s) =>
+    h("option", { value: s.id }, `#${s.id} ${s.name} (${s.precompression_pct} %)`)));
+  if (keep) sel.value = keep;
+}
+
+$("#util-run").addEventListener("click", (ev) => act(ev.target, $("#util-msg"), async () => {
+  await showUtilities(true);
+  return `utilities for ${session.precompression_pct} % shown`;
+}));
+
+// ------------------------------------------------------------ evaluation
+async function loadTrials() {
+  const [trials, labels] = await Promise.all([get(`/api/sessions/${sessionId}/trials`),
+    get(`/api/participants/${participant.id}/conditions`)]);
+  const blind = Object.fromEntries(labels.map((c) => [c.controller, c.label]));
+  $("#plan-run").disabled = trials.length > 0;
+  if (trials.length) $("#plan-msg").textContent = "planned: the order below is fixed for this session";
+  const running = trials.some((t) => t.status === "running");
+  $("#trials tbody").replaceChildren(...trials.map((t) => h("tr", { "data-trial": t.id, "data-controller": t.controller, "data-status": t.status },
+    h("td", {}, t.planned_order + 1), h("td", {}, h("strong", {}, CONTROLLER[t.controller] ?? t.controller)),
+    h("td", {}, blind[t.controller] ? `setting ${blind[t.controller]}` : "–"), h("td", {}, t.task),
+    h("td", {}, h("span", { class: "badge", "data-status": t.status }, t.status)),
+    h("td", {}, ...trialButtons(t, running)))));
+  page.trials = trials.map((t) => ({ id: t.id, controller: t.controller, status: t.status }));
+}
+
+function trialButtons(t, running) {
+  if (t.status === "planned") {
+    return [h("button", { type: "button", class: "primary start", disabled: running,
+      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/start`, {}, `${CONTROLLER[t.controller]} · ${t.task} running`,
+        () => followTask(t.task)) }, "▶ Start")];
+  }
+  if (t.status === "running") {
+    return [h("button", { type: "button", class: "big complete",
+      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/stop`, { outcome: "completed" }, "trial completed") }, "■ Stop: completed"), " ",
+    h("button", { type: "button", class: "danger abort",
+      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/stop`, { outcome: "aborted", reason: "aborted by the experimenter" }, "trial aborted") }, "Abort")];
+  }
+  return [h("a", { href: `/live?trial=${t.id}`, class: "replay" }, "Replay ›")];
+}
+
+// With the simulated wearer, a trial's task is what the wearer then does.
+async function followTask(task) {
+  const known = [...$("#sim-script").options].map((o) => o.value);
+  if ($("#sim-follow-row").hidden || !$("#sim-follow").checked || !known.includes(task)) return;
+  if (task !== simScript) await applySimulation(task);
+}
+
+function trialAction(button, path, body, text, before = null) {
+  return act(button, $("#trial-msg"), async () => {
+    if (before) await before();
+    await post(path, body);
+    await loadTrials();
+    return text;
+  });
+}
+
+$("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), async () => {
+  const tasks = [...document.querySelectorAll("input[name=task]:checked")].map((x) => x.value);
+  const body = { tasks, include_eumc: $("#plan-eumc").checked };
+  if ($("#plan-ms").value) body.model_set_id = Number($("#plan-ms").value);
+  if ($("#plan-us").value) body.utility_set_id = Number($("#plan-us").value);
+  const trials = await post(`/api/sessions/${sessionId}/trials/plan`, body);
+  $("#plan-msg").dataset.order = trials.map((t) => t.controller).join(",");
+  await loadTrials();
+  const order = [...new Set(trials.map((t) => CONTROLLER[t.controller]))].join(" → ");
+  return `planned ${trials.length} trials: ${order}`;
+}, () => { $("#plan-run").disabled = (page.trials || []).length > 0; }));
+
+$("#calib-run").addEventListener("click", (ev) => act(ev.target, $("#calib-msg"), async () => {
+  const r = await post("/api/worker/calibrate", { seconds: 3 });
+  return `calibrated: offsets ${r.offset_left_deg.toFixed(1)}°, ${r.offset_right_deg.toFixed(1)}° ` +
+    `(std ${r.std_left_deg?.toFixed(2)}°, ${r.std_right_deg?.toFixed(2)}°)`;
+}));
+
+// ------------------------------------------------------------ start
+async function start() {
+  await loadSession();
+  if (session.kind === "data_collection") {
+    await loadRecordings();
+    const stopped = recordings.filter((r) => r.status === "stopped");
+    if (stopped.length) await showRecording(stopped[stopped.length - 1].id);
+    await loadModelSets();
+  } else {
+    await loadModelSets();
+    await loadTrials();
+  }
+  await showUtilities(false);
+  page.ready = true;
+}
+start().catch(showFatal);

@@ -1,0 +1,252 @@
+"""The experimenter's console in a real browser: studies and participants, a data
+collection (record, segment, drag an edge, fit models), an evaluation (utilities, plan,
+a PEC trial with the state strip) and the replay of a stored trial."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import httpx
+import pytest
+
+from backend.core.config import Settings
+from tests.live_server import running_server
+
+
+@pytest.fixture
+def fast_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
+    """A real server and worker whose simulated wearer squats five times faster."""
+    fast = settings.model_copy(update={"start_worker": True, "device_speed": 5.0,
+                                       "device_script": "squat-sequence"})
+    with running_server(fast) as url:
+        yield url
+
+
+def _api(server: str, experimenter: dict[str, str]) -> httpx.Client:
+    api = httpx.Client(base_url=server, timeout=30)
+    token = api.post("/api/auth/token", json=experimenter).json()["access_token"]
+    api.headers["Authorization"] = f"Bearer {token}"
+    return api
+
+
+def _ok(r: httpx.Response) -> Any:
+    assert r.is_success, r.text
+    return r.json()
+
+
+def _log_in(page: Any, server: str, path: str, experimenter: dict[str, str]) -> None:
+    """Open a console page: it sends us to the login page, which brings us back."""
+    page.goto(f"{server}{path}")
+    page.wait_for_url(f"**/login?next={path}")
+    page.fill("#username", experimenter["username"])
+    page.fill("#password", experimenter["password"])
+    page.click("#submit")
+    page.wait_for_url(f"{server}{path}")
+
+
+def _session(api: httpx.Client, kind: str, participants: int = 1) -> tuple[int, int]:
+    sid = _ok(api.post("/api/studies", json={"name": f"console {kind}"}))["id"]
+    pid = 0
+    for n in range(participants):
+        pid = _ok(api.post(f"/api/studies/{sid}/participants", json={"code": f"P0{n + 1}"}))["id"]
+    first = _ok(api.get(f"/api/studies/{sid}/participants"))[0]["id"]
+    sess = _ok(api.post(f"/api/participants/{first}/sessions",
+                        json={"kind": kind, "precompression_pct": 25}))
+    return sid, sess["id"] if pid else 0
+
+
+def _wait_ticks(api: httpx.Client) -> None:
+    deadline = time.monotonic() + 30
+    while api.get("/api/health").json()["worker"]["ticks"] < 20:
+        assert time.monotonic() < deadline, "worker never ticked"
+        time.sleep(0.2)
+
+
+def test_log_in_create_a_study_and_a_participant_with_a_session(
+    server: str, page: Any, experimenter: dict[str, str]
+) -> None:
+    _log_in(page, server, "/console", experimenter)
+    page.fill("#study-name", "Lifting study")
+    page.fill("#study-description", "UMC against PEC")
+    page.click("#study-create")
+    page.wait_for_url("**/console/studies/*")
+    page.wait_for_selector("#study-title:has-text('Lifting study')")
+
+    page.fill("#p-code", "P01")
+    page.fill("#participant-form input[name=age]", "30")
+    page.select_option("#participant-form select[name=sex]", "female")
+    page.fill("#participant-form input[name=height_m]", "1.7")
+    page.fill("#participant-form input[name=mass_kg]", "65")
+    page.fill("#p-consent", "2026-11-20")
+    page.click("#participant-create")
+    page.wait_for_selector("#participants tr[data-participant=P01]")
+    assert "2026-11-20" in page.inner_text("#participants tr[data-participant=P01] .consent")
+
+    # Edit: the consent date moves, the mass changes.
+    page.fill("#edit-consent", "2026-11-21")
+    page.fill("#edit-form input[name=mass_kg]", "66.5")
+    page.click("#edit-save")
+    page.wait_for_selector("#edit-msg.msg-ok")
+    row = page.inner_text("#participants tr[data-participant=P01]")
+    assert "2026-11-21" in row and "66.5 kg" in row
+
+    # A data collection session at 30 % precompression opens its own page.
+    page.select_option("#s-kind", "data_collection")
+    page.fill("#s-pct", "30")
+    page.click("#session-create")
+    page.wait_for_selector("#sessions .session-link")
+    assert "30 %" in page.inner_text("#sessions")
+    page.click("#sessions .session-link")
+    page.wait_for_url("**/console/sessions/*")
+    page.wait_for_function("window.exostudySession && window.exostudySession.ready")
+    assert "P01" in page.inner_text("#session-title")
+    assert page.is_visible("#record-step") and not page.is_visible("#plan-step")
+
+    # The studies list shows the new study.
+    page.goto(f"{server}/console")
+    page.wait_for_selector("#studies tr[data-study] a")
+    assert "Lifting study" in page.inner_text("#studies")
+
+
+def _record(page: Any, api: httpx.Client, script: str, seconds: float) -> None:
+    page.select_option("#sim-script", script)
+    page.click("#sim-apply")
+    page.wait_for_selector("#sim-msg.msg-ok")
+    _wait_ticks(api)
+    page.fill("#rec-label", script)
+    page.click("#rec-start")
+    page.wait_for_selector("#rec-state[data-recording=true]")
+    page.wait_for_timeout(seconds * 1000)
+    before = page.evaluate("window.exostudySession.shownRecording")
+    page.click("#rec-stop")
+    page.wait_for_function(
+        f"window.exostudySession.shownRecording !== {before if before else 'null'}"
+        " && window.exostudySession.segments.length > 0", timeout=15000)
+
+
+def test_record_segment_drag_an_edge_and_fit_models(
+    fast_server: str, page: Any, experimenter: dict[str, str]
+) -> None:
+    api = _api(fast_server, experimenter)
+    _, session_id = _session(api, "data_collection")
+    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
+                           timeout=20000)
+    page.wait_for_selector("#sim-form:not([hidden])")
+
+    _record(page, api, "squat-sequence", 7)
+    labels = page.evaluate("window.exostudySession.segments.map(s => s.label)")
+    assert "squat" in labels
+    assert page.locator("#segments tbody tr").count() == len(labels)
+    # The segments are drawn: the plot's canvas is not blank over the first band.
+    seg = page.evaluate("window.exostudySession.segments[0]")
+    page.locator("#seg-plot").scroll_into_view_if_needed()
+    point = page.evaluate(f"window.exostudySession.edgeClientPoint({seg['id']}, 'end')")
+    assert point is not None
+
+    # Drag the first lift's end edge 40 px to the left: it becomes "edited".
+    page.mouse.move(point["x"], point["y"])
+    page.mouse.down()
+    page.mouse.move(point["x"] - 20, point["y"], steps=4)
+    page.mouse.move(point["x"] - 40, point["y"], steps=4)
+    page.mouse.up()
+    page.wait_for_selector(f"#segments tr[data-segment='{seg['id']}'][data-source=edited]")
+    moved = page.evaluate(f"window.exostudySession.segments.find(s => s.id === {seg['id']})")
+    assert moved["end"] < seg["end"]
+    stored = _ok(api.get(f"/api/recordings/{page.evaluate('window.exostudySession.shownRecording')}"
+                         "/segments"))
+    assert next(s for s in stored if s["id"] == seg["id"])["end"] == moved["end"]
+
+    _record(page, api, "stoop-sequence", 12)
+    assert page.is_enabled("#fit-run"), page.inner_text("#fit-counts")
+    page.click("#fit-run")
+    page.wait_for_selector("#fit-progress[data-status=done]", timeout=30000)
+    page.wait_for_function("window.exostudySession.modelSetDrawn !== null")
+    inked = page.evaluate("""() => {
+        const c = document.getElementById('model-plot');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0;
+        for (let i = 0; i < d.length; i += 4) if (d[i] < 200 || d[i + 2] < 200) n++;
+        return n; }""")
+    assert inked > 2000, f"the ellipses plot is nearly blank ({inked} pixels)"
+    assert page.get_attribute("#model-plot", "data-models") == "3"
+
+
+def test_plan_and_run_a_pec_trial_with_utilities_and_the_state_strip(
+    fast_server: str, page: Any, experimenter: dict[str, str]
+) -> None:
+    api = _api(fast_server, experimenter)
+    _, session_id = _session(api, "evaluation")
+    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
+                           timeout=20000)
+
+    # Utilities at the session's precompression, recomputed when it changes.
+    page.click("#util-run")
+    page.wait_for_function("window.exostudySession.utilityCurvesFor === 25", timeout=20000)
+    page.fill("#pct", "30")
+    page.click("#pct-save")
+    page.wait_for_function("window.exostudySession.utilityCurvesFor === 30", timeout=20000)
+
+    # The stillness indicator reads the live stream.
+    page.wait_for_function("window.exostudySession.stillness !== null")
+    assert page.get_attribute("#stillness", "data-still") in ("true", "false")
+
+    # Plan: squats only; the first participant gets UMC, PEC, then E-UMC.
+    for task in ("stoop-sequence", "walking", "stairs"):
+        page.uncheck(f"input[name=task][value={task}]")
+    page.click("#plan-run")
+    page.wait_for_selector("#trials tbody tr")
+    order = page.eval_on_selector_all("#trials tbody tr",
+                                      "rows => rows.map(r => r.dataset.controller)")
+    assert order == ["umc", "pec", "eumc"]
+    assert page.is_disabled("#plan-run")
+
+    page.click("#trials tr[data-controller=pec] button.start")
+    page.wait_for_selector("#trials tr[data-controller=pec][data-status=running]")
+    page.wait_for_function("window.exostudySession.strip.lockChanges >= 2", timeout=20000)
+    page.wait_for_selector("#strip-left[data-lock=on]", timeout=10000)
+    page.click("#trials tr[data-controller=pec] button.complete")
+    page.wait_for_selector("#trials tr[data-controller=pec][data-status=completed]")
+    assert page.is_visible("#trials tr[data-controller=pec] a.replay")
+
+
+def test_replay_a_stored_trial_and_scrub_it(
+    fast_server: str, page: Any, experimenter: dict[str, str]
+) -> None:
+    api = _api(fast_server, experimenter)
+    _, session_id = _session(api, "evaluation")
+    trials = _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
+                          json={"tasks": ["squat-sequence"]}))
+    pec = next(t for t in trials if t["controller"] == "pec")
+    _wait_ticks(api)
+    _ok(api.post(f"/api/trials/{pec['id']}/start", json={}))
+    time.sleep(4)
+    _ok(api.post(f"/api/trials/{pec['id']}/stop", json={"outcome": "completed"}))
+    cols = _ok(api.get(f"/api/trials/{pec['id']}/ticks.json"))["columns"]
+    locked_at = next(i for i, v in enumerate(cols["lock_left"]) if v)
+
+    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    page.wait_for_selector(f"#trials tr[data-trial='{pec['id']}'] a.replay")
+    page.click(f"#trials tr[data-trial='{pec['id']}'] a.replay")
+    page.wait_for_url(f"**/live?trial={pec['id']}")
+    page.wait_for_function("window.exostudyLive.replay && window.exostudyLive.replay.loaded")
+    assert page.evaluate("window.exostudyLive.replay.samples") == len(cols["t"])
+    assert "PEC" in page.inner_text("#mode-text")
+
+    def scrub(index: int) -> None:
+        page.eval_on_selector("#scrub", "(el, i) => { el.value = String(i); "
+                              "el.dispatchEvent(new Event('input')); }", index)
+
+    scrub(locked_at)
+    assert page.get_attribute("#strip-left", "data-lock") == "on"
+    scrub(0)
+    assert page.get_attribute("#strip-left", "data-lock") == "off"
+    assert page.evaluate("window.exostudyLive.replay.index") == 0
+    draws = page.evaluate("window.exostudyLive.draws")
+    scrub(len(cols["t"]) - 1)
+    assert page.evaluate("window.exostudyLive.draws") > draws
+    page.select_option("#window", "30")
+    assert page.inner_text("#window-s") == "30"
