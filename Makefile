@@ -16,6 +16,8 @@ run: install
 	$(BIN)/exostudy serve
 
 test: install system-chromium
+	$(BIN)/ruff check controller backend tests bench migrations
+	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
 install: $(VENV)/.installed $(NODE_STAMP)
