@@ -85,6 +85,8 @@ def _phase(base: str, cookies: dict[str, str], browser: Any, consoles: int,
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--stream-rate", type=float, default=None,
+                    help="messages per second per console (default: the server's setting)")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
@@ -96,7 +98,9 @@ def main() -> None:
                             device_spawn_simulator=True,
                             device_address=f"127.0.0.1:{_free(socket.SOCK_DGRAM)}",
                             models_path=Path(d) / "models.json", utilities_dir=Path(d),
-                            _env_file=None)
+                            demo=False, _env_file=None)
+        if args.stream_rate is not None:
+            settings = settings.model_copy(update={"stream_rate": args.stream_rate})
         server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1", port=port,
                                                log_level="warning", ws="websockets-sansio"))
         threading.Thread(target=server.run, daemon=True).start()

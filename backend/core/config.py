@@ -48,7 +48,7 @@ class Settings(BaseSettings):
     utilities_dir: Path = PROJECT_ROOT / "var" / "utilities"
 
     #: Messages per second sent to each browser (each carries every tick since the last).
-    stream_rate: float = Field(default=30.0, gt=0.0, le=100.0)
+    stream_rate: float = Field(default=40.0, gt=0.0, le=100.0)
     #: Queue length per browser before the oldest message is dropped.
     stream_queue: int = Field(default=60, ge=1)
     #: Longest time (s) ticks wait in memory before they are written to the database.
