@@ -10,9 +10,10 @@ from __future__ import annotations
 import json
 import logging
 import threading
+from collections import Counter
 from datetime import UTC, datetime
 
-from sqlalchemy import Engine, insert, update
+from sqlalchemy import Connection, Engine, insert, update
 
 from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
 from backend.worker.messages import RunStarted, TickBatch
@@ -94,10 +95,7 @@ class TickRecorder:
             self._runs.clear()
             self.current_run_id = None
 
-    def _close(self, conn: object, run_id: int, reason: str) -> None:
-        from sqlalchemy import Connection
-
-        assert isinstance(conn, Connection)
+    def _close(self, conn: Connection, run_id: int, reason: str) -> None:
         conn.execute(
             update(Run)
             .where(Run.id == run_id)
@@ -152,8 +150,8 @@ class TickRecorder:
             with self._lock:
                 self._pending = pending + self._pending
             return 0
-        for run_id, _ in pending:
-            self._counts[run_id] = self._counts.get(run_id, 0) + 1
+        for run_id, n in Counter(run_id for run_id, _ in pending).items():
+            self._counts[run_id] = self._counts.get(run_id, 0) + n
         self.written += len(rows)
         return len(rows)
 

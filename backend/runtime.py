@@ -94,11 +94,10 @@ class Runtime:
     ) -> dict[str, Any]:
         """The full configuration for controller `name`: defaults, the server's settings,
         the E-UMC calibration if one was made, then `overrides` (settings fields)."""
-        settings: dict[str, Any] = {"precompression_pct": self.settings.precompression_pct}
         cfg = ControllerConfig(precompression_pct=self.settings.precompression_pct)
         if self.settings.controller_rate_hz is not None:
             cfg = cfg.at_rate(self.settings.controller_rate_hz)
-        settings = cfg.to_json()
+        settings: dict[str, Any] = cfg.to_json()
         if name == "eumc" and self.calibration is not None and self.calibration.ok:
             settings["calibration"] = [self.calibration.offset_left,
                                        self.calibration.offset_right]

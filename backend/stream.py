@@ -12,7 +12,6 @@ import asyncio
 import collections
 import json
 import math
-import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,7 +58,6 @@ class LiveStream:
         self._clients: set[LiveClient] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._task: asyncio.Task[None] | None = None
-        self._lock = threading.Lock()
         self.run_id: int | None = None
         self.sent = 0
 
