@@ -45,6 +45,7 @@ class Runtime:
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self._run_waiters: list[tuple[str, asyncio.Future[int]]] = []
         self._runs_started = 0
+        self._last_run_token = 0
         self.worker_config = WorkerConfig(
             device_kind=settings.device_kind,
             device_host=host,
@@ -138,9 +139,9 @@ class Runtime:
             self._run_waiters = [(n, f) for n, f in self._run_waiters if f is not fut]
 
     async def set_simulation(self, seed: int, script: str) -> None:
-        """Put another virtual participant (seed) or script on the simulated device. The
-        worker (in-process simulator) or the device process (UDP) restarts; the current
-        controller is kept."""
+        """Put another virtual participant (seed) or script on the simulated device: the
+        worker swaps its in-process simulator (a new run, same process), or the device
+        process (UDP) restarts. The current controller is kept, with a fresh state."""
         from controller.sim.scripts import get_script
 
         get_script(script)  # ValueError naming the valid scripts
@@ -151,7 +152,10 @@ class Runtime:
         self.supervisor.config = self.worker_config
         runs_before = self._runs_started
         if self.settings.device_kind == "sim":
-            await asyncio.to_thread(self.supervisor.restart)
+            # The running worker swaps its simulated device (no process start); a worker
+            # that is down picks the new configuration up when it starts.
+            if not self.supervisor.set_simulation(seed, script):
+                await asyncio.to_thread(self.supervisor.restart)
         elif self.settings.device_spawn_simulator:
             if self.device_process is not None:
                 self.device_process.terminate()
@@ -167,8 +171,12 @@ class Runtime:
             st = self.supervisor.state.status
             restarted = (self.settings.device_kind != "sim"
                          or self._runs_started > runs_before)
-            # The supervisor clears `status` on restart: any status now is the new worker's.
-            if restarted and st is not None and st.device_alive and self.supervisor.state.alive:
+            # A status of the run announced last is the new simulation's (the supervisor
+            # clears `status` on restart; a swap inside the worker starts a new run).
+            current = st is not None and (self.settings.device_kind != "sim"
+                                          or st.run_token == self._last_run_token)
+            if restarted and current and st is not None and st.device_alive \
+                    and self.supervisor.state.alive:
                 return
             await asyncio.sleep(0.05)
         raise RuntimeError("the simulated device did not start streaming again")
@@ -261,6 +269,7 @@ class Runtime:
         run_id = self.recorder.run_started(msg, msg.device_kind)
         self.stream.run_id = run_id
         self._runs_started += 1
+        self._last_run_token = msg.run_token
         loop = self.stream._loop
         for name, fut in list(self._run_waiters):
             if name == msg.controller and loop is not None:

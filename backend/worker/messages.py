@@ -89,6 +89,18 @@ class SetController:
 
 
 @dataclass(frozen=True, slots=True)
+class SetSimulation:
+    """Put another virtual wearer (seed) or script on the in-process simulated device.
+
+    Handled inside the running worker (the old device is released first, a fresh
+    controller of the same configuration follows, a new run starts) so a study that
+    changes participants does not pay a process start and the compilers' warm-up."""
+
+    seed: int
+    script: str
+
+
+@dataclass(frozen=True, slots=True)
 class StopWorker:
     """Release the device and exit."""
 
@@ -119,4 +131,4 @@ class CalibrationResult:
 
 
 WorkerMessage = TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
-ServerCommand = SetController | StopWorker | Calibrate
+ServerCommand = SetController | SetSimulation | StopWorker | Calibrate

@@ -18,6 +18,7 @@ import os
 import signal
 import threading
 import time
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from types import FrameType
 from typing import Any
@@ -30,6 +31,7 @@ from backend.worker.messages import (
     CalibrationResult,
     RunStarted,
     SetController,
+    SetSimulation,
     StopWorker,
     TickBatch,
     WorkerConfig,
@@ -174,6 +176,33 @@ def worker_main(
                     outbox.run_token = run_token
                 elif isinstance(cmd, Calibrate):
                     calibration = _CalibrationJob(cmd, config, current_config)
+                elif isinstance(cmd, SetSimulation):
+                    if config.device_kind != "sim":
+                        outbox.put(WorkerError("the device is not the in-process simulator: "
+                                               "there is no simulation to change"))
+                        continue
+                    new_config = replace(config, device_seed=cmd.seed, device_script=cmd.script)
+                    try:
+                        new_device = make_device(new_config)
+                        fresh = make_controller(loop.controller.name, current_config)
+                        fresh.warm_up()
+                    except Exception as exc:
+                        outbox.put(WorkerError(f"simulation seed {cmd.seed}, script "
+                                               f"{cmd.script!r} rejected: {exc}"))
+                        continue
+                    # Unlocked-safe between wearers: the old device lets go before the
+                    # new one opens (a failure to open ends the worker, released).
+                    device.release()
+                    device.close()
+                    device = new_device
+                    device.open()
+                    config = new_config
+                    calibration = None
+                    # Fresh timing too: health counts ticks from the new wearer's start.
+                    loop = ControlLoop(device, fresh)
+                    run_token += 1
+                    outbox.put(RunStarted(run_token, fresh.name, current_config, device.kind, pid))
+                    outbox.run_token = run_token
             if stopping.is_set():
                 break
             record = loop.tick(timeout=0.05)

@@ -23,6 +23,7 @@ from backend.worker.messages import (
     CalibrationResult,
     RunStarted,
     SetController,
+    SetSimulation,
     StopWorker,
     TickBatch,
     WorkerConfig,
@@ -156,6 +157,19 @@ class WorkerSupervisor:
                 self._cmd.send(SetController(name, config or {}))
             except (BrokenPipeError, OSError):
                 pass
+
+    def set_simulation(self, seed: int, script: str) -> bool:
+        """Ask the running worker to switch its simulated wearer or script; False when
+        no worker runs (the new configuration then applies at the next start)."""
+        with self._lock:
+            self.config = replace(self.config, device_seed=seed, device_script=script)
+            if self._cmd is None or not self.state.alive:
+                return False
+            try:
+                self._cmd.send(SetSimulation(seed, script))
+            except (BrokenPipeError, OSError):
+                return False
+            return True
 
     def request_calibration(self, seconds: float, max_std_deg: float) -> int:
         """Ask the worker to calibrate over the next `seconds`; returns the request id.

@@ -127,3 +127,49 @@ def test_worker_exits_when_its_server_is_killed(tmp_path: Path) -> None:
         assert not _alive(worker_pid), "the orphaned worker kept running"
     finally:
         proc.kill()
+
+
+def test_a_new_simulated_wearer_is_swapped_in_without_a_new_process() -> None:
+    got = Collected()
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim", device_seed=1, device_speed=20,
+                                        device_script="squat-sequence"), got.callbacks())
+    sup.start()
+    try:
+        assert got.got_ticks.wait(60), f"no ticks; errors: {sup.state.errors}"
+        time.sleep(1.0)  # 20 s of the squat sequence
+        pid = sup.state.pid
+        assert sup.set_simulation(7, "walking")
+        deadline = time.monotonic() + 30
+        while not any(b.run_token == 2 for b in got.ticks) or len(got.runs) < 2:
+            assert time.monotonic() < deadline, f"no new run; errors: {sup.state.errors}"
+            time.sleep(0.05)
+        time.sleep(1.0)
+        assert sup.state.pid == pid and sup.state.alive
+        assert [r.run_token for r in got.runs] == [1, 2]
+        first = [r for b in got.ticks if b.run_token == 1 for r in b.records]
+        second = [r for b in got.ticks if b.run_token == 2 for r in b.records]
+        # The new wearer's device starts its own sample count and clock.
+        assert second[0].seq < first[-1].seq and second[0].t < first[-1].t
+        # ... walks, where the first squatted.
+        assert "walk" in {r.truth_activity for r in second}
+        assert "squat" not in {r.truth_activity for r in second}
+        assert "squat" in {r.truth_activity for r in first}
+        # Health counts the new run's ticks only.
+        st = sup.state.status
+        assert st is not None and st.run_token == 2 and st.ticks <= len(second) + 500
+
+        # A script that does not exist is refused; the wearer and run stay.
+        errors_before = len(sup.state.errors)
+        assert sup.set_simulation(8, "no-such-script")
+        deadline = time.monotonic() + 10
+        while len(sup.state.errors) == errors_before:
+            assert time.monotonic() < deadline, "the bad script was not reported"
+            time.sleep(0.05)
+        assert "no-such-script" in sup.state.errors[-1]
+        n = len(got.ticks)
+        time.sleep(0.5)
+        assert sup.state.alive and len(got.ticks) > n
+        assert {b.run_token for b in got.ticks[n:]} == {2}
+    finally:
+        sup.stop()
+    assert not sup.state.alive

@@ -117,7 +117,7 @@ class SimulationChoice(BaseModel):
              responses={**MALFORMED,
                         422: {"description": "unknown script, or the device is hardware"}})
 async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
-    """Change the simulated wearer (seed) or script; the simulator restarts."""
+    """Change the simulated wearer (seed) or script; a new run starts on the new one."""
     try:
         await runtime.set_simulation(choice.seed, choice.script)
     except ValueError as exc:
