@@ -9,6 +9,7 @@
     exostudy user add NAME                     create an experimenter (password on stdin)
     exostudy user list                         list the experimenter accounts
     exostudy virtual-study --participants 8 --seed S --out DIR   the protocol, simulated
+    exostudy results --study ID --out DIR [--db URL]   a study's tables and figures
 """
 
 from __future__ import annotations
@@ -131,6 +132,33 @@ def _virtual_study(args: argparse.Namespace) -> int:
     return 0
 
 
+def _results(args: argparse.Namespace) -> int:
+    from backend.core.config import Settings
+    from backend.db import migrate
+    from backend.db.engine import make_engine, make_session_factory
+    from backend.results_files import write_study_results
+
+    url = args.db or Settings().database_url
+    if "://" not in url:
+        if not Path(url).is_file():
+            raise FileNotFoundError(f"--db: no database file at {url}")
+        url = f"sqlite:///{Path(url).resolve()}"
+    elif url.startswith("sqlite:///") and not Path(url[len("sqlite:///"):]).is_file():
+        raise FileNotFoundError(f"--db: no database file at {url[len('sqlite:///'):]}")
+    if migrate.current(url) is None:
+        raise ValueError(f"--db: {url} is not an ExoStudy database (no schema revision)")
+    migrate.upgrade(url)  # as the server does at start: an older file gains new columns
+    engine = make_engine(url)
+    try:
+        with make_session_factory(engine)() as db:
+            paths = write_study_results(engine, db, args.study, Path(args.out),
+                                        timelines=not args.no_timelines)
+    finally:
+        engine.dispose()
+    print(f"wrote {len(paths)} files for study {args.study} to {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
@@ -184,6 +212,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the leave-one-participant-out evaluation of the models")
     v.add_argument("--out", required=True)
     v.set_defaults(func=_virtual_study)
+
+    r = sub.add_parser("results", help="write a study's tables (CSV, Markdown), figures "
+                       "(PNG, SVG) and trial timelines from an existing database")
+    r.add_argument("--study", type=int, required=True, help="the study's id")
+    r.add_argument("--out", required=True, help="folder to write into")
+    r.add_argument("--db", default=None, help="SQLite file or database URL (default: "
+                   "EXOSTUDY_DATABASE_URL, i.e. the server's database)")
+    r.add_argument("--no-timelines", action="store_true",
+                   help="skip the per-trial five-panel figures")
+    r.set_defaults(func=_results)
 
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")
