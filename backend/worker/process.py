@@ -181,9 +181,9 @@ def worker_main(
                         outbox.put(WorkerError("the device is not the in-process simulator: "
                                                "there is no simulation to change"))
                         continue
-                    new_config = replace(config, device_seed=cmd.seed, device_script=cmd.script)
+                    sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script)
                     try:
-                        new_device = make_device(new_config)
+                        new_device = make_device(sim_config)
                         fresh = make_controller(loop.controller.name, current_config)
                         fresh.warm_up()
                     except Exception as exc:
@@ -196,7 +196,7 @@ def worker_main(
                     device.close()
                     device = new_device
                     device.open()
-                    config = new_config
+                    config = sim_config
                     calibration = None
                     # Fresh timing too: health counts ticks from the new wearer's start.
                     loop = ControlLoop(device, fresh)
