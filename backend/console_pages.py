@@ -40,6 +40,12 @@ def study(request: Request, study_id: PageId) -> Response:
     return _page(request, "study.html")
 
 
+@router.get("/console/studies/{study_id}/results")
+def results(request: Request, study_id: PageId) -> Response:
+    """A study's results: tables, figures, trials, what-if replay, model evaluation."""
+    return _page(request, "results.html")
+
+
 @router.get("/console/sessions/{session_id}")
 def session(request: Request, session_id: PageId) -> Response:
     """A session: the protocol step by step."""

@@ -1,7 +1,7 @@
 // Live console: one WebSocket, ring buffers, uPlot redrawn at most ~30 times a second.
 // With ?trial=ID the same plots replay a stored trial, scrubbed with a slider.
 import { connectLive, Ring } from "/static/livestream.js";
-import { createTimePlots, displayValue, PLOT_COLUMNS } from "/static/timeplots.js";
+import { addProgress, createTimePlots, displayValue, PLOT_COLUMNS } from "/static/timeplots.js";
 import { createStateStrip, lastTick } from "/static/statestrip.js";
 
 const RATE_HZ = 100;
@@ -14,12 +14,38 @@ const stats = (window.exostudyLive = {
   // Latency of each sample (worker read time to arrival here), last 3000, for benchmarks.
   latencies: [],
   paused: false, windowS: 10, replay: null,
+  // Per model: the highest posterior seen and the samples it led; the highest progress.
+  posteriorMax: {}, leading: {}, progressMax: null, leader: null, leaderChanges: 0,
 });
+
+function observePosteriors(columns) {
+  const models = ["squat", "stoop_left", "stoop_right", "other"];
+  const post = models.map((m) => columns[`post_${m}`] || []);
+  for (let i = 0; i < columns.t.length; i++) {
+    // The leading model, or "none" while no estimate runs (E-UMC between triggers).
+    let lead = "none";
+    let best = -1;
+    models.forEach((m, k) => {
+      const v = post[k][i];
+      if (v == null) return;
+      if (v > (stats.posteriorMax[m] ?? -1)) stats.posteriorMax[m] = v;
+      if (v > best) { best = v; lead = m; }
+    });
+    if (lead !== stats.leader) { stats.leaderChanges += 1; stats.leader = lead; }
+  }
+  for (const m of ["squat", "stoop_left", "stoop_right"]) {
+    for (const v of columns[`progress_${m}`] || []) {
+      if (v == null) continue;
+      stats.leading[m] = (stats.leading[m] ?? 0) + 1;
+      if (v > (stats.progressMax ?? -1)) stats.progressMax = v;
+    }
+  }
+}
 
 const $ = (id) => document.getElementById(id);
 const plots = createTimePlots({
   angles: $("plot-angles"), velocities: $("plot-velocities"),
-  posteriors: $("plot-posteriors"), torques: $("plot-torques"),
+  posteriors: $("plot-posteriors"), progress: $("plot-progress"), torques: $("plot-torques"),
 }, { onDraw: () => { stats.draws += 1; } });
 const strip = createStateStrip($("strip"));
 stats.strip = strip.counts;
@@ -78,7 +104,8 @@ function startLive() {
       windowSamples += n;
       stats.gaps = live.counts.gaps;
       stats.dropped = msg.dropped;
-      ring.push(columns, displayValue);
+      ring.push(addProgress(columns), displayValue);
+      observePosteriors(columns);
       strip.observe(columns);
       latest = lastTick(columns);
       stats.samples += n;
@@ -137,7 +164,7 @@ async function startReplay(id) {
       return r.json();
     }),
   ]);
-  const raw = body.columns;
+  const raw = addProgress(body.columns);
   const thr = trial.config_snapshot?.settings?.velocity_threshold;
   if (thr != null) plots.setThreshold(thr);
   $("mode-text").textContent = `replay · trial ${id} · ${trial.controller.toUpperCase()} · ` +

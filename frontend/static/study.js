@@ -14,6 +14,7 @@ async function loadStudy() {
   $("#study-title").textContent = s.name;
   $("#study-description").textContent = s.description;
   $("#export").href = `/api/studies/${studyId}/export.zip`;
+  $("#results-link").href = `/console/studies/${studyId}/results`;
 }
 
 async function loadParticipants() {

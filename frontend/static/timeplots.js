@@ -1,5 +1,6 @@
 // The time plots shared by the live page, replay and the session page: hip angles,
-// velocities with the trigger threshold, posteriors with lock commands, torques.
+// velocities with the trigger threshold, posteriors with lock commands, the progress of
+// the most probable model, torques.
 // All plots share one cursor (uPlot cursor.sync), so a time reads across them.
 import uPlot from "/vendor/uplot/uPlot.esm.js";
 
@@ -53,7 +54,32 @@ export const PLOT_COLUMNS = {
   posteriors: ["post_squat", "post_stoop_left", "post_stoop_right", "post_other",
     "lock_left", "lock_right"],
   torques: ["torque_left", "torque_right"],
+  progress: ["progress_squat", "progress_stoop_left", "progress_stoop_right"],
 };
+
+const MODELS = ["squat", "stoop_left", "stoop_right"];
+
+// The progress estimate of the most probable model (its s_curr), one column per model so
+// the colour says which model leads; null where "other" leads or nothing was estimated.
+// Adds `progress_<model>` columns to a columns object (live message or stored trial).
+export function addProgress(columns) {
+  const n = columns.t.length;
+  const post = MODELS.map((m) => columns[`post_${m}`] || []);
+  const other = columns.post_other || [];
+  const curr = MODELS.map((m) => columns[`s_curr_${m}`] || []);
+  const out = MODELS.map(() => new Array(n).fill(null));
+  for (let i = 0; i < n; i++) {
+    let best = -1;
+    let bestP = other[i] ?? -Infinity;
+    for (let k = 0; k < MODELS.length; k++) {
+      const p = post[k][i];
+      if (p != null && p > bestP) { best = k; bestP = p; }
+    }
+    if (best >= 0 && curr[best][i] != null) out[best][i] = curr[best][i];
+  }
+  MODELS.forEach((m, k) => { columns[`progress_${m}`] = out[k]; });
+  return columns;
+}
 
 // Ticks as they arrive (SI units, booleans) to what the plots draw.
 export function displayValue(name, v) {
@@ -105,6 +131,17 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
         { label: "lock left", stroke: LEFT, scale: "lock", width: 3, paths: stepped },
         { label: "lock right", stroke: RIGHT, scale: "lock", width: 3, paths: stepped }],
     }, [[], [], [], [], [], [], []], c.posteriors);
+  }
+  if (c.progress) {
+    plots.progress = new uPlot({
+      ...base(c.progress, height, onDraw),
+      scales: { x: { time: false }, y: { range: [0, 1.05] } },
+      axes: [xAxis, { label: "progress s (0-1)" }],
+      series: [{},
+        { label: "squat", stroke: "#2b8a3e", width: 2 },
+        { label: "stoop left", stroke: LEFT, width: 2, dash: [6, 3] },
+        { label: "stoop right", stroke: RIGHT, width: 2, dash: [6, 3] }],
+    }, [[], [], [], []], c.progress);
   }
   if (c.torques) {
     plots.torques = new uPlot({

@@ -4,14 +4,18 @@ a PEC trial with the state strip) and the replay of a stored trial."""
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 
 from backend.core.config import Settings
+from backend.db.engine import make_engine, make_session_factory
+from backend.db.evidence import ModelSetRecord, UtilitySetRecord
 from tests.live_server import running_server
 
 
@@ -211,6 +215,71 @@ def test_plan_and_run_a_pec_trial_with_utilities_and_the_state_strip(
     page.click("#trials tr[data-controller=pec] button.complete")
     page.wait_for_selector("#trials tr[data-controller=pec][data-status=completed]")
     assert page.is_visible("#trials tr[data-controller=pec] a.replay")
+
+
+def _model_and_utility_sets(settings: Settings, study_id: int) -> tuple[int, int]:
+    """The default model and utility sets stored in the study, as a fitted study has."""
+    models = json.loads(Path(settings.models_path).read_text())
+    utilities = json.loads(next(Path(settings.utilities_dir).glob("*.json")).read_text())
+    engine = make_engine(settings.database_url)
+    try:
+        with make_session_factory(engine)() as db:
+            ms = ModelSetRecord(study_id=study_id, name="defaults", status="ready",
+                                document=models)
+            us = UtilitySetRecord(study_id=study_id, name="defaults", precompression_pct=25,
+                                  human_source="simulated", status="ready", document=utilities)
+            db.add_all([ms, us])
+            db.commit()
+            return ms.id, us.id
+    finally:
+        engine.dispose()
+
+
+def test_run_an_eumc_trial_and_watch_posteriors_progress_and_locks_change(
+    fast_server: str, page: Any, experimenter: dict[str, str], settings: Settings
+) -> None:
+    api = _api(fast_server, experimenter)
+    study_id, session_id = _session(api, "evaluation")
+    ms_id, us_id = _model_and_utility_sets(settings, study_id)
+    _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
+                 json={"tasks": ["squat-sequence"], "model_set_id": ms_id,
+                       "utility_set_id": us_id}))
+    _wait_ticks(api)
+    # The E-UMC is calibrated on a second of standing still; the simulated wearer squats
+    # between stands, so try until a second falls into a stand.
+    for _ in range(60):
+        r = api.post("/api/worker/calibrate", json={"seconds": 1.0})
+        if r.status_code == 200:
+            break
+        assert r.status_code == 422, r.text
+    else:
+        pytest.fail("the wearer never stood still for a second")
+
+    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    page.wait_for_selector("#trials tr[data-controller=eumc] button.start")
+    page.click("#trials tr[data-controller=eumc] button.start")
+    page.wait_for_selector("#trials tr[data-controller=eumc][data-status=running]")
+
+    # The live view: posteriors rise above 0.5, the squat model leads and shows its
+    # progress, and the lock strip sees the locks come and go.
+    page.goto(f"{fast_server}/live")
+    page.wait_for_function("window.exostudyLive.strip.lockChanges >= 2", timeout=40000)
+    page.wait_for_function("(window.exostudyLive.posteriorMax.squat ?? 0) > 0.5", timeout=20000)
+    live = page.evaluate("({p: exostudyLive.posteriorMax, lead: exostudyLive.leading, "
+                         "prog: exostudyLive.progressMax, changes: exostudyLive.leaderChanges})")
+    assert 0.5 < live["p"]["squat"] <= 1.0
+    # The lead changes between squats (no estimate, or "other") and squats.
+    assert live["changes"] >= 3
+    assert live["lead"].get("squat", 0) > 0
+    assert 0.0 < live["prog"] <= 1.0
+    assert "controller eumc" in page.inner_text("#worker-state")
+
+    page.goto(f"{fast_server}/console/sessions/{session_id}")
+    page.click("#trials tr[data-controller=eumc] button.complete")
+    page.wait_for_selector("#trials tr[data-controller=eumc][data-status=completed]")
+    trial = next(t for t in _ok(api.get(f"/api/sessions/{session_id}/trials"))
+                 if t["controller"] == "eumc")
+    assert trial["config_snapshot"]["settings"]["calibration"] is not None
 
 
 def test_replay_a_stored_trial_and_scrub_it(

@@ -42,3 +42,61 @@ def test_participant_fills_in_the_sus_through_the_link(quiet_server: str, page: 
     page.wait_for_selector("text=this link is closed")
     responses = api.get(f"/api/participants/{pid}/responses").json()
     assert [(r["score"], r["controller"]) for r in responses] == [(85.0, "umc")]
+
+
+def _sus(answers: list[int]) -> float:
+    """The SUS formula (Brooke 1996), written out independently of the server's."""
+    odd = sum(a - 1 for a in answers[0::2])
+    even = sum(5 - a for a in answers[1::2])
+    return (odd + even) * 2.5
+
+
+def test_experimenter_makes_a_link_and_sees_the_sus_score_in_the_console(
+        quiet_server: str, page: Any, experimenter: dict[str, str]) -> None:
+    api = httpx.Client(base_url=quiet_server)
+    token = api.post("/api/auth/token", json=experimenter).json()["access_token"]
+    api.headers["Authorization"] = f"Bearer {token}"
+    sid = api.post("/api/studies", json={"name": "forms"}).json()["id"]
+    pid = api.post(f"/api/studies/{sid}/participants", json={"code": "P1"}).json()["id"]
+    session = api.post(f"/api/participants/{pid}/sessions",
+                       json={"kind": "evaluation", "precompression_pct": 25}).json()
+    trials = api.post(f"/api/sessions/{session['id']}/trials/plan",
+                      json={"tasks": ["squat-sequence"], "include_eumc": False}).json()
+    key = {c["label"]: c["controller"]
+           for c in api.get(f"/api/participants/{pid}/conditions").json()}
+    assert sorted(key.values()) == ["pec", "umc"] and len(trials) == 2
+    label = next(k for k, v in key.items() if v == "pec")
+
+    path = f"/console/sessions/{session['id']}"
+    page.goto(f"{quiet_server}{path}")
+    page.wait_for_url(f"**/login?next={path}")
+    page.fill("#username", experimenter["username"])
+    page.fill("#password", experimenter["password"])
+    page.click("#submit")
+    page.wait_for_url(f"{quiet_server}{path}")
+    page.wait_for_selector(f"#link-choices tr[data-condition='{label}'] input[value^='sus|']")
+    # Only the SUS for the PEC's condition, and no preference question.
+    for box in page.query_selector_all("#link-choices input[type=checkbox]"):
+        box.uncheck()
+    page.check(f"#link-choices input[value='sus|{label}']")
+    page.uncheck("#link-preference")
+    page.click("#link-create")
+    page.wait_for_selector("#link-out:not([hidden])")
+    url = page.get_attribute("#link-url", "href")
+    assert url and "/forms/" in url
+
+    answers = [5, 2, 4, 1, 4, 2, 5, 1, 4, 2]
+    tablet = page.context.browser.new_context().new_page()  # the participant: no login
+    tablet.goto(url)
+    tablet.wait_for_selector("form[data-form='0']")
+    assert "pec" not in tablet.content().lower()
+    for i, value in enumerate(answers, start=1):
+        tablet.check(f"input[name='q{i}'][value='{value}']")
+    tablet.click("form[data-form='0'] button[type=submit]")
+    tablet.wait_for_selector("text=this link is closed")
+    tablet.context.close()
+
+    row = page.wait_for_selector("#responses tr[data-instrument=sus]", timeout=15000)
+    cells = row.query_selector_all("td")
+    assert [c.inner_text() for c in cells[1:4]] == [label, "PEC", f"{_sus(answers):.1f}"]
+    assert _sus(answers) == 85.0
