@@ -18,8 +18,10 @@ BENCHES = [
     ("replay of a 10-minute recording", ["bench_replay.py"]),
     ("simulation speed", ["bench_simulation.py"]),
     ("CSV export of a 10-minute trial", ["bench_export.py"]),
+    ("tick recorder into SQLite", ["bench_recorder.py"]),
     ("UDP device round trip and emulator lateness", ["bench_udp.py", "--minutes", "1"]),
     ("live path with 0, 3 and 4 browser consoles", ["bench_live.py", "--seconds", "30"]),
+    ("console first page, cold", ["bench_console_load.py", "--runs", "10"]),
 ]
 
 

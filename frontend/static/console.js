@@ -10,6 +10,8 @@ async function load() {
     h("td", {}, s.description || ""),
     h("td", {}, fmtDate(s.created_at)))));
   $("#studies-empty").hidden = studies.length > 0;
+  // Usable: the list is drawn and its links work (read by bench/bench_console_load.py).
+  document.body.dataset.ready = "true";
 }
 
 $("#study-form").addEventListener("submit", (ev) => {
