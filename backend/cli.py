@@ -119,12 +119,14 @@ def _user(args: argparse.Namespace) -> int:
 
 
 def _virtual_study(args: argparse.Namespace) -> int:
-    from backend.virtual_study import DEFAULT_SPEED, VirtualStudyConfig, run
+    from backend.virtual_study import COLLECTION_SPEED, DEFAULT_SPEED, VirtualStudyConfig, run
 
     cfg = VirtualStudyConfig(
         out=Path(args.out), participants=args.participants,
         data_participants=args.data_participants, eumc=args.eumc, seed=args.seed,
         speed=args.speed if args.speed is not None else DEFAULT_SPEED,
+        collection_speed=(args.collection_speed if args.collection_speed is not None
+                          else COLLECTION_SPEED),
         rates=tuple(args.rates.split(",")), model_evaluation=not args.no_model_evaluation)
     report = run(cfg, log=lambda m: print(m, flush=True))
     print(f"virtual study done in {report.wall_s:.0f} s; {len(report.trials)} trials; "
@@ -205,7 +207,11 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--eumc", type=int, default=3, help="the first N also evaluate the E-UMC")
     v.add_argument("--seed", type=int, default=1)
     v.add_argument("--speed", type=float, default=None,
-                   help="simulator speed-up (default: backend.virtual_study.DEFAULT_SPEED)")
+                   help="simulator speed-up in the trials (default: "
+                   "backend.virtual_study.DEFAULT_SPEED)")
+    v.add_argument("--collection-speed", type=float, default=None,
+                   help="simulator speed-up while demonstrations are recorded (default: "
+                   "backend.virtual_study.COLLECTION_SPEED)")
     v.add_argument("--rates", default="paper-rates,100hz",
                    help="comma-separated rate settings: paper-rates, 100hz")
     v.add_argument("--no-model-evaluation", action="store_true",

@@ -138,23 +138,31 @@ class Runtime:
         finally:
             self._run_waiters = [(n, f) for n, f in self._run_waiters if f is not fut]
 
-    async def set_simulation(self, seed: int, script: str) -> None:
+    async def set_simulation(self, seed: int, script: str, speed: float | None = None) -> None:
         """Put another virtual participant (seed) or script on the simulated device: the
         worker swaps its in-process simulator (a new run, same process), or the device
         process (UDP) restarts. The current controller is kept, with a fresh state."""
         from controller.sim.scripts import get_script
 
-        get_script(script)  # ValueError naming the valid scripts
+        try:
+            get_script(script)
+        except ValueError as exc:
+            raise ValueError(f"script: {exc}") from exc  # names the valid scripts
+        if speed is not None and self.settings.device_kind != "sim":
+            raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
+                             "faster than real time")
+        speed = self.supervisor.config.device_speed if speed is None else speed
         self.settings = self.settings.model_copy(update={"device_seed": seed,
-                                                         "device_script": script})
+                                                         "device_script": script,
+                                                         "device_speed": speed})
         self.worker_config = replace(self.supervisor.config, device_seed=seed,
-                                     device_script=script)
+                                     device_script=script, device_speed=speed)
         self.supervisor.config = self.worker_config
         runs_before = self._runs_started
         if self.settings.device_kind == "sim":
             # The running worker swaps its simulated device (no process start); a worker
             # that is down picks the new configuration up when it starts.
-            if not self.supervisor.set_simulation(seed, script):
+            if not self.supervisor.set_simulation(seed, script, speed):
                 await asyncio.to_thread(self.supervisor.restart)
         elif self.settings.device_spawn_simulator:
             if self.device_process is not None:
@@ -162,7 +170,8 @@ class Runtime:
                 await asyncio.to_thread(self.device_process.wait, 3.0)
             await asyncio.to_thread(self.start_device_simulator)
         else:
-            raise ValueError("the device is real hardware: there is no simulation to change")
+            raise ValueError("device: the device is real hardware: there is no simulation "
+                             "to change")
         # Return only once the new simulation streams: a recording or trial started
         # before that would attach to a run that is about to be replaced.
         loop = asyncio.get_running_loop()

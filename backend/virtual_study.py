@@ -21,9 +21,10 @@ Protocol (paper, "User study set-up"), and the choices made here:
   repetition of the `paper-evaluation` script, which holds the four tasks of the paper
   (squat sequence, stoop sequence, 10 m walk and back, stairs up and down, 5 kg box)
   with its pauses; the tables split it into lifts and gait trials by the simulation's
-  truth. One script per trial rather than one trial per task because changing the
-  simulated task restarts the worker process, which costs about 10 s on this machine:
-  four restarts per participant would dominate the run time.
+  truth. One script per trial rather than one trial per task keeps the trial count (and
+  the per-trial overhead of starting, stopping and evaluating) at the paper's number of
+  controller conditions; changing the simulated wearer or task swaps the simulator
+  inside the running worker (a new run, no process start).
 - Rates: two studies with the same virtual participants (same seeds, same order):
   "paper rates" (UMC 10 Hz, PEC 100 Hz, E-UMC 100/10 Hz) and "100 Hz" (every
   controller at 100 Hz, `{"rate_hz": 100}` at trial start). Two studies rather than two
@@ -54,12 +55,15 @@ from fastapi.testclient import TestClient
 from backend import tick_queries
 from backend.results import FIGURE_NAMES
 
-#: Requested simulator speed-up. On 2 shared cores the worker reaches about 55x (5,500
-#: ticks/s at 100x requested), but the tick recorder stores only about 4,000-7,000
-#: ticks/s in SQLite while the worker runs; above that its backlog grows until a
-#: controller switch times out. 30x (3,000 ticks/s) keeps both up. See README
-#: "Results and the virtual study" for the measurement.
-DEFAULT_SPEED = 30.0
+#: Requested simulator speed-up during the evaluation trials. Measured on 2 cores: at 80x
+#: the trials reached a median of 6,200 ticks/s (77 %), no device-time gaps; the tick
+#: recorder stores about 40,000 ticks/s (bench/bench_recorder.py), so it keeps up. See
+#: README "Results and the virtual study".
+DEFAULT_SPEED = 80.0
+#: Speed-up while demonstrations are recorded: a recording starts a moment after the new
+#: wearer does, and at 80x that moment costs a lift or two per recording (103 instead
+#: of 126 segments in the default study); at 30x it costs none of the lifts measured.
+COLLECTION_SPEED = 30.0
 RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}
 #: Tables written per rate setting (questionnaires are left out, see the docstring).
 WRITTEN_TABLES = ("performance", "performance_by_kind", "false_positives", "onset_to_lock",
@@ -79,6 +83,7 @@ class VirtualStudyConfig:
     eumc: int = 3
     seed: int = 1
     speed: float = DEFAULT_SPEED
+    collection_speed: float = COLLECTION_SPEED
     eval_script: str = "paper-evaluation"
     data_scripts: tuple[str, ...] = ("squat-sequence", "stoop-sequence")
     rates: tuple[str, ...] = tuple(RATE_SETTINGS)
@@ -94,6 +99,8 @@ class VirtualStudyConfig:
             raise ValueError(f"eumc: must be within 0..{self.participants}")
         if not 1.0 <= self.speed <= 100.0:
             raise ValueError("speed: must be within 1..100 times real time")
+        if not 1.0 <= self.collection_speed <= 100.0:
+            raise ValueError("collection_speed: must be within 1..100 times real time")
         unknown = [r for r in self.rates if r not in RATE_SETTINGS]
         if unknown or not self.rates:
             raise ValueError(f"rates: choose from {', '.join(RATE_SETTINGS)}")
@@ -183,9 +190,11 @@ class _Driver:
         n = round(seconds * 100)
         self.wait_ticks(start + n, timeout_s=60 + 3 * seconds / self.speed)
 
-    def simulate(self, seed: int, script: str) -> None:
-        """Another virtual participant or script: the worker restarts."""
-        _ok(self.c.post("/api/worker/simulation", json={"seed": seed, "script": script}))
+    def simulate(self, seed: int, script: str, speed: float) -> None:
+        """Another virtual participant or script: the worker swaps its simulator."""
+        self.speed = speed
+        _ok(self.c.post("/api/worker/simulation",
+                        json={"seed": seed, "script": script, "speed": speed}))
         self.wait_ticks(20, timeout_s=120)
 
     def job(self, job_id: int, timeout_s: float = 600) -> None:
@@ -238,13 +247,13 @@ def _collect(d: _Driver, cfg: VirtualStudyConfig, study_id: int) -> list[int]:
         sess = _ok(d.c.post(f"/api/participants/{p['id']}/sessions",
                             json={"kind": "data_collection", "precompression_pct": 25}), 201)
         for script in cfg.data_scripts:
-            d.simulate(seed, script)
+            d.simulate(seed, script, cfg.collection_speed)
             rec = _ok(d.c.post(f"/api/sessions/{sess['id']}/recordings",
                                json={"label": script}), 201)
             # Until the end of the first repetition (the worker's tick count is the
-            # device's sample number since the restart) and 1.5 s into the next one's
-            # first stand: no lift is cut at the end. A lift that passed while the
-            # recording was being started is simply not in it.
+            # device's sample number since the simulation started) and 1.5 s into the
+            # next one's first stand: no lift is cut at the end. A lift that passed while
+            # the recording was being started is simply not in it.
             end_s = _script_s(seed, script) + 1.5
             d.wait_ticks(round(end_s * 100), timeout_s=60 + 3 * end_s / d.speed)
             _ok(d.c.post(f"/api/recordings/{rec['id']}/stop"))
@@ -282,7 +291,7 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
                                       "utility_set_id": us_id,
                                       "include_eumc": j < cfg.eumc}), 201)
             plans.append((label, plan))
-        d.simulate(seed, cfg.eval_script)
+        d.simulate(seed, cfg.eval_script, cfg.speed)
         # One calibration per participant, as per donning: the runtime keeps it for
         # every later E-UMC trial of this participant.
         attempts = d.calibrate() if j < cfg.eumc else 0

@@ -98,6 +98,8 @@ class SetSimulation:
 
     seed: int
     script: str
+    #: Samples this many times faster than real time; None keeps the current speed.
+    speed: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

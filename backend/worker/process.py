@@ -181,7 +181,8 @@ def worker_main(
                         outbox.put(WorkerError("the device is not the in-process simulator: "
                                                "there is no simulation to change"))
                         continue
-                    sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script)
+                    sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script,
+                                         device_speed=cmd.speed or config.device_speed)
                     try:
                         new_device = make_device(sim_config)
                         fresh = make_controller(loop.controller.name, current_config)

@@ -158,15 +158,17 @@ class WorkerSupervisor:
             except (BrokenPipeError, OSError):
                 pass
 
-    def set_simulation(self, seed: int, script: str) -> bool:
+    def set_simulation(self, seed: int, script: str, speed: float | None = None) -> bool:
         """Ask the running worker to switch its simulated wearer or script; False when
         no worker runs (the new configuration then applies at the next start)."""
         with self._lock:
-            self.config = replace(self.config, device_seed=seed, device_script=script)
+            speed = self.config.device_speed if speed is None else speed
+            self.config = replace(self.config, device_seed=seed, device_script=script,
+                                  device_speed=speed)
             if self._cmd is None or not self.state.alive:
                 return False
             try:
-                self._cmd.send(SetSimulation(seed, script))
+                self._cmd.send(SetSimulation(seed, script, speed))
             except (BrokenPipeError, OSError):
                 return False
             return True

@@ -68,3 +68,31 @@ def test_websocket_refuses_a_caller_without_login(settings: Settings) -> None:
         client.cookies.set("exostudy_session", "not-a-real-token")
         with pytest.raises(WebSocketDisconnect), client.websocket_connect("/ws/live"):
             pass
+
+
+def test_changing_the_simulated_wearer_keeps_the_worker_and_checks_the_request(
+        settings: Settings, experimenter: dict[str, str]) -> None:
+    settings = settings.model_copy(update={"start_worker": True})
+    with TestClient(create_app(settings)) as client:
+        before = _wait_healthy(client)
+        log_in(client, experimenter)
+        run_before = before["database"]["current_run_id"]
+        r = client.post("/api/worker/simulation",
+                        json={"seed": 9, "script": "walking", "speed": 20})
+        assert r.status_code == 200, r.text
+        after = r.json()
+        # Same process, a new run, counting from the new wearer's first sample.
+        assert after["worker"]["pid"] == before["worker"]["pid"]
+        assert after["worker"]["restarts"] == before["worker"]["restarts"]
+        assert after["database"]["current_run_id"] != run_before
+        assert after["device"]["alive"]
+        time.sleep(1.0)  # 20 s of walking at 20x, i.e. ~2000 ticks in a second
+        assert client.get("/api/health").json()["worker"]["ticks"] > 500
+
+        bad = client.post("/api/worker/simulation", json={"seed": 9, "script": "juggling"})
+        assert bad.status_code == 422
+        assert bad.json()["detail"].startswith("script:") and "walking" in bad.json()["detail"]
+        too_fast = client.post("/api/worker/simulation",
+                               json={"seed": 9, "script": "walking", "speed": 1000})
+        assert too_fast.status_code == 422
+        assert client.get("/api/health").json()["worker"]["pid"] == before["worker"]["pid"]

@@ -111,17 +111,21 @@ class SimulationChoice(BaseModel):
     seed: int = Field(ge=0, le=2**31 - 1, description="virtual participant")
     script: str = Field(description="squat-sequence, stoop-sequence, walking, stairs, "
                         "paper-evaluation")
+    speed: float | None = Field(default=None, ge=0.1, le=100.0, description=(
+        "samples this many times faster than real time (in-process simulator only); "
+        "default: as before"))
 
 
 @router.post("/simulation", response_model=Health,
              responses={**MALFORMED,
-                        422: {"description": "unknown script, or the device is hardware"}})
+                        422: {"description": "unknown script, a speed for a device that is not "
+                                         "the in-process simulator, or hardware"}})
 async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
     """Change the simulated wearer (seed) or script; a new run starts on the new one."""
     try:
-        await runtime.set_simulation(choice.seed, choice.script)
+        await runtime.set_simulation(choice.seed, choice.script, choice.speed)
     except ValueError as exc:
-        raise HTTPException(422, f"script: {exc}") from exc
+        raise HTTPException(422, str(exc)) from exc
     except RuntimeError as exc:
         raise HTTPException(409, str(exc)) from exc
     return runtime.health()
