@@ -56,6 +56,17 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "source": ("", "auto (segmentation) or edited (by the experimenter)"),
         "updated_at": ("ISO 8601 UTC", "last change"),
     }),
+    "trial_segments": ("Lifts in trials marked by the experimenter (the ground truth of "
+                       "trials without simulation labels): sample indices from the trial's "
+                       "first tick (row 0 of ticks/trial-<id>.csv).", {
+        "trial_id": ("", "trial id"),
+        "start": ("sample", "motion onset"),
+        "peak": ("sample", "peak hip flexion"),
+        "end": ("sample", "return to rest"),
+        "label": ("", "squat, stoop_left, stoop_right, other or unlabelled"),
+        "source": ("", "auto (segmentation) or edited (by the experimenter)"),
+        "updated_at": ("ISO 8601 UTC", "last change"),
+    }),
     "model_sets": ("Fitted motion model sets; the models are in model_sets/<id>.json.", {
         "study_id": ("", "study id"),
         "params": ("JSON", "fit parameters: latent dimension, explained variance, counts"),

@@ -20,8 +20,8 @@ from backend.db.tables import Base
 _OMIT = {"document", "human_data"}
 
 _TABLE_ORDER = ("participants", "study_sessions", "condition_labels", "recordings",
-                "lift_segments", "model_sets", "utility_sets", "trials", "lock_events",
-                "questionnaire_responses", "preferences")
+                "lift_segments", "model_sets", "utility_sets", "trials", "trial_segments",
+                "lock_events", "questionnaire_responses", "preferences")
 
 
 def _table(name: str) -> Table:
@@ -69,6 +69,7 @@ def study_zip(engine: Engine, study_id: int) -> bytes:
             "model_sets": ("study_id", [study_id]),
             "utility_sets": ("study_id", [study_id]),
             "trials": ("session_id", sessions),
+            "trial_segments": ("trial_id", trials),
             "lock_events": ("trial_id", trials),
             "questionnaire_responses": ("participant_id", participants),
             "preferences": ("participant_id", participants),

@@ -27,6 +27,7 @@ from backend.api.routes import (
     results,
     sessions,
     studies,
+    trial_segments,
     trials,
     worker,
 )
@@ -86,6 +87,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(recordings.router)
     app.include_router(model_sets.router)
     app.include_router(trials.router)
+    app.include_router(trial_segments.router)
     app.include_router(results.router)
     app.include_router(console_pages.router)
     app.include_router(viewer.router)

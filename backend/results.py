@@ -9,11 +9,14 @@ Ground truth, in order of preference:
 
 1. the simulation's truth columns (`truth_lift`, `truth_activity`) when the ticks carry
    them (a simulated wearer);
-2. for a walking or stair-walking task, the whole trial as one gait trial (the paper
+2. the experimenter's lift segments of the trial (`trial_segments`, set through
+   `/api/trials/{id}/segments`), the ground truth of a trial on hardware; a segment
+   still "unlabelled" makes the trial wait (`truth: "none"`, the note says why) rather
+   than count fewer lifts;
+3. for a walking or stair-walking task, the whole trial as one gait trial (the paper
    recorded those trials on their own);
-3. otherwise the lifts are unknown: the schema keeps experimenter segments for
-   recordings only, not for trials, so a lifting trial on real hardware has no lifts
-   to score yet. The result says so (`truth: "none"`) instead of reporting zeros.
+4. otherwise the lifts are unknown: the result says so (`truth: "none"`) instead of
+   reporting zeros.
 
 A trial starts and stops at arbitrary moments of the wearer's motion, so a lift that
 was already under way at the first tick or still under way at the last one is
@@ -33,7 +36,14 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend import tick_queries
-from backend.db.evidence import LiftSegment, ModelSetRecord, Recording, Trial, UtilitySetRecord
+from backend.db.evidence import (
+    LiftSegment,
+    ModelSetRecord,
+    Recording,
+    Trial,
+    TrialSegment,
+    UtilitySetRecord,
+)
 from backend.db.models import (
     ConditionLabel,
     Participant,
@@ -74,7 +84,7 @@ from controller.motion_model import ModelSet, fit_model_set
 from controller.replay import AngleRecording, replay_columns
 from controller.tick import ACTION_NAMES, MODEL_NAMES, Action
 
-TruthSource = Literal["simulation", "task", "none"]
+TruthSource = Literal["simulation", "segments", "task", "none"]
 #: Tasks whose whole trial is a gait trial when the ticks carry no truth.
 GAIT_TASKS: dict[str, str] = {"walking": "walking", "stairs": "stair_walking",
                               "stair_walking": "stair_walking"}
@@ -222,8 +232,10 @@ def _renumbered(cols: TickData) -> TickData:
     return TickData(data)
 
 
-def ground_truth(cols: TickData, task: str) -> GroundTruth:
-    """The lifts and gait trials of a trial's ticks (see the module docstring)."""
+def ground_truth(cols: TickData, task: str,
+                 segments: Sequence[tuple[int, int, str]] = ()) -> GroundTruth:
+    """The lifts and gait trials of a trial's ticks (see the module docstring);
+    `segments` are the experimenter's (start, end, label) of the trial."""
     n = len(cols)
     if n == 0:
         return GroundTruth("none", note="the trial has no stored ticks")
@@ -234,11 +246,27 @@ def ground_truth(cols: TickData, task: str) -> GroundTruth:
         return GroundTruth("simulation", complete, gait, len(every) - len(complete),
                            "lifts and gait trials from the simulation's truth columns")
     kind = GAIT_TASKS.get(task.strip().lower().replace("-", "_"))
+    gait_trials = (whole_recording_trial(n, kind),) if kind is not None else ()
+    if segments:
+        try:
+            lifts = tuple(lifts_from_segments(segments, n_ticks=n))
+        except ValueError as exc:
+            return GroundTruth("none", note=f"the experimenter's segments cannot be used "
+                               f"yet: {exc}")
+        return GroundTruth("segments", lifts, gait_trials,
+                           note=f"{len(lifts)} lifts from the experimenter's segments")
     if kind is not None:
-        return GroundTruth("task", (), (whole_recording_trial(n, kind),),
+        return GroundTruth("task", (), gait_trials,
                            note=f"the whole trial is one {kind} trial (task {task!r})")
-    return GroundTruth("none", note="lifts unknown: no truth columns, and experimenter "
-                       "segments exist for recordings only, not for trials")
+    return GroundTruth("none", note="lifts unknown: no truth columns and no experimenter "
+                       "segments (POST /api/trials/{id}/segment proposes them)")
+
+
+def trial_segments(db: Session, trial_id: int) -> list[tuple[int, int, str]]:
+    """The experimenter's segments of a trial as (start, end, label)."""
+    return [(s.start, s.end, s.label) for s in db.scalars(
+        select(TrialSegment).where(TrialSegment.trial_id == trial_id)
+        .order_by(TrialSegment.start))]
 
 
 def _participant_of(db: Session, trial: Trial) -> Participant:
@@ -252,7 +280,7 @@ def _participant_of(db: Session, trial: Trial) -> Participant:
 def evaluate_trial(engine: Engine, db: Session, trial: Trial) -> TrialResult:
     """Evaluate one stored trial against its ground truth."""
     cols = trial_columns(engine, trial)
-    truth = ground_truth(cols, trial.task)
+    truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     part = _participant_of(db, trial)
     ev = evaluate_recording(cols, part.code, trial.controller, truth.lifts, truth.gait,
                             recording=f"trial-{trial.id}")
@@ -320,10 +348,15 @@ def fingerprint(db: Session, study_id: int) -> tuple[Any, ...]:
         QuestionnaireResponse.id)))
     prefs = tuple(db.scalars(select(Preference.id).where(
         Preference.participant_id.in_(people)).order_by(Preference.id)))
+    segs = tuple(db.execute(select(TrialSegment.id, TrialSegment.updated_at)
+                            .join(Trial, TrialSegment.trial_id == Trial.id)
+                            .join(StudySession, Trial.session_id == StudySession.id)
+                            .where(StudySession.participant_id.in_(people))
+                            .order_by(TrialSegment.id)).all())
     labels = tuple(db.execute(select(ConditionLabel.participant_id, ConditionLabel.label,
                                      ConditionLabel.controller).where(
         ConditionLabel.participant_id.in_(people)).order_by(ConditionLabel.id)).all())
-    return (study_id, trials, answers, prefs, labels)
+    return (study_id, trials, answers, prefs, labels, segs)
 
 
 def _table_json(table: Table) -> dict[str, Any]:
@@ -341,7 +374,7 @@ def results_document(res: StudyResults) -> dict[str, Any]:
     notes = []
     if no_truth:
         notes.append(f"lifts unknown for trials {no_truth}: no truth columns and no "
-                     "segments; they count in no lift table")
+                     "usable segments; they count in no lift table")
     if not res.questionnaire_scores:
         notes.append("no questionnaire responses in this study")
     return {
@@ -398,7 +431,7 @@ def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure
     cols = trial_columns(engine, trial)
     if len(cols) == 0:
         raise ResultsError("status", f"trial {trial.id} has no stored ticks")
-    truth = ground_truth(cols, trial.task)
+    truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     models = None
     if trial.model_set_id is not None:
         ms = db.get(ModelSetRecord, trial.model_set_id)
@@ -469,7 +502,7 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
     rec = AngleRecording(t, q, cols.str_("truth_activity").tolist() if truth_cols else None,
                          cols.int_("truth_lift") if truth_cols else None)
     replayed = TickData(replay_columns(rec, ctl, config.precompression_pct))
-    truth = ground_truth(cols, trial.task)
+    truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     original = summary(evaluate_lifts(cols, truth.lifts,
                                       None if trial.controller not in ("pec", "umc", "eumc")
                                       else trial.controller != "pec"),

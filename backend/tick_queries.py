@@ -113,3 +113,12 @@ def tick_id_range(engine: Engine, run_id: int) -> tuple[int | None, int | None]:
             .where(ticks_table.c.run_id == run_id)
         ).one()
     return lo, hi
+
+
+def count(engine: Engine, run_id: int) -> int:
+    """How many ticks a run has stored."""
+    from sqlalchemy import func
+
+    with engine.connect() as conn:
+        return int(conn.execute(select(func.count()).select_from(ticks_table)
+                                .where(ticks_table.c.run_id == run_id)).scalar_one())

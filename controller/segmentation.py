@@ -108,6 +108,19 @@ class SegmentationParams:
             raise ValueError("smooth_order must be at least 1")
 
 
+def bridge_gaps(q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Angles (N x 2) with bad samples (NaN) bridged linearly, so segmentation sees a
+    continuous signal. A column with no valid sample raises ValueError."""
+    out = q.copy()
+    idx = np.arange(q.shape[0])
+    for j in range(q.shape[1]):
+        ok = ~np.isnan(q[:, j])
+        if not ok.any():
+            raise ValueError(f"column {j} has no valid sample")
+        out[:, j] = np.interp(idx, idx[ok], q[ok, j])
+    return out
+
+
 def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     """Inclusive `(first, last)` index pairs of the True stretches of `mask`."""
     padded = np.concatenate(([False], mask, [False]))

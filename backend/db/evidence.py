@@ -51,6 +51,24 @@ class LiftSegment(Base):
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
+class TrialSegment(Base):
+    """One lift in a trial, marked by the experimenter: the ground truth of a trial on
+    hardware, where no simulation labels the ticks. Sample indices from the trial's
+    first tick."""
+
+    __tablename__ = "trial_segments"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(
+        ForeignKey("trials.id", ondelete="CASCADE"), index=True)
+    start: Mapped[int] = mapped_column(Integer)
+    peak: Mapped[int] = mapped_column(Integer)
+    end: Mapped[int] = mapped_column(Integer)
+    label: Mapped[str] = mapped_column(String(32), default="unlabelled")
+    source: Mapped[str] = mapped_column(String(16), default="auto")
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
 class ModelSetRecord(Base):
     """A motion model set fitted from chosen segments; the JSON keeps its provenance."""
 

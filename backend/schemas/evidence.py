@@ -73,6 +73,20 @@ class SegmentOut(BaseModel):
     updated_at: datetime
 
 
+class TrialSegmentOut(BaseModel):
+    """A lift the experimenter marked in a trial (sample indices from its first tick)."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    trial_id: int
+    start: int
+    peak: int
+    end: int
+    label: str
+    source: str
+    updated_at: datetime
+
+
 class RecordingAngles(BaseModel):
     """A recording's hip angles, for plotting it with its segments."""
 

@@ -24,7 +24,7 @@ from backend.schemas.evidence import (
     SegmentOut,
     SegmentUpdate,
 )
-from controller.segmentation import segment_lifts
+from controller.segmentation import bridge_gaps, segment_lifts
 from controller.tick import MODEL_NAMES
 
 router = APIRouter(tags=["recordings"], responses={**AUTH_RESPONSES, **NOT_FOUND})
@@ -136,7 +136,7 @@ def auto_segment(recording_id: RecordingId, request: Request, user: CurrentUser,
     q = np.column_stack([cols["q_left"], cols["q_right"]])
     if q.shape[0] < 100 or np.isnan(q).all():
         invalid(["recording_id"], "the recording is too short or has no valid angles")
-    q = _fill_gaps(q)
+    q = bridge_gaps(q)
     # Segments are sample indices; the sample clock (10 ms a sample) is used instead of
     # the device's timestamps, which restart if the device restarts mid-recording.
     found = segment_lifts(np.arange(q.shape[0], dtype=np.float64) * 0.01, q)
@@ -153,16 +153,6 @@ def auto_segment(recording_id: RecordingId, request: Request, user: CurrentUser,
     db.flush()
     audit.record(db, user, "segment", "recording", rec.id, {"segments": len(out)})
     db.commit()
-    return out
-
-
-def _fill_gaps(q: np.ndarray) -> np.ndarray:
-    """Bad samples (NaN) are bridged linearly so segmentation sees a continuous signal."""
-    out = q.copy()
-    idx = np.arange(q.shape[0])
-    for j in range(2):
-        ok = ~np.isnan(q[:, j])
-        out[:, j] = np.interp(idx, idx[ok], q[ok, j])
     return out
 
 
