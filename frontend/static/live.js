@@ -77,7 +77,11 @@ let dirty = false;
 
 
 // ---------------------------------------------------------------- live
+// Only plots in view are redrawn live; one scrolled into view is brought up to date.
+let visiblePlots = null;
+
 function startLive() {
+  visiblePlots = plots.watchVisibility(() => { dirty = true; });
   ring = new Ring([...PLOTTED, ...STRIP_COLUMNS], stats.windowS * RATE_HZ);
   let lastDraw = 0;
   let latest = null;
@@ -85,7 +89,8 @@ function startLive() {
     if (dirty && !stats.paused && ts - lastDraw >= 32) {
       lastDraw = ts;
       dirty = false;
-      plots.setData(ring.cols);
+      plots.setData(ring.cols, visiblePlots);
+      stats.drawnPlots = visiblePlots.size;
       strip.update(latest);
     }
     requestAnimationFrame(frame);

@@ -1,6 +1,6 @@
 // A study's results: the paper's tables and figures from the stored trials, the trials
 // with their replay, timeline and what-if replay, and the leave-one-out model evaluation.
-import { get, post } from "/static/api.js";
+import { api, get, post } from "/static/api.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
@@ -16,7 +16,7 @@ const LABEL = { umc: "UMC", eumc: "E-UMC", pec: "PEC", none: "none" };
 let doc = null;
 
 // What the browser tests read.
-const state = (window.exostudyResults = { loaded: 0, whatIf: null, lopo: null });
+const state = (window.exostudyResults = { loaded: 0, whatIf: null, lopo: null, segments: null });
 
 function keep(row) {
   // A table row mentions a participant code or controller label in its cells; filter on that.
@@ -100,10 +100,61 @@ function openTrial(t) {
   $("#panel-timeline-png").href = `/api/trials/${t.trial_id}/figures/timeline.png`;
   $("#panel-timeline").src = `/api/trials/${t.trial_id}/figures/timeline.svg`;
   $("#whatif-controller").value = t.controller === "pec" ? "umc" : "pec";
+  loadSegments().catch((err) => { $("#seg-msg").textContent = err.message; });
   $("#whatif").hidden = true;
   $("#whatif-msg").textContent = "";
   $("#trial-panel").scrollIntoView({ behavior: "smooth", block: "start" });
 }
+
+// ---------------------------------------------------------------- segments
+const SEG_LABELS = ["squat", "stoop_left", "stoop_right", "other", "unlabelled"];
+
+function segRow(seg) {
+  const num = (k) => h("input", { type: "number", min: 0, step: 1, name: k, value: seg[k], class: "narrow", "aria-label": k });
+  return h("tr", { "data-segment": "" }, h("td", {}, num("start")), h("td", {}, num("peak")),
+    h("td", {}, num("end")),
+    h("td", {}, h("select", { name: "label", "aria-label": "label" },
+      SEG_LABELS.map((l) => h("option", { value: l, selected: l === seg.label ? "" : null }, l)))),
+    h("td", {}, h("button", { type: "button", onclick: (ev) => ev.target.closest("tr").remove() }, "Remove")));
+}
+
+function showSegments(list) {
+  $("#segments tbody").replaceChildren(...list.map(segRow));
+  state.segments = list.length;
+}
+
+async function loadSegments() {
+  showSegments(await get(`/api/trials/${currentTrial.trial_id}/segments`));
+}
+
+$("#seg-add").addEventListener("click", () => {
+  $("#segments tbody").append(segRow({ start: 0, peak: 50, end: 100, label: "unlabelled" }));
+});
+
+$("#seg-propose").addEventListener("click", () =>
+  act($("#seg-propose"), $("#seg-msg"), async () => {
+    const path = `/api/trials/${currentTrial.trial_id}/segment`;
+    try {
+      showSegments(await post(path));
+    } catch (err) {
+      if (err.status !== 409 || !confirm("Replace the segments you set with a new proposal?")) throw err;
+      showSegments(await post(`${path}?replace=true`));
+    }
+    return "proposed: check the edges and labels, then save";
+  }));
+
+$("#seg-save").addEventListener("click", () =>
+  act($("#seg-save"), $("#seg-msg"), async () => {
+    const body = [...document.querySelectorAll("#segments tbody tr")].map((tr) => ({
+      start: Number(tr.querySelector("[name=start]").value),
+      peak: Number(tr.querySelector("[name=peak]").value),
+      end: Number(tr.querySelector("[name=end]").value),
+      label: tr.querySelector("[name=label]").value,
+    }));
+    showSegments(await api("PUT", `/api/trials/${currentTrial.trial_id}/segments`, body));
+    await loadResults();
+    return `saved ${body.length} segment${body.length === 1 ? "" : "s"}; the tables are recomputed`;
+  }));
 
 const METRICS = [["lifts", "lifts"], ["recognised", "recognised"],
   ["decision_correct", "decision correct"], ["decision_wrong", "decision wrong"],

@@ -154,11 +154,28 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
 
   return {
     plots,
-    // `cols`: display-unit arrays by column name, `t` included.
-    setData(cols) {
+    // `cols`: display-unit arrays by column name, `t` included. With `only` (a set of
+    // plot names), the other plots keep their last picture: a plot scrolled out of view
+    // costs nothing until it comes back (the caller redraws it then).
+    setData(cols, only = null) {
       for (const [name, plot] of Object.entries(plots)) {
+        if (only && !only.has(name)) continue;
         plot.setData([cols.t, ...PLOT_COLUMNS[name].map((n) => cols[n])]);
       }
+    },
+    // Calls `onChange(visibleNames)` whenever a plot enters or leaves the viewport.
+    watchVisibility(onChange) {
+      const visible = new Set(Object.keys(plots));
+      const byEl = new Map(Object.keys(plots).map((n) => [c[n], n]));
+      const io = new IntersectionObserver((entries) => {
+        for (const e of entries) {
+          const name = byEl.get(e.target);
+          if (e.isIntersecting) visible.add(name); else visible.delete(name);
+        }
+        onChange(visible);
+      });
+      for (const el of byEl.keys()) io.observe(el);
+      return visible;
     },
     setThreshold(v) { state.threshold = v; },
     resize() {

@@ -62,6 +62,18 @@ def test_results_page_shows_the_trial_figures_and_a_what_if(
     assert page.get_attribute("#panel-replay", "href") == f"/live?trial={pec['id']}"
     page.wait_for_function("document.querySelector('#panel-timeline').naturalWidth > 0",
                            timeout=30000)
+    # The segment editor: a proposal from the automatic segmentation (labels from the
+    # simulation here), saved as the experimenter's list.
+    page.wait_for_function("window.exostudyResults.segments === 0")
+    page.click("#seg-propose")
+    page.wait_for_function("window.exostudyResults.segments > 0", timeout=30000)
+    proposed = page.evaluate("window.exostudyResults.segments")
+    page.click("#seg-save")
+    page.wait_for_selector("#seg-msg.msg-ok", timeout=30000)
+    stored = _ok(api.get(f"/api/trials/{pec['id']}/segments"))
+    assert len(stored) == proposed and {s["source"] for s in stored} == {"edited"}
+    assert {s["label"] for s in stored} <= {"squat", "unlabelled"}
+
     page.select_option("#whatif-controller", "pec")
     page.fill("input[name=rate_hz]", "10")
     page.click("#whatif-run")
