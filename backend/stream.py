@@ -1,9 +1,13 @@
 """Fans ticks out to browser consoles without ever pushing back on the worker.
 
-The supervisor's reader thread appends ticks to a deque (never blocks). An asyncio task
-turns them into one JSON message at `stream_rate` Hz, encoded once and put on every
-client's bounded queue; a full queue drops its oldest message, so a slow tab only
-loses its own updates.
+The supervisor's reader thread appends each batch of ticks from the worker to a deque
+(never blocks) and wakes an asyncio task. That task sends what has arrived at once, as
+one JSON message encoded once for every client, unless the previous message went out
+less than 1/`stream_rate` s ago; then it waits out the rest of that interval and sends
+everything gathered by then in one message. A sample therefore waits in the server only
+when batches come faster than `stream_rate` (the worker hands over a batch every 20 ms),
+never for a timer of its own. Each client has a bounded queue; a full queue drops its
+oldest message, so a slow tab only loses its own updates.
 """
 
 from __future__ import annotations
@@ -20,12 +24,24 @@ from backend.schemas.live import STREAM_FIELDS
 from controller.tick import TickRecord
 
 _FIELD_INDEX = [TickRecord.field_names().index(f) for f in STREAM_FIELDS]
+#: Longest wait for a wake-up before looking anyway (a lost wake-up costs at most this).
+_IDLE_CHECK_S = 0.5
 
 
 def _clean(v: Any) -> Any:
     if isinstance(v, float) and not math.isfinite(v):
         return None
     return v
+
+
+def encode_columns(records: list[TickRecord]) -> str:
+    """The `columns` object of a `LiveTicks` message: one array per streamed field."""
+    rows = [r.as_tuple() for r in records]
+    columns = {
+        name: [_clean(row[i]) for row in rows]
+        for name, i in zip(STREAM_FIELDS, _FIELD_INDEX, strict=True)
+    }
+    return json.dumps(columns, allow_nan=False, separators=(",", ":"))
 
 
 @dataclass(eq=False)
@@ -58,8 +74,11 @@ class LiveStream:
         self._clients: set[LiveClient] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._task: asyncio.Task[None] | None = None
+        self._wake: asyncio.Event | None = None
+        self._wake_pending = False
         self.run_id: int | None = None
         self.sent = 0
+        self.messages = 0
 
     @property
     def client_count(self) -> int:
@@ -68,12 +87,23 @@ class LiveStream:
 
     def push(self, records: tuple[TickRecord, ...] | list[TickRecord]) -> None:
         """Called from any thread; O(len(records)), never blocks."""
-        if self._clients:
-            self._incoming.extend(records)
+        if not self._clients:
+            return
+        self._incoming.extend(records)
+        # One wake-up per quiet period: the flag is cleared by the sender before it takes
+        # the records, so records appended after that always schedule another wake-up.
+        if self._wake_pending or self._loop is None or self._wake is None:
+            return
+        self._wake_pending = True
+        try:
+            self._loop.call_soon_threadsafe(self._wake.set)
+        except RuntimeError:
+            pass  # loop closed during shutdown
 
     async def start(self) -> None:
-        """Start the periodic sender on the running loop."""
+        """Start the sender on the running loop."""
         self._loop = asyncio.get_running_loop()
+        self._wake = asyncio.Event()
         self._task = asyncio.create_task(self._pump(), name="live-stream")
 
     async def stop(self) -> None:
@@ -118,29 +148,37 @@ class LiveStream:
             return out
 
     async def _pump(self) -> None:
+        assert self._wake is not None
+        wake = self._wake
         period = 1.0 / self.rate_hz
-        next_t = time.monotonic()
+        last_sent = -math.inf
         while True:
-            next_t += period
-            await asyncio.sleep(max(0.0, next_t - time.monotonic()))
-            if time.monotonic() - next_t > 1.0:
-                next_t = time.monotonic()  # resynchronise after a stall instead of bursting
+            try:
+                await asyncio.wait_for(wake.wait(), _IDLE_CHECK_S)
+            except TimeoutError:
+                pass
+            wake.clear()
+            wait = last_sent + period - time.monotonic()
+            if wait > 0:
+                await asyncio.sleep(wait)  # at most stream_rate messages per second
+            self._wake_pending = False
             records = self._take()
             if not records or not self._clients:
                 continue
-            # The columns are the same for everyone; only msg_seq/dropped differ.
-            rows = [r.as_tuple() for r in records]
-            columns = {
-                name: [_clean(row[i]) for row in rows]
-                for name, i in zip(STREAM_FIELDS, _FIELD_INDEX, strict=True)
-            }
-            body = json.dumps(columns, allow_nan=False, separators=(",", ":"))
-            now = time.time()
-            for c in list(self._clients):
-                c.msg_seq += 1
-                head = (
-                    f'{{"type":"ticks","msg_seq":{c.msg_seq},"sent_at":{now:.6f},'
-                    f'"run_id":{json.dumps(self.run_id)},"dropped":{c.dropped},"columns":'
-                )
-                c.offer(head + body + "}")
-                self.sent += 1
+            last_sent = time.monotonic()
+            self._send(records)
+
+    def _send(self, records: list[TickRecord]) -> None:
+        # The columns are the same for everyone; only msg_seq/dropped differ.
+        body = encode_columns(records)
+        run_id = json.dumps(self.run_id)
+        now = time.time()
+        self.messages += 1
+        for c in list(self._clients):
+            c.msg_seq += 1
+            head = (
+                f'{{"type":"ticks","msg_seq":{c.msg_seq},"sent_at":{now:.6f},'
+                f'"run_id":{run_id},"dropped":{c.dropped},"columns":'
+            )
+            c.offer(head + body + "}")
+            self.sent += 1
