@@ -115,17 +115,19 @@ class Runtime:
         self.supervisor.set_controller(name, self.controller_config(name, overrides))
 
     async def switch_controller(
-        self, name: str, config: dict[str, Any], timeout: float = 20.0
+        self, name: str, config: dict[str, Any], timeout: float = 20.0,
+        max_ticks: int | None = None,
     ) -> int:
         """Switch to `name` with a complete `config` and wait until the worker runs it;
-        returns the new run's id. Raises RuntimeError if the worker is down or refuses."""
+        returns the new run's id. With `max_ticks` the worker ends the run by itself
+        after that many samples. Raises RuntimeError if the worker is down or refuses."""
         if not self.supervisor.state.alive:
             raise RuntimeError("the worker is not running: restart it first")
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[int] = loop.create_future()
         errors_before = len(self.supervisor.state.errors)
         self._run_waiters.append((name, fut))
-        self.supervisor.set_controller(name, config)
+        self.supervisor.set_controller(name, config, max_ticks)
         try:
             deadline = loop.time() + timeout
             while not fut.done():
@@ -180,8 +182,10 @@ class Runtime:
             st = self.supervisor.state.status
             restarted = (self.settings.device_kind != "sim"
                          or self._runs_started > runs_before)
-            # A status of the run announced last is the new simulation's (the supervisor
-            # clears `status` on restart; a swap inside the worker starts a new run).
+            # A status of the run announced last is the new simulation's (the worker
+            # reports one at the new wearer's first sample, so this takes milliseconds,
+            # and a recording started next misses little of the script); the supervisor
+            # clears `status` when the device process restarts.
             current = st is not None and (self.settings.device_kind != "sim"
                                           or st.run_token == self._last_run_token)
             if restarted and current and st is not None and st.device_alive \

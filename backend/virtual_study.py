@@ -30,10 +30,11 @@ Protocol (paper, "User study set-up"), and the choices made here:
   controller at 100 Hz, `{"rate_hz": 100}` at trial start). Two studies rather than two
   sessions keep each study's results endpoint to one rate setting. The model set and
   utility set belong to the first study and are used by both.
-- A trial runs for one repetition of the script plus `margin_s`, counted in device
-  ticks (health `worker.ticks`), not wall time, so a worker that falls behind the
-  requested speed still yields complete trials; the tick rate actually achieved and
-  any device-time gaps are reported.
+- A trial runs for one repetition of the script plus `margin_s` of device time: a
+  timed trial (`duration_s`), which the worker ends by itself after that many samples,
+  so neither a worker that falls behind the requested speed nor a server that is slow
+  to notice changes what a trial holds; the tick rate actually achieved and any
+  device-time gaps are reported.
 - Questionnaires are left out: a virtual participant has no opinion, and invented
   answers would only look like data. The outputs say so.
 """
@@ -184,18 +185,23 @@ class _Driver:
                                         f"{timeout_s:.0f} s")
             time.sleep(poll)
 
-    def wait_device_s(self, seconds: float) -> None:
-        """Until `seconds` of device time have passed (at 100 ticks per second)."""
-        start = self.ticks()
-        n = round(seconds * 100)
-        self.wait_ticks(start + n, timeout_s=60 + 3 * seconds / self.speed)
+    def wait_run_over(self, run_id: int, seconds: float) -> None:
+        """Until the worker has ended the timed run `run_id` (after `seconds` of device
+        time): the trial then holds exactly that, however late this side looks."""
+        deadline = time.monotonic() + 60 + 3 * seconds / self.speed
+        poll = min(0.25, max(0.02, 2.0 / self.speed))
+        while _ok(self.c.get("/api/health"))["database"]["current_run_id"] == run_id:
+            if time.monotonic() > deadline:
+                raise VirtualStudyError(f"run {run_id} did not end after {seconds:.0f} s "
+                                        "of device time")
+            time.sleep(poll)
 
     def simulate(self, seed: int, script: str, speed: float) -> None:
         """Another virtual participant or script: the worker swaps its simulator."""
         self.speed = speed
+        # Returns once the new wearer's ticks arrive.
         _ok(self.c.post("/api/worker/simulation",
                         json={"seed": seed, "script": script, "speed": speed}))
-        self.wait_ticks(20, timeout_s=120)
 
     def job(self, job_id: int, timeout_s: float = 600) -> None:
         deadline = time.monotonic() + timeout_s
@@ -300,9 +306,11 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
             rate = RATE_SETTINGS[label]
             for trial in plan:
                 t0 = time.monotonic()
-                _ok(d.c.post(f"/api/trials/{trial['id']}/start",
-                             json={} if rate is None else {"rate_hz": rate}))
-                d.wait_device_s(trial_s)
+                body: dict[str, Any] = {"duration_s": trial_s}
+                if rate is not None:
+                    body["rate_hz"] = rate
+                started = _ok(d.c.post(f"/api/trials/{trial['id']}/start", json=body))
+                d.wait_run_over(started["run_id"], trial_s)
                 stopped = _ok(d.c.post(f"/api/trials/{trial['id']}/stop",
                                        json={"outcome": "completed"}))
                 wall = time.monotonic() - t0

@@ -182,6 +182,9 @@ class TrialStartIn(BaseModel):
 
     rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
                                   description="every controller at this rate; paper's if unset")
+    duration_s: float | None = Field(default=None, gt=0.0, le=24 * 3600.0, description=(
+        "a timed trial: the worker ends the controller after this much device time "
+        "(100 samples a second), so the trial holds exactly that; stop it as usual"))
 
 
 class TrialStopIn(BaseModel):

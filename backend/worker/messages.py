@@ -82,10 +82,14 @@ class WorkerError:
 
 @dataclass(frozen=True, slots=True)
 class SetController:
-    """Switch controller; the worker starts a new run when it takes effect."""
+    """Switch controller; the worker starts a new run when it takes effect. With
+    `max_ticks`, the worker itself returns to "none" (another run) after that many
+    device samples, so a timed trial holds exactly that much data however late the
+    server gets round to stopping it."""
 
     name: str
     config: dict[str, Any] = field(default_factory=dict)
+    max_ticks: int | None = None
 
 
 @dataclass(frozen=True, slots=True)

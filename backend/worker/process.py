@@ -145,6 +145,8 @@ def worker_main(
         loop = ControlLoop(device, controller)
         current_config: dict[str, Any] = dict(config.controller_config)
         calibration: _CalibrationJob | None = None
+        run_ticks = 0  # samples of the current run
+        run_limit: int | None = None  # a timed run ends by itself after this many
         run_token = 1
         outbox.run_token = run_token
         outbox.put(RunStarted(run_token, controller.name, dict(config.controller_config),
@@ -171,6 +173,7 @@ def worker_main(
                         continue
                     loop.controller = new
                     current_config = dict(cmd.config)
+                    run_ticks, run_limit = 0, cmd.max_ticks
                     run_token += 1
                     outbox.put(RunStarted(run_token, new.name, current_config, device.kind, pid))
                     outbox.run_token = run_token
@@ -201,6 +204,8 @@ def worker_main(
                     calibration = None
                     # Fresh timing too: health counts ticks from the new wearer's start.
                     loop = ControlLoop(device, fresh)
+                    run_ticks, run_limit = 0, None
+                    next_status = 0.0  # report the new wearer at its first sample
                     run_token += 1
                     outbox.put(RunStarted(run_token, fresh.name, current_config, device.kind, pid))
                     outbox.run_token = run_token
@@ -209,7 +214,18 @@ def worker_main(
             record = loop.tick(timeout=0.05)
             if record is not None:
                 outbox.put_record(record)
-                if calibration is not None and calibration.add(record):
+                run_ticks += 1
+                if run_limit is not None and run_ticks >= run_limit:
+                    # A timed run is over: back to no controller (no locks), a new run.
+                    loop.controller = make_controller("none")
+                    current_config = {}
+                    calibration = None
+                    run_ticks, run_limit = 0, None
+                    run_token += 1
+                    outbox.put(RunStarted(run_token, "none", {}, device.kind, pid))
+                    outbox.run_token = run_token
+                    record = None
+                if record is not None and calibration is not None and calibration.add(record):
                     result, new_config = calibration.finish(loop.controller.name)
                     calibration = None
                     outbox.put(result)

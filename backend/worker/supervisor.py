@@ -147,14 +147,16 @@ class WorkerSupervisor:
         self.stop("restart")
         self.start()
 
-    def set_controller(self, name: str, config: dict[str, Any] | None = None) -> None:
-        """Switch controller in the running worker; it takes effect at the next tick."""
+    def set_controller(self, name: str, config: dict[str, Any] | None = None,
+                       max_ticks: int | None = None) -> None:
+        """Switch controller in the running worker; it takes effect at the next tick (and
+        ends after `max_ticks` samples, if given)."""
         with self._lock:
             self.config = replace(self.config, controller=name, controller_config=config or {})
             if self._cmd is None or not self.state.alive:
                 return
             try:
-                self._cmd.send(SetController(name, config or {}))
+                self._cmd.send(SetController(name, config or {}, max_ticks))
             except (BrokenPipeError, OSError):
                 pass
 

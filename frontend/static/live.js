@@ -13,6 +13,9 @@ const stats = (window.exostudyLive = {
   samples: 0, messages: 0, draws: 0, dropped: 0, gaps: 0, latencyMs: null, lastStatus: null,
   // Latency of each sample (worker read time to arrival here), last 3000, for benchmarks.
   latencies: [],
+  // Of that, per message: server queuing the message to its arrival here (last 3000);
+  // and per sample: worker read time to the first frame that drew it on the plots.
+  transits: [], drawLatencies: [],
   paused: false, windowS: 10, replay: null,
   // Per model: the highest posterior seen and the samples it led; the highest progress.
   posteriorMax: {}, leading: {}, progressMax: null, leader: null, leaderChanges: 0,
@@ -80,22 +83,53 @@ let dirty = false;
 // Only plots in view are redrawn live; one scrolled into view is brought up to date.
 let visiblePlots = null;
 
+// Receipt and drawing are decoupled: a message only updates the ring buffers and asks
+// for a frame. Frames run only while something is waiting to be drawn (no idle animation
+// loop) and draw at most every DRAW_INTERVAL_MS (30 per second on a 60 Hz display), so
+// the main thread stays free to take the next message.
+const DRAW_INTERVAL_MS = 30;
+
+function trim(values, keep = 3000) {
+  if (values.length > keep) values.splice(0, values.length - keep);
+}
+
 function startLive() {
-  visiblePlots = plots.watchVisibility(() => { dirty = true; });
-  ring = new Ring([...PLOTTED, ...STRIP_COLUMNS], stats.windowS * RATE_HZ);
-  let lastDraw = 0;
+  let lastDraw = -Infinity;
   let latest = null;
+  let frameQueued = false;
+  let undrawn = [];  // t_host of samples received but not drawn yet
   function frame(ts) {
-    if (dirty && !stats.paused && ts - lastDraw >= 32) {
-      lastDraw = ts;
-      dirty = false;
-      plots.setData(ring.cols, visiblePlots);
-      stats.drawnPlots = visiblePlots.size;
-      strip.update(latest);
+    frameQueued = false;
+    if (!dirty || stats.paused) return;
+    if (ts - lastDraw < DRAW_INTERVAL_MS) {
+      frameQueued = true;
+      requestAnimationFrame(frame);
+      return;
     }
+    lastDraw = ts;
+    dirty = false;
+    plots.setData(ring.cols, visiblePlots);
+    stats.drawnPlots = visiblePlots.size;
+    strip.update(latest);
+    if (visiblePlots.size && undrawn.length) {
+      // uPlot draws in a microtask queued by setData: this one runs after it.
+      const hosts = undrawn;
+      undrawn = [];
+      queueMicrotask(() => {
+        const now = Date.now();
+        for (const th of hosts) stats.drawLatencies.push(now - th * 1000);
+        trim(stats.drawLatencies);
+      });
+    } else undrawn = [];
+  }
+  function requestDraw() {
+    dirty = true;
+    if (frameQueued) return;
+    frameQueued = true;
     requestAnimationFrame(frame);
   }
-  requestAnimationFrame(frame);
+  visiblePlots = plots.watchVisibility(requestDraw);
+  ring = new Ring([...PLOTTED, ...STRIP_COLUMNS], stats.windowS * RATE_HZ);
 
   let windowStart = performance.now();
   let windowMsgs = 0;
@@ -117,12 +151,17 @@ function startLive() {
       const now = Date.now();
       for (let i = 0; i < n; i++) {
         const th = columns.t_host[i];
-        if (th != null) stats.latencies.push(now - th * 1000);
+        if (th == null) continue;
+        stats.latencies.push(now - th * 1000);
+        if (!stats.paused) undrawn.push(th);
       }
-      if (stats.latencies.length > 3000) stats.latencies.splice(0, stats.latencies.length - 3000);
+      trim(stats.latencies);
+      if (undrawn.length > 3000) undrawn.splice(0, undrawn.length - 3000);
+      stats.transits.push(now - msg.sent_at * 1000);
+      trim(stats.transits);
       const tHost = columns.t_host[n - 1];
       if (tHost != null) stats.latencyMs = now - tHost * 1000;
-      dirty = true;
+      requestDraw();
     },
     onStatus: showHealth,
     onState(state, retryMs) {

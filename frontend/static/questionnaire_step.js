@@ -63,14 +63,11 @@ async function load() {
 }
 
 // A plan made on this page adds the conditions: pick them up.
-document.addEventListener("click", (ev) => {
-  if (ev.target && ev.target.id === "plan-run" && participantId != null) {
-    setTimeout(async () => {
-      conditions = await get(`/api/participants/${participantId}/conditions`);
-      $("#link-msg").textContent = "";
-      renderChoices();
-    }, 1500);
-  }
+document.addEventListener("exostudy:planned", async () => {
+  if (participantId == null) return;
+  conditions = await get(`/api/participants/${participantId}/conditions`);
+  $("#link-msg").textContent = "";
+  renderChoices();
 });
 
 $("#link-form").addEventListener("submit", (ev) => {

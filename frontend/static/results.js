@@ -2,70 +2,166 @@
 // with their replay, timeline and what-if replay, and the leave-one-out model evaluation.
 import { api, get, post } from "/static/api.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
+import { controllerKey, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
+// `wide`: the JSON table is the paper's layout, participants as columns from index 2;
+// the long form (one row per participant, controller and motion) is its CSV download.
 const TABLES = [
-  ["performance", "Intent estimation and decision performance"],
-  ["false_positives", "False positives in walking and stair walking"],
-  ["questionnaires", "Questionnaires"],
-  ["onset_to_lock", "Lift onset to lock"],
+  { name: "performance", title: "Intent estimation and decision performance", wide: true },
+  { name: "performance_by_kind", title: "Performance by motion kind", longOnly: true },
+  { name: "false_positives", title: "False positives in walking and stair walking", wide: true },
+  { name: "questionnaires", title: "Questionnaires", wide: true },
+  { name: "onset_to_lock", title: "Lift onset to lock" },
 ];
 const FIGURES = [["peak_torques", "Peak exoskeleton torques per lift"],
   ["onset_to_lock", "Lift onset to lock"]];
 const LABEL = { umc: "UMC", eumc: "E-UMC", pec: "PEC", none: "none" };
 let doc = null;
+// The long forms, from the CSV downloads: name -> {header, rows}.
+let long = {};
+// Sort per table and layout: key -> {column name, dir}.
+const sorts = {};
 
-// What the browser tests read.
-const state = (window.exostudyResults = { loaded: 0, whatIf: null, lopo: null, segments: null });
+// What the browser tests read: per table, the header and rows as shown.
+const state = (window.exostudyResults = {
+  loaded: 0, whatIf: null, lopo: null, segments: null, layout: "paper", tables: {}, trials: [],
+});
 
-function keep(row) {
-  // A table row mentions a participant code or controller label in its cells; filter on that.
-  const p = $("#filter-participant").value;
-  const c = $("#filter-controller").value;
-  const cells = row.map((v) => String(v ?? ""));
-  return (!p || cells.includes(p) || !doc.trials.some((t) => cells.includes(t.participant)))
-    && (!c || cells.some((v) => v.toLowerCase().replace("-", "") === c)
-      || !cells.some((v) => Object.values(LABEL).includes(v)));
+async function getText(path) {
+  const r = await fetch(path);
+  if (!r.ok) throw new Error(`${path}: ${r.status}`);
+  return r.text();
 }
 
-function tableCard(name, title, table) {
-  const header = table.header;
-  // A participant filter that names a column (wide layout) hides the other participants.
+// Filter one table by the toolbar: a "participant" column filters rows, participant
+// columns of the paper's layout are hidden, a "controller" column filters rows (rows
+// with an empty controller, such as the stated preference, stay).
+function filtered(table, wide) {
   const p = $("#filter-participant").value;
-  const codes = new Set(doc.trials.map((t) => t.participant));
-  const cols = header.map((_, i) => i).filter((i) => !p || !codes.has(header[i]) || header[i] === p);
-  return h("section", { class: "card", "data-table": name },
-    h("h2", {}, table.title || title),
+  const c = $("#filter-controller").value;
+  const lower = table.header.map((x) => x.toLowerCase());
+  const pCol = lower.indexOf("participant");
+  const cCol = lower.indexOf("controller");
+  let cols = table.header.map((_, i) => i);
+  if (p && wide) cols = cols.filter((i) => i < 2 || table.header[i] === p);
+  const rows = table.rows.filter((r) => (!p || pCol < 0 || r[pCol] === p)
+    && (!c || cCol < 0 || r[cCol] == null || r[cCol] === "" || controllerKey(r[cCol]) === c));
+  return {
+    header: cols.map((i) => table.header[i]),
+    rows: rows.map((r) => cols.map((i) => r[i])),
+    // A controller filter the table cannot apply (the paper's cells join UMC/E-UMC).
+    unfiltered: Boolean(c) && cCol < 0,
+  };
+}
+
+// A sortable table; `record` names it in `state.tables` with its rows as shown.
+function tableView(key, header, rows, extra = {}, record = null) {
+  const s = sorts[key];
+  const col = s ? header.indexOf(s.name) : -1;
+  const sort = col >= 0 ? { col, dir: s.dir } : null;
+  if (record) state.tables[record] = { header, rows: sortRows(rows, sort) };
+  return h("div", { style: "overflow-x:auto" }, sortableTable({
+    header, rows, sort,
+    onSort: ({ col: i, dir }) => { sorts[key] = { name: header[i], dir }; render(); },
+    ...extra,
+  }));
+}
+
+function tableCard(spec, table, wide) {
+  const layout = state.layout;
+  const view = filtered(table, wide);
+  return h("section", { class: "card", "data-table": spec.name, "data-layout": wide ? "paper" : "long" },
+    h("h2", {}, table.title || spec.title),
     h("p", { class: "small" },
-      h("a", { href: `/api/studies/${studyId}/results/${name}.csv`, download: "" }, "CSV"), " · ",
-      h("a", { href: `/api/studies/${studyId}/results/${name}.md`, download: "" }, "Markdown")),
-    h("div", { style: "overflow-x:auto" }, h("table", { class: "list" },
-      h("thead", {}, h("tr", {}, cols.map((i) => h("th", {}, header[i])))),
-      h("tbody", {}, table.rows.filter(keep).map((r) => h("tr", {},
-        cols.map((i) => h("td", {}, r[i] == null ? "–" : String(r[i])))))))),
+      h("a", { href: `/api/studies/${studyId}/results/${spec.name}.csv`, download: "" }, "CSV"), " · ",
+      h("a", { href: `/api/studies/${studyId}/results/${spec.name}.md`, download: "" }, "Markdown"),
+      h("span", { class: "muted" }, ` · ${view.rows.length} of ${table.rows.length} rows`)),
+    tableView(`${spec.name}:${layout}`, view.header, view.rows, {}, spec.name),
     table.rows.length ? null : h("p", { class: "muted small" }, "nothing to count yet"),
+    view.unfiltered ? h("p", { class: "muted small" },
+      "This layout lists the controllers together; choose “every count” to filter by controller.") : null,
     (table.notes || []).map((n) => h("p", { class: "muted small" }, n)));
 }
 
-function render() {
-  $("#tables").replaceChildren(...TABLES.filter(([n]) => doc.tables[n])
-    .map(([n, title]) => tableCard(n, title, doc.tables[n])));
-  $("#notes").replaceChildren(...doc.notes.map((n) => h("p", { class: "card warn-text small note" }, n)));
+function renderTables() {
+  const layout = state.layout;
+  state.tables = {};
+  const cards = [];
+  for (const spec of TABLES) {
+    if (layout === "paper" && spec.longOnly) continue;
+    const wide = layout === "paper" && spec.wide;
+    const table = layout === "long" && long[spec.name] ? { ...doc.tables[spec.name], ...long[spec.name] }
+      : doc.tables[spec.name];
+    if (table) cards.push(tableCard(spec, table, wide));
+  }
+  $("#tables").replaceChildren(...cards);
+  const lifts = long.lifts;
+  if (lifts) {
+    const view = filtered(lifts, false);
+    $("#lifts-count").textContent = `(${view.rows.length} of ${lifts.rows.length} lifts)`;
+    $("#lifts").replaceChildren(h("p", { class: "small" },
+      h("a", { href: `/api/studies/${studyId}/results/lifts.csv`, download: "" }, "CSV"), " · ",
+      h("a", { href: `/api/studies/${studyId}/results/lifts.md`, download: "" }, "Markdown"),
+      h("span", { class: "muted" }, " · the data behind both figures; times in seconds from the lift's onset, torques in Nm")),
+    tableView("lifts", view.header, view.rows, {}, "lifts"));
+  }
+}
+
+const TRIAL_HEADER = ["trial", "participant", "controller", "task", "ground truth", "lifts",
+  "lifts cut by start or end", "gait trials", ""];
+
+function trialLinks(t) {
+  return [
+    h("a", { href: `/live?trial=${t.trial_id}`, class: "replay-link" }, "Replay ›"), " ",
+    h("a", { href: `/api/trials/${t.trial_id}/figures/timeline.svg`, class: "timeline-link", target: "_blank" }, "timeline"), " ",
+    h("button", { type: "button", class: "open", onclick: () => openTrial(t) }, "Open"),
+  ];
+}
+
+function renderTrials() {
   const p = $("#filter-participant").value;
   const c = $("#filter-controller").value;
   const trials = doc.trials.filter((t) => (!p || t.participant === p) && (!c || t.controller === c));
-  $("#trials tbody").replaceChildren(...trials.map((t) => h("tr", { "data-trial": t.trial_id },
-    h("td", {}, t.trial_id), h("td", {}, h("strong", {}, t.participant)),
-    h("td", {}, LABEL[t.controller] ?? t.controller), h("td", {}, t.task),
-    h("td", { title: t.truth_note }, t.truth), h("td", {}, t.lifts), h("td", {}, t.gait_trials),
-    h("td", {}, h("button", { type: "button", class: "open", onclick: () => openTrial(t) }, "Open")))));
+  state.trials = trials.map((t) => t.trial_id);
+  const byId = new Map(trials.map((t) => [t.trial_id, t]));
+  const rows = trials.map((t) => [t.trial_id, t.participant, LABEL[t.controller] ?? t.controller,
+    t.task, t.truth, t.lifts, t.incomplete_lifts, t.gait_trials, null]);
+  $("#trials").replaceChildren(tableView("trials", TRIAL_HEADER, rows, {
+    sortable: (col) => col < TRIAL_HEADER.length - 1,
+    rowAttrs: (r) => ({ "data-trial": r[0], "data-controller": byId.get(r[0]).controller }),
+    render: (r, col) => {
+      const t = byId.get(r[0]);
+      if (col === 1) return h("strong", {}, t.participant);
+      if (col === 4) return h("span", { title: t.truth_note || null }, t.truth);
+      if (col === TRIAL_HEADER.length - 1) return h("span", { class: "trial-actions" }, trialLinks(t));
+      return r[col] == null ? "–" : String(r[col]);
+    },
+  }));
   $("#trials-empty").hidden = doc.trials.length > 0;
+  const skipped = doc.skipped || [];
+  $("#skipped").hidden = skipped.length === 0;
+  $("#skipped").textContent = skipped.length
+    ? `Not counted: ${skipped.map((s) => `trial ${s.trial_id} (${s.status})`).join(", ")}.` : "";
+}
+
+function render() {
+  renderTables();
+  renderTrials();
+  $("#notes").replaceChildren(...doc.notes.map((n) => h("p", { class: "card warn-text small note" }, n)));
+}
+
+async function loadLong() {
+  const names = ["lifts", ...TABLES.filter((t) => t.wide || t.longOnly).map((t) => t.name)];
+  const texts = await Promise.all(names.map((n) => getText(`/api/studies/${studyId}/results/${n}.csv`)));
+  long = Object.fromEntries(names.map((n, i) => [n, parseCsv(texts[i])]));
 }
 
 async function loadResults() {
   const [study, results] = await Promise.all([
     get(`/api/studies/${studyId}`), get(`/api/studies/${studyId}/results`)]);
   doc = results;
+  await loadLong();
   document.title = `ExoStudy · results · ${study.name}`;
   $("#study-title").textContent = study.name;
   $("#study-link").textContent = study.name;
@@ -77,16 +173,31 @@ async function loadResults() {
       ...values.map((v) => h("option", { value: v }, label(v))));
     sel.value = values.includes(current) ? current : "";
   };
-  fill($("#filter-participant"), [...new Set(doc.trials.map((t) => t.participant))]);
-  fill($("#filter-controller"), [...new Set(doc.trials.map((t) => t.controller))], (v) => LABEL[v] ?? v);
+  // Participants with trials, and those who only answered questionnaires.
+  const codes = new Set(doc.trials.map((t) => t.participant));
+  for (const spec of TABLES.filter((t) => t.wide)) {
+    for (const code of (doc.tables[spec.name]?.header || []).slice(2)) codes.add(code);
+  }
+  fill($("#filter-participant"), [...codes].sort());
+  // Controllers that ran a trial or were scored on a questionnaire.
+  const ctls = new Set(doc.trials.map((t) => t.controller));
+  const q = long.questionnaires;
+  const qc = q ? q.header.indexOf("controller") : -1;
+  if (qc >= 0) for (const r of q.rows) ctls.add(controllerKey(r[qc]));
+  fill($("#filter-controller"), ["umc", "eumc", "pec", "none"].filter((c) => ctls.has(c)), (v) => LABEL[v] ?? v);
   render();
   // Figures are drawn by the server from the same evaluation (cached there).
   const stamp = Date.now();
-  $("#figures").replaceChildren(...FIGURES.map(([n, title]) => h("figure", { "data-figure": n },
-    h("img", { src: `/api/studies/${studyId}/figures/${n}.svg?v=${stamp}`, alt: title, style: "max-width:100%" }),
-    h("figcaption", { class: "small" }, title, " · ",
-      h("a", { href: `/api/studies/${studyId}/figures/${n}.png`, download: "" }, "PNG"), " · ",
-      h("a", { href: `/api/studies/${studyId}/figures/${n}.svg`, download: "" }, "SVG")))));
+  $("#figures").replaceChildren(...FIGURES.map(([n, title]) => {
+    const msg = h("p", { class: "msg small" }, "drawing…");
+    const img = h("img", { src: `/api/studies/${studyId}/figures/${n}.svg?v=${stamp}`, alt: title, style: "max-width:100%" });
+    img.addEventListener("load", () => { msg.textContent = ""; });
+    img.addEventListener("error", () => { msg.textContent = "the figure could not be drawn"; msg.classList.add("msg-bad"); });
+    return h("figure", { "data-figure": n }, msg, img,
+      h("figcaption", { class: "small" }, title, " · ",
+        h("a", { href: `/api/studies/${studyId}/figures/${n}.png`, download: "" }, "PNG"), " · ",
+        h("a", { href: `/api/studies/${studyId}/figures/${n}.svg`, download: "" }, "SVG")));
+  }));
   state.loaded += 1;
 }
 
@@ -94,17 +205,28 @@ let currentTrial = null;
 function openTrial(t) {
   currentTrial = t;
   $("#trial-panel").hidden = false;
-  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${LABEL[t.controller] ?? t.controller}`;
+  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${LABEL[t.controller] ?? t.controller} · ${t.task}`;
   $("#panel-replay").href = `/live?trial=${t.trial_id}`;
   $("#panel-timeline-svg").href = `/api/trials/${t.trial_id}/figures/timeline.svg`;
   $("#panel-timeline-png").href = `/api/trials/${t.trial_id}/figures/timeline.png`;
+  const msg = $("#panel-timeline-msg");
+  msg.className = "msg small";
+  msg.textContent = "drawing the timeline…";
   $("#panel-timeline").src = `/api/trials/${t.trial_id}/figures/timeline.svg`;
   $("#whatif-controller").value = t.controller === "pec" ? "umc" : "pec";
   loadSegments().catch((err) => { $("#seg-msg").textContent = err.message; });
   $("#whatif").hidden = true;
   $("#whatif-msg").textContent = "";
+  document.querySelectorAll("#trials tr.selected").forEach((tr) => tr.classList.remove("selected"));
+  document.querySelector(`#trials tr[data-trial='${t.trial_id}']`)?.classList.add("selected");
   $("#trial-panel").scrollIntoView({ behavior: "smooth", block: "start" });
+  $("#panel-replay").focus({ preventScroll: true });
 }
+$("#panel-timeline").addEventListener("load", () => { $("#panel-timeline-msg").textContent = ""; });
+$("#panel-timeline").addEventListener("error", () => {
+  $("#panel-timeline-msg").textContent = "the timeline could not be drawn (no stored ticks?)";
+  $("#panel-timeline-msg").classList.add("msg-bad");
+});
 
 // ---------------------------------------------------------------- segments
 const SEG_LABELS = ["squat", "stoop_left", "stoop_right", "other", "unlabelled"];
@@ -162,17 +284,33 @@ const METRICS = [["lifts", "lifts"], ["recognised", "recognised"],
   ["gait_trials", "gait trials"], ["lock_ticks", "ticks with a lock held"],
   ["onset_to_lock_median_s", "onset to lock, median (s)"], ["ticks", "ticks"]];
 
+const fmtMetric = (v) => (v == null ? "–" : typeof v === "number" && !Number.isInteger(v) ? v.toFixed(3) : String(v));
+
+function change(a, b) {
+  if (a == null || b == null || a === b) return a === b ? "same" : "";
+  if (typeof a !== "number" || typeof b !== "number") return "differs";
+  const d = b - a;
+  return `${d > 0 ? "+" : ""}${fmtMetric(Number.isInteger(d) ? d : Number(d.toFixed(4)))}`;
+}
+
 $("#whatif-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#whatif-run"), $("#whatif-msg"), async () => {
     const body = formData(ev.target);
+    for (const k of ["model_set_id", "utility_set_id"]) if (body[k] != null) body[k] = Number(body[k]);
     const r = await post(`/api/trials/${currentTrial.trial_id}/what-if`, body);
     state.whatIf = r;
+    const rate = body.rate_hz ? ` at ${body.rate_hz} Hz` : "";
     $("#whatif thead tr").replaceChildren(h("th", {}, "metric"),
-      h("th", {}, `original (${LABEL[r.original.controller] ?? r.original.controller})`),
-      h("th", {}, `what-if (${LABEL[r.replay.controller] ?? r.replay.controller})`));
-    $("#whatif tbody").replaceChildren(...METRICS.map(([k, label]) => h("tr", { "data-metric": k },
-      h("td", {}, label), h("td", {}, r.original[k] ?? "–"), h("td", {}, r.replay[k] ?? "–"))));
+      h("th", {}, `original (${LABEL[r.original.controller] ?? r.original.controller}, as run)`),
+      h("th", {}, `what-if (${LABEL[r.replay.controller] ?? r.replay.controller}${rate})`),
+      h("th", {}, "change"));
+    $("#whatif tbody").replaceChildren(...METRICS.map(([k, label]) => {
+      const a = r.original[k];
+      const b = r.replay[k];
+      return h("tr", { "data-metric": k, class: a !== b ? "changed" : null },
+        h("td", {}, label), h("td", {}, fmtMetric(a)), h("td", {}, fmtMetric(b)), h("td", { class: "muted" }, change(a, b)));
+    }));
     $("#whatif").hidden = false;
     return `replayed against ${r.truth} truth; the stored trial is unchanged`;
   });
@@ -180,14 +318,17 @@ $("#whatif-form").addEventListener("submit", (ev) => {
 
 function pct(x) { return x == null ? "–" : `${(100 * x).toFixed(1)} %`; }
 
-function confusion(title, conf) {
+// `correct(row, col)`: the cells on the diagonal (right answers), drawn bold.
+function confusion(title, conf, correct) {
   const rows = Object.keys(conf);
   const cols = rows.length ? Object.keys(conf[rows[0]]) : [];
-  return h("div", {}, h("h3", { class: "small" }, title), h("table", { class: "list" },
+  return h("div", {}, h("h3", { class: "small" }, title), h("table", { class: "list confusion" },
     h("thead", {}, h("tr", {}, h("th", {}, "true \\ predicted"), cols.map((c) => h("th", {}, c)))),
-    h("tbody", {}, rows.map((r) => h("tr", {}, h("th", {}, r),
-      cols.map((c) => h("td", { class: r === c ? "strong" : null }, conf[r][c])))))));
+    h("tbody", {}, rows.map((r) => h("tr", { "data-true": r }, h("th", {}, r),
+      cols.map((c) => h("td", { "data-predicted": c, class: correct(r, c) ? "diag" : null }, conf[r][c])))))));
 }
+// The paper's correct first decision: both sides in a squat, the supporting side in a stoop.
+const CORRECT_DECISION = { squat: "lock_both", stoop_left: "lock_left", stoop_right: "lock_right" };
 
 $("#lopo-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
@@ -203,17 +344,29 @@ $("#lopo-form").addEventListener("submit", (ev) => {
       h("tbody", {}, r.folds.map((f) => h("tr", {}, h("td", {}, f.participant),
         f.error ? h("td", { colspan: 3, class: "warn-text" }, f.error)
           : [h("td", {}, f.segments), h("td", {}, f.recognised), h("td", {}, f.correct)])))),
-      h("div", { class: "grid2" }, confusion("Recognition", r.recognition_confusion),
-        confusion("First lock decision", r.decision_confusion)));
-    return "done";
+      h("div", { class: "grid2" },
+        confusion("Recognition: first posterior to reach 0.5", r.recognition_confusion, (a, b) => a === b),
+        confusion("First lock decision", r.decision_confusion, (a, b) => CORRECT_DECISION[a] === b)));
+    return `done: ${r.folds.length} participants held out in turn`;
   });
 });
 
 async function loadModelSets() {
-  const sets = (await get(`/api/studies/${studyId}/model-sets`)).filter((m) => m.status === "ready");
-  $("#lopo-model-set").replaceChildren(...sets.map((m) => h("option", { value: m.id }, `${m.id} · ${m.name}`)));
+  const [models, utilities] = await Promise.all([
+    get(`/api/studies/${studyId}/model-sets`), get(`/api/studies/${studyId}/utility-sets`)]);
+  const ready = (xs) => xs.filter((m) => m.status === "ready");
+  const option = (m) => h("option", { value: m.id }, `${m.id} · ${m.name}`);
+  $("#lopo-model-set").replaceChildren(...ready(models).map(option));
+  $("#lopo-run").disabled = ready(models).length === 0;
+  if (!ready(models).length) $("#lopo-msg").textContent = "this study has no ready model set yet";
+  $("#whatif-model-set").replaceChildren(h("option", { value: "" }, "as run"), ...ready(models).map(option));
+  $("#whatif-utility-set").replaceChildren(h("option", { value: "" }, "as run"), ...ready(utilities).map(option));
 }
 
+$("#layout").addEventListener("change", () => {
+  state.layout = $("#layout").value;
+  render();
+});
 for (const sel of ["#filter-participant", "#filter-controller"]) {
   $(sel).addEventListener("change", render);
 }

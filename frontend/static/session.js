@@ -21,7 +21,7 @@ const CONTROLLER = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
 // What the browser tests read.
 const page = (window.exostudySession = {
   samples: 0, recordingId: null, segments: [], shownRecording: null, modelSetDrawn: null,
-  utilityCurvesFor: null, stillness: null,
+  utilityCurvesFor: null, stillness: null, calibration: null,
 });
 
 let session = null;
@@ -441,14 +441,56 @@ $("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), 
   const trials = await post(`/api/sessions/${sessionId}/trials/plan`, body);
   $("#plan-msg").dataset.order = trials.map((t) => t.controller).join(",");
   await loadTrials();
+  // The plan made the blinded condition labels: the questionnaire step offers them now.
+  document.dispatchEvent(new CustomEvent("exostudy:planned", { detail: { trials } }));
   const order = [...new Set(trials.map((t) => CONTROLLER[t.controller]))].join(" → ");
   return `planned ${trials.length} trials: ${order}`;
 }, () => { $("#plan-run").disabled = (page.trials || []).length > 0; }));
 
+// Calibration: the worker averages the next seconds of raw angles and refuses them if
+// the wearer moved (422). With "retry", wait for the stillness indicator and try again
+// until it succeeds, the experimenter stops it, or 30 s have passed.
+const CALIB_PATIENCE_MS = 30000;
+let calibCancelled = false;
+$("#calib-cancel").addEventListener("click", () => { calibCancelled = true; });
+
+function untilStill(deadline) {
+  return new Promise((resolve) => {
+    const check = () => {
+      if (calibCancelled || performance.now() > deadline || stillness.state()?.still) resolve();
+      else setTimeout(check, 50);
+    };
+    check();
+  });
+}
+
 $("#calib-run").addEventListener("click", (ev) => act(ev.target, $("#calib-msg"), async () => {
-  const r = await post("/api/worker/calibrate", { seconds: 3 });
-  return `calibrated: offsets ${r.offset_left_deg.toFixed(1)}°, ${r.offset_right_deg.toFixed(1)}° ` +
-    `(std ${r.std_left_deg?.toFixed(2)}°, ${r.std_right_deg?.toFixed(2)}°)`;
+  const seconds = Number($("#calib-seconds").value);
+  const retry = $("#calib-retry").checked;
+  const deadline = performance.now() + CALIB_PATIENCE_MS;
+  calibCancelled = false;
+  $("#calib-cancel").hidden = !retry;
+  page.calibration = { attempts: 0, ok: false };
+  try {
+    for (;;) {
+      if (retry) await untilStill(deadline);
+      if (calibCancelled) throw new Error(`calibration stopped after ${page.calibration.attempts} attempts`);
+      page.calibration.attempts += 1;
+      $("#calib-msg").textContent = `calibrating (attempt ${page.calibration.attempts}): stand still for ${seconds} s…`;
+      try {
+        const r = await post("/api/worker/calibrate", { seconds });
+        page.calibration = { ...r, attempts: page.calibration.attempts };
+        return `calibrated: offsets ${r.offset_left_deg.toFixed(1)}°, ${r.offset_right_deg.toFixed(1)}° ` +
+          `(std ${r.std_left_deg?.toFixed(2)}°, ${r.std_right_deg?.toFixed(2)}°)` +
+          (page.calibration.attempts > 1 ? ` after ${page.calibration.attempts} attempts` : "");
+      } catch (err) {
+        // 422: the wearer moved; anything else (no worker) will not get better by waiting.
+        if (!retry || err.status !== 422 || performance.now() > deadline) throw err;
+      }
+    }
+  } finally {
+    $("#calib-cancel").hidden = true;
+  }
 }));
 
 // ------------------------------------------------------------ start

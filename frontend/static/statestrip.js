@@ -19,12 +19,20 @@ export function createStateStrip(root) {
   const counts = { lockChanges: 0, lockOnSeen: 0 };
   let last = null;
 
-  function side(cell, held, engaged) {
-    const state = held ? "on" : "off";
-    cell.dataset.lock = state;
+  const leftParts = [left.querySelector(".strip-value"), left.querySelector(".strip-sub")];
+  const rightParts = [right.querySelector(".strip-value"), right.querySelector(".strip-sub")];
+  const actionParts = [action.querySelector(".strip-value"), action.querySelector(".strip-sub")];
+  // What is on screen, so that an unchanged tick touches no DOM (no style or layout work).
+  const shown = { left: "", right: "", action: "" };
+
+  function side(key, cell, parts, held, engaged) {
+    const now = `${held ? 1 : 0}${engaged ? 1 : 0}`;
+    if (shown[key] === now) return;
+    shown[key] = now;
+    cell.dataset.lock = held ? "on" : "off";
     cell.dataset.engaged = engaged ? "true" : "false";
-    cell.querySelector(".strip-value").textContent = held ? "LOCK" : "free";
-    cell.querySelector(".strip-sub").textContent = `mechanism ${engaged ? "engaged" : "open"}`;
+    parts[0].textContent = held ? "LOCK" : "free";
+    parts[1].textContent = `mechanism ${engaged ? "engaged" : "open"}`;
   }
 
   return {
@@ -44,12 +52,15 @@ export function createStateStrip(root) {
     // `tick`: one tick's raw values (lock_left, lock_right, locked_*, action, trigger).
     update(tick) {
       if (!tick) return;
-      side(left, tick.lock_left, tick.locked_left);
-      side(right, tick.lock_right, tick.locked_right);
+      side("left", left, leftParts, tick.lock_left, tick.locked_left);
+      side("right", right, rightParts, tick.lock_right, tick.locked_right);
       const a = tick.action ?? 1;
+      const now = `${a}/${tick.trigger ? 1 : 0}`;
+      if (shown.action === now) return;
+      shown.action = now;
       action.dataset.action = String(a);
-      action.querySelector(".strip-value").textContent = ACTIONS[a] ?? String(a);
-      action.querySelector(".strip-sub").textContent = `trigger ${tick.trigger ? "ON" : "off"}`;
+      actionParts[0].textContent = ACTIONS[a] ?? String(a);
+      actionParts[1].textContent = `trigger ${tick.trigger ? "ON" : "off"}`;
     },
   };
 }

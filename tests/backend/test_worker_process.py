@@ -173,3 +173,29 @@ def test_a_new_simulated_wearer_is_swapped_in_without_a_new_process() -> None:
     finally:
         sup.stop()
     assert not sup.state.alive
+
+
+def test_a_timed_run_ends_by_itself_after_exactly_its_samples() -> None:
+    got = Collected()
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim", device_speed=20), got.callbacks())
+    sup.start()
+    try:
+        assert got.got_ticks.wait(60), f"no ticks; errors: {sup.state.errors}"
+        sup.set_controller("pec", {}, max_ticks=250)
+        deadline = time.monotonic() + 30
+        while len(got.runs) < 3:
+            assert time.monotonic() < deadline, f"the timed run did not end: {got.runs}"
+            time.sleep(0.05)
+        time.sleep(0.3)
+        assert [r.controller for r in got.runs] == ["none", "pec", "none"]
+        timed = [r for b in got.ticks if b.run_token == got.runs[1].run_token
+                 for r in b.records]
+        assert len(timed) == 250
+        seqs = [r.seq for r in timed]
+        assert seqs == list(range(seqs[0], seqs[0] + 250))
+        after = [r for b in got.ticks if b.run_token == got.runs[2].run_token
+                 for r in b.records]
+        assert after and after[0].seq == seqs[-1] + 1
+        assert not any(r.lock_left or r.lock_right for r in after[5:])
+    finally:
+        sup.stop()

@@ -5,6 +5,7 @@ a PEC trial with the state strip) and the replay of a stored trial."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -245,17 +246,24 @@ def test_run_an_eumc_trial_and_watch_posteriors_progress_and_locks_change(
                  json={"tasks": ["squat-sequence"], "model_set_id": ms_id,
                        "utility_set_id": us_id}))
     _wait_ticks(api)
-    # The E-UMC is calibrated on a second of standing still; the simulated wearer squats
-    # between stands, so try until a second falls into a stand.
-    for _ in range(60):
-        r = api.post("/api/worker/calibrate", json={"seconds": 1.0})
-        if r.status_code == 200:
-            break
-        assert r.status_code == 422, r.text
-    else:
-        pytest.fail("the wearer never stood still for a second")
 
+    # The session page's calibration step: one second of standing still. The simulated
+    # wearer squats between stands, so the page waits for its stillness indicator and
+    # tries again while the wearer moves.
     _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
+                           timeout=20000)
+    assert page.is_visible("#calib-step")
+    page.select_option("#calib-seconds", "1")
+    page.check("#calib-retry")
+    page.click("#calib-run")
+    page.wait_for_selector("#calib-msg.msg-ok", timeout=40000)
+    cal = page.evaluate("window.exostudySession.calibration")
+    assert cal["ok"] is True and cal["attempts"] >= 1
+    assert cal["samples"] == 100  # 1 s at 100 Hz
+    assert cal["std_left_deg"] < 1.0 and cal["std_right_deg"] < 1.0
+    assert f"{cal['offset_left_deg']:.1f}°" in page.inner_text("#calib-msg")
+
     page.wait_for_selector("#trials tr[data-controller=eumc] button.start")
     page.click("#trials tr[data-controller=eumc] button.start")
     page.wait_for_selector("#trials tr[data-controller=eumc][data-status=running]")
@@ -279,7 +287,10 @@ def test_run_an_eumc_trial_and_watch_posteriors_progress_and_locks_change(
     page.wait_for_selector("#trials tr[data-controller=eumc][data-status=completed]")
     trial = next(t for t in _ok(api.get(f"/api/sessions/{session_id}/trials"))
                  if t["controller"] == "eumc")
-    assert trial["config_snapshot"]["settings"]["calibration"] is not None
+    # The trial ran with the offsets the page showed (radians stored, degrees shown).
+    left, right = trial["config_snapshot"]["settings"]["calibration"]
+    assert math.degrees(left) == pytest.approx(cal["offset_left_deg"], abs=1e-9)
+    assert math.degrees(right) == pytest.approx(cal["offset_right_deg"], abs=1e-9)
 
 
 def test_replay_a_stored_trial_and_scrub_it(

@@ -141,8 +141,12 @@ async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
         conflict("calibration", "the E-UMC needs a calibration: have the participant stand "
                  "still and POST /api/worker/calibrate")
     snapshot["settings"] = config["settings"]
+    if body.duration_s is not None:
+        snapshot["duration_s"] = body.duration_s
     try:
-        run_id = await runtime.switch_controller(trial.controller, config)
+        run_id = await runtime.switch_controller(
+            trial.controller, config,
+            max_ticks=None if body.duration_s is None else round(body.duration_s * 100))
     except RuntimeError as exc:
         conflict("worker", str(exc))
     trial.run_id = run_id
