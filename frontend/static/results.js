@@ -2,16 +2,22 @@
 // with their replay, timeline and what-if replay, and the leave-one-out model evaluation.
 import { api, get, post } from "/static/api.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
-import { controllerKey, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
+import { cellNode, controllerKey, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
 // `wide`: the JSON table is the paper's layout, participants as columns from index 2;
 // the long form (one row per participant, controller and motion) is its CSV download.
 const TABLES = [
-  { name: "performance", title: "Intent estimation and decision performance", wide: true },
-  { name: "performance_by_kind", title: "Performance by motion kind", longOnly: true },
-  { name: "false_positives", title: "False positives in walking and stair walking", wide: true },
-  { name: "questionnaires", title: "Questionnaires", wide: true },
+  { name: "performance", title: "Intent estimation and decision performance", wide: true,
+    longNotes: ["motion: SQ squat, AS asymmetric stoop (either side). Recognised: the correct "
+      + "model's posterior reached 0.5 in the first half of the lift; decision: the first lock "
+      + "decision in the first half (missed: none)."] },
+  { name: "performance_by_kind", title: "Intent estimation and decision performance per lift kind", longOnly: true },
+  { name: "false_positives", title: "False positive lock signals", wide: true,
+    longNotes: ["signals: rising edges of the held lock command on either side; edges per side; "
+      + "decisions: controller evaluations that chose a locking action; ticks with a lock held; the trials' duration."] },
+  { name: "questionnaires", title: "Questionnaire results", wide: true,
+    longNotes: ["highest: the participant's strictly highest score on that instrument."] },
   { name: "onset_to_lock", title: "Lift onset to lock" },
 ];
 const FIGURES = [["peak_torques", "Peak exoskeleton torques per lift"],
@@ -52,6 +58,8 @@ function filtered(table, wide) {
     rows: rows.map((r) => cols.map((i) => r[i])),
     // A controller filter the table cannot apply (the paper's cells join UMC/E-UMC).
     unfiltered: Boolean(c) && cCol < 0,
+    // A participant filter on a table that pools every participant.
+    pooled: Boolean(p) && pCol < 0 && !wide,
   };
 }
 
@@ -61,24 +69,36 @@ function tableView(key, header, rows, extra = {}, record = null) {
   const col = s ? header.indexOf(s.name) : -1;
   const sort = col >= 0 ? { col, dir: s.dir } : null;
   if (record) state.tables[record] = { header, rows: sortRows(rows, sort) };
-  return h("div", { style: "overflow-x:auto" }, sortableTable({
+  return h("div", { class: "scroll-x", "data-sort-key": key }, sortableTable({
     header, rows, sort,
-    onSort: ({ col: i, dir }) => { sorts[key] = { name: header[i], dir }; render(); },
+    onSort: ({ col: i, dir }) => {
+      sorts[key] = { name: header[i], dir };
+      render();
+      // The table was drawn anew: keep the keyboard on the header just pressed.
+      document.querySelector(`[data-sort-key="${key}"] th button[data-col="${i}"]`)?.focus();
+    },
     ...extra,
   }));
+}
+
+// Controller keys ("eumc") read as their labels ("E-UMC"); the rest as the table has them.
+function labelled(header) {
+  const cCol = header.map((x) => x.toLowerCase()).indexOf("controller");
+  return { render: (r, col) => (col === cCol && LABEL[r[col]] ? LABEL[r[col]] : cellNode(r[col])) };
 }
 
 function tableCard(spec, table, wide) {
   const layout = state.layout;
   const view = filtered(table, wide);
   return h("section", { class: "card", "data-table": spec.name, "data-layout": wide ? "paper" : "long" },
-    h("h2", {}, table.title || spec.title),
+    h("h2", {}, spec.longOnly ? spec.title : table.title || spec.title),
     h("p", { class: "small" },
       h("a", { href: `/api/studies/${studyId}/results/${spec.name}.csv`, download: "" }, "CSV"), " · ",
       h("a", { href: `/api/studies/${studyId}/results/${spec.name}.md`, download: "" }, "Markdown"),
       h("span", { class: "muted" }, ` · ${view.rows.length} of ${table.rows.length} rows`)),
-    tableView(`${spec.name}:${layout}`, view.header, view.rows, {}, spec.name),
+    tableView(`${spec.name}:${layout}`, view.header, view.rows, labelled(view.header), spec.name),
     table.rows.length ? null : h("p", { class: "muted small" }, "nothing to count yet"),
+    view.pooled ? h("p", { class: "muted small" }, "This table pools every participant's lifts.") : null,
     view.unfiltered ? h("p", { class: "muted small" },
       "This layout lists the controllers together; choose “every count” to filter by controller.") : null,
     (table.notes || []).map((n) => h("p", { class: "muted small" }, n)));
@@ -91,7 +111,9 @@ function renderTables() {
   for (const spec of TABLES) {
     if (layout === "paper" && spec.longOnly) continue;
     const wide = layout === "paper" && spec.wide;
-    const table = layout === "long" && long[spec.name] ? { ...doc.tables[spec.name], ...long[spec.name] }
+    // The long form from the CSV: the paper's title and notes describe the wide layout.
+    const table = layout === "long" && spec.wide && long[spec.name]
+      ? { ...long[spec.name], title: `${spec.title}: every count`, notes: spec.longNotes || [] }
       : doc.tables[spec.name];
     if (table) cards.push(tableCard(spec, table, wide));
   }
@@ -104,7 +126,7 @@ function renderTables() {
       h("a", { href: `/api/studies/${studyId}/results/lifts.csv`, download: "" }, "CSV"), " · ",
       h("a", { href: `/api/studies/${studyId}/results/lifts.md`, download: "" }, "Markdown"),
       h("span", { class: "muted" }, " · the data behind both figures; times in seconds from the lift's onset, torques in Nm")),
-    tableView("lifts", view.header, view.rows, {}, "lifts"));
+    tableView("lifts", view.header, view.rows, labelled(view.header), "lifts"));
   }
 }
 
@@ -129,7 +151,8 @@ function renderTrials() {
     t.task, t.truth, t.lifts, t.incomplete_lifts, t.gait_trials, null]);
   $("#trials").replaceChildren(tableView("trials", TRIAL_HEADER, rows, {
     sortable: (col) => col < TRIAL_HEADER.length - 1,
-    rowAttrs: (r) => ({ "data-trial": r[0], "data-controller": byId.get(r[0]).controller }),
+    rowAttrs: (r) => ({ "data-trial": r[0], "data-controller": byId.get(r[0]).controller,
+      class: currentTrial && currentTrial.trial_id === r[0] ? "selected" : null }),
     render: (r, col) => {
       const t = byId.get(r[0]);
       if (col === 1) return h("strong", {}, t.participant);
@@ -190,7 +213,7 @@ async function loadResults() {
   const stamp = Date.now();
   $("#figures").replaceChildren(...FIGURES.map(([n, title]) => {
     const msg = h("p", { class: "msg small" }, "drawing…");
-    const img = h("img", { src: `/api/studies/${studyId}/figures/${n}.svg?v=${stamp}`, alt: title, style: "max-width:100%" });
+    const img = h("img", { src: `/api/studies/${studyId}/figures/${n}.svg?v=${stamp}`, alt: title, style: "width:100%;height:auto" });
     img.addEventListener("load", () => { msg.textContent = ""; });
     img.addEventListener("error", () => { msg.textContent = "the figure could not be drawn"; msg.classList.add("msg-bad"); });
     return h("figure", { "data-figure": n }, msg, img,

@@ -38,7 +38,7 @@ async function select(id) {
     form.elements[k].value = selected[k] ?? "";
   }
   await loadParticipants();
-  await loadSessions();
+  await Promise.all([loadSessions(), loadAnswers()]);
   $("#participant-panel").scrollIntoView({ behavior: "smooth", block: "start" });
 }
 
@@ -48,6 +48,27 @@ async function loadSessions() {
     h("td", {}, KIND[s.kind] ?? s.kind), h("td", {}, `${s.precompression_pct} %`),
     h("td", {}, fmtDate(s.started_at)),
     h("td", {}, h("a", { href: `/console/sessions/${s.id}`, class: "session-link" }, "Open session ›")))));
+}
+
+const CONTROLLER = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
+
+// The participant's scored questionnaires and stated preference, unblinded.
+async function loadAnswers() {
+  const [responses, preferences] = await Promise.all([
+    get(`/api/participants/${selected.id}/responses`),
+    get(`/api/participants/${selected.id}/preferences`)]);
+  $("#participant-responses tbody").replaceChildren(...responses.map((r) => h("tr",
+    { "data-response": r.id, "data-instrument": r.instrument_key },
+    h("td", {}, `${r.instrument_key.toUpperCase()} ${r.instrument_version}`),
+    h("td", {}, r.condition_label ?? "–"),
+    h("td", {}, CONTROLLER[r.controller] ?? r.controller ?? "–"),
+    h("td", { class: "score" }, h("strong", {}, Number(r.score).toFixed(1))),
+    h("td", {}, fmtDate(r.submitted_at)))));
+  $("#participant-responses-empty").hidden = responses.length > 0;
+  const last = preferences.at(-1);
+  $("#participant-preference").textContent = !last ? ""
+    : `Preferred: ${last.choice === "none" ? "no preference"
+      : `${last.choice} (${CONTROLLER[last.controller] ?? last.controller})`}`;
 }
 
 $("#participant-form").addEventListener("submit", (ev) => {

@@ -208,6 +208,14 @@ def test_plan_and_run_a_pec_trial_with_utilities_and_the_state_strip(
                                       "rows => rows.map(r => r.dataset.controller)")
     assert order == ["umc", "pec", "eumc"]
     assert page.is_disabled("#plan-run")
+    # The plan's blinded labels are at once the questionnaire step's conditions.
+    page.wait_for_function(
+        "document.querySelectorAll('#link-choices tr[data-condition]').length === 3")
+    labels = page.eval_on_selector_all(
+        "#trials tbody tr", "rows => rows.map(r => r.cells[2].innerText.replace('setting ', ''))")
+    shown = page.eval_on_selector_all("#link-choices tr[data-condition]",
+                                      "rows => rows.map(r => r.dataset.condition)")
+    assert sorted(shown) == sorted(labels)
 
     page.click("#trials tr[data-controller=pec] button.start")
     page.wait_for_selector("#trials tr[data-controller=pec][data-status=running]")

@@ -100,3 +100,11 @@ def test_experimenter_makes_a_link_and_sees_the_sus_score_in_the_console(
     cells = row.query_selector_all("td")
     assert [c.inner_text() for c in cells[1:4]] == [label, "PEC", f"{_sus(answers):.1f}"]
     assert _sus(answers) == 85.0
+
+    # The participant's view on the study page shows the same score.
+    page.goto(f"{quiet_server}/console/studies/{sid}")
+    page.click("#participants tr[data-participant=P1] button.open")
+    row = page.wait_for_selector("#participant-responses tr[data-instrument=sus]")
+    cells = row.query_selector_all("td")
+    assert [c.inner_text() for c in cells[1:4]] == [label, "PEC", f"{_sus(answers):.1f}"]
+    assert page.locator("#participant-responses tbody tr").count() == 1
