@@ -2,12 +2,13 @@
 
 The supervisor's reader thread appends each batch of ticks from the worker to a deque
 (never blocks) and wakes an asyncio task. That task sends what has arrived at once, as
-one JSON message encoded once for every client, unless the previous message went out
-less than 1/`stream_rate` s ago; then it waits out the rest of that interval and sends
-everything gathered by then in one message. A sample therefore waits in the server only
-when batches come faster than `stream_rate` (the worker hands over a batch every 20 ms),
-never for a timer of its own. Each client has a bounded queue; a full queue drops its
-oldest message, so a slow tab only loses its own updates.
+one JSON message encoded once for every client, within a budget of `stream_rate`
+messages per second (a token bucket that lets a message go early after a longer gap, so
+the jitter of the worker's batches costs no waiting). Over budget, it waits for the next
+token and sends everything gathered by then in one message. A sample therefore waits in
+the server only when batches come faster than `stream_rate` on average (the worker hands
+over a batch about every 20 ms), never for a timer of its own. Each client has a bounded
+queue; a full queue drops its oldest message, so a slow tab only loses its own updates.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from controller.tick import TickRecord
 _FIELD_INDEX = [TickRecord.field_names().index(f) for f in STREAM_FIELDS]
 #: Longest wait for a wake-up before looking anyway (a lost wake-up costs at most this).
 _IDLE_CHECK_S = 0.5
+#: Messages that may go out back to back after a quiet spell (token bucket depth).
+_BURST = 2.0
 
 
 def _clean(v: Any) -> Any:
@@ -150,22 +153,27 @@ class LiveStream:
     async def _pump(self) -> None:
         assert self._wake is not None
         wake = self._wake
-        period = 1.0 / self.rate_hz
-        last_sent = -math.inf
+        rate = self.rate_hz
+        tokens = _BURST
+        refilled = time.monotonic()
         while True:
             try:
                 await asyncio.wait_for(wake.wait(), _IDLE_CHECK_S)
             except TimeoutError:
                 pass
             wake.clear()
-            wait = last_sent + period - time.monotonic()
-            if wait > 0:
-                await asyncio.sleep(wait)  # at most stream_rate messages per second
+            now = time.monotonic()
+            tokens = min(_BURST, tokens + (now - refilled) * rate)
+            refilled = now
+            if tokens < 1.0:  # over budget: wait for the next token, gathering more ticks
+                await asyncio.sleep((1.0 - tokens) / rate)
+                tokens = 1.0
+                refilled = time.monotonic()
             self._wake_pending = False
             records = self._take()
             if not records or not self._clients:
                 continue
-            last_sent = time.monotonic()
+            tokens -= 1.0
             self._send(records)
 
     def _send(self, records: list[TickRecord]) -> None:

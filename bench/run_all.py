@@ -21,6 +21,8 @@ BENCHES = [
     ("tick recorder into SQLite", ["bench_recorder.py"]),
     ("UDP device round trip and emulator lateness", ["bench_udp.py", "--minutes", "1"]),
     ("live path with 0, 3 and 4 browser consoles", ["bench_live.py", "--seconds", "30"]),
+    ("live path, all five plots in view", ["bench_live.py", "--seconds", "30",
+                                           "--viewport", "1280x2100"]),
     ("console first page, cold", ["bench_console_load.py", "--runs", "10"]),
 ]
 

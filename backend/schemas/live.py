@@ -1,7 +1,8 @@
 """Messages on the live WebSocket (`/ws/live`), server to browser.
 
 The browser's `frontend/static/live.js` reads exactly these fields; `STREAM_FIELDS`
-lists which tick columns are streamed (the database keeps them all).
+lists which tick columns are streamed: those the live pages plot or show, plus `seq`
+and `t_host` (gaps and latency). The database keeps them all.
 """
 
 from __future__ import annotations
@@ -32,12 +33,8 @@ STREAM_FIELDS: tuple[str, ...] = (
     "lock_right",
     "locked_left",
     "locked_right",
-    "alpha_left",
-    "alpha_right",
     "torque_left",
     "torque_right",
-    "flags",
-    "truth_activity",
 )
 
 

@@ -12,6 +12,7 @@ async function load() {
   $("#studies-empty").hidden = studies.length > 0;
   // Usable: the list is drawn and its links work (read by bench/bench_console_load.py).
   document.body.dataset.ready = "true";
+  performance.mark("exostudy-ready");
 }
 
 $("#study-form").addEventListener("submit", (ev) => {

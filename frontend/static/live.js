@@ -15,7 +15,7 @@ const stats = (window.exostudyLive = {
   latencies: [],
   // Of that, per message: server queuing the message to its arrival here (last 3000);
   // and per sample: worker read time to the first frame that drew it on the plots.
-  transits: [], drawLatencies: [],
+  transits: [], drawLatencies: [], firstDrawMs: null,
   paused: false, windowS: 10, replay: null,
   // Per model: the highest posterior seen and the samples it led; the highest progress.
   posteriorMax: {}, leading: {}, progressMax: null, leader: null, leaderChanges: 0,
@@ -84,10 +84,12 @@ let dirty = false;
 let visiblePlots = null;
 
 // Receipt and drawing are decoupled: a message only updates the ring buffers and asks
-// for a frame. Frames run only while something is waiting to be drawn (no idle animation
-// loop) and draw at most every DRAW_INTERVAL_MS (30 per second on a 60 Hz display), so
-// the main thread stays free to take the next message.
+// for a frame. Frames are requested only when something waits to be drawn (no idle
+// animation loop), and a timer holds the request back until the frame would come at
+// least DRAW_INTERVAL_MS after the last drawn one (30 per second on a 60 Hz display), so
+// the main thread stays free to take the next message and no frame is spent idle.
 const DRAW_INTERVAL_MS = 30;
+const VSYNC_MS = 16.7;
 
 function trim(values, keep = 3000) {
   if (values.length > keep) values.splice(0, values.length - keep);
@@ -101,7 +103,7 @@ function startLive() {
   function frame(ts) {
     frameQueued = false;
     if (!dirty || stats.paused) return;
-    if (ts - lastDraw < DRAW_INTERVAL_MS) {
+    if (ts - lastDraw < DRAW_INTERVAL_MS - 5) {  // the timer fired early: next frame
       frameQueued = true;
       requestAnimationFrame(frame);
       return;
@@ -119,6 +121,11 @@ function startLive() {
         const now = Date.now();
         for (const th of hosts) stats.drawLatencies.push(now - th * 1000);
         trim(stats.drawLatencies);
+        // The first samples on screen (read by bench/bench_console_load.py).
+        if (stats.firstDrawMs == null) {
+          stats.firstDrawMs = performance.now();
+          performance.mark("exostudy-first-draw");
+        }
       });
     } else undrawn = [];
   }
@@ -126,7 +133,9 @@ function startLive() {
     dirty = true;
     if (frameQueued) return;
     frameQueued = true;
-    requestAnimationFrame(frame);
+    const wait = lastDraw + DRAW_INTERVAL_MS - VSYNC_MS / 2 - performance.now();
+    if (wait > 0) setTimeout(() => requestAnimationFrame(frame), wait);
+    else requestAnimationFrame(frame);
   }
   visiblePlots = plots.watchVisibility(requestDraw);
   ring = new Ring([...PLOTTED, ...STRIP_COLUMNS], stats.windowS * RATE_HZ);

@@ -14,6 +14,7 @@ from backend.core.config import Settings
 from backend.db.engine import make_engine
 from backend.db.models import ticks_table
 from backend.main import create_app
+from backend.schemas.live import STREAM_FIELDS
 from tests.login import log_in
 
 pytestmark = pytest.mark.slow
@@ -47,7 +48,12 @@ def test_health_websocket_and_storage(settings: Settings, experimenter: dict[str
             while time.monotonic() - start < 2.0:
                 msg = json.loads(ws.receive_text())
                 if msg["type"] == "ticks":
-                    seqs.extend(msg["columns"]["seq"])
+                    columns = msg["columns"]
+                    # Exactly the streamed columns, all of the same length.
+                    assert list(columns) == list(STREAM_FIELDS)
+                    assert {len(v) for v in columns.values()} == {len(columns["seq"])}
+                    assert msg["sent_at"] >= max(columns["t_host"])
+                    seqs.extend(columns["seq"])
             assert len(seqs) >= 150
             assert seqs == sorted(seqs)
         time.sleep(settings.db_flush_interval + 0.3)

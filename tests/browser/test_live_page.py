@@ -43,3 +43,25 @@ def test_killing_the_worker_shows_on_the_page_and_restart_recovers(
     page.wait_for_selector("#worker-state[data-alive='true']", timeout=15000)
     before = page.evaluate("window.exostudyLive.samples")
     page.wait_for_function(f"window.exostudyLive.samples > {before + 100}", timeout=20000)
+
+
+def test_pausing_stops_drawing_but_not_receiving_and_the_benchmark_figures_fill(
+    logged_in: str, page: Any
+) -> None:
+    page.wait_for_function("window.exostudyLive && exostudyLive.firstDrawMs != null",
+                           timeout=20000)
+    assert page.evaluate("performance.getEntriesByName('exostudy-first-draw').length") == 1
+    # What bench/bench_live.py reads: per sample, per message, per drawn sample.
+    figures = page.evaluate("({l: exostudyLive.latencies.length, s: exostudyLive.transits.length,"
+                            " w: exostudyLive.drawLatencies.length, m: exostudyLive.messages})")
+    assert figures["l"] > 0 and figures["w"] > 0
+    assert figures["s"] == min(figures["m"], 3000)
+
+    page.click("#pause")
+    page.wait_for_selector("#pause[data-paused='true']")
+    page.wait_for_timeout(200)  # a frame already under way may still finish
+    paused = page.evaluate("({d: exostudyLive.draws, s: exostudyLive.samples})")
+    page.wait_for_function(f"exostudyLive.samples > {paused['s'] + 100}", timeout=20000)
+    assert page.evaluate("exostudyLive.draws") == paused["d"]
+    page.click("#pause")
+    page.wait_for_function(f"exostudyLive.draws > {paused['d']}", timeout=20000)

@@ -1,4 +1,5 @@
-"""The live WebSocket: ticks at about 30 messages per second, plus status messages."""
+"""The live WebSocket: ticks as they arrive (at most `stream_rate` messages per second),
+plus status messages."""
 
 from __future__ import annotations
 
@@ -35,19 +36,19 @@ async def live(websocket: WebSocket) -> None:
         while True:
             await websocket.receive_text()
 
-    reader = asyncio.create_task(_drain_incoming())
-    try:
+    async def _send_queued() -> None:
         while True:
-            get = asyncio.create_task(client.queue.get())
-            done, _ = await asyncio.wait({get, reader}, return_when=asyncio.FIRST_COMPLETED)
-            if reader in done:
-                get.cancel()
-                break
-            await websocket.send_text(get.result())
-    except (WebSocketDisconnect, RuntimeError):
-        pass
+            await websocket.send_text(await client.queue.get())
+
+    # Two long-lived tasks per connection (not one per message): whichever ends first,
+    # a closed socket or a failed send, ends the connection.
+    reader = asyncio.create_task(_drain_incoming())
+    sender = asyncio.create_task(_send_queued())
+    try:
+        await asyncio.wait({reader, sender}, return_when=asyncio.FIRST_COMPLETED)
     finally:
         runtime.stream.disconnect(client)
-        reader.cancel()
-        with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError):
-            await reader
+        for task in (reader, sender):
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError):
+                await task
