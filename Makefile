@@ -8,14 +8,16 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 NODE_STAMP := frontend/node_modules/.package-lock.json
+# The official BIDS validator (npm), used by the tests of the BIDS-motion export.
+BIDS_STAMP := tools/bids/node_modules/.package-lock.json
 
-.PHONY: run test install lint bench clean-db system-npm system-chromium
+.PHONY: run test install lint bench clean-db system-npm system-chromium system-postgresql
 
 run: install
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-test: install system-chromium
+test: install $(BIDS_STAMP) system-chromium system-postgresql
 	$(BIN)/ruff check controller backend tests bench migrations
 	$(BIN)/mypy
 	$(BIN)/python -m pytest
@@ -27,16 +29,26 @@ $(BIN)/python:
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,postgres]'
 	touch $@
 
 $(NODE_STAMP): frontend/package.json frontend/package-lock.json | system-npm
 	cd frontend && npm ci --no-audit --no-fund
 	touch $@
 
+$(BIDS_STAMP): tools/bids/package.json tools/bids/package-lock.json | system-npm
+	cd tools/bids && npm ci --no-audit --no-fund --ignore-scripts
+	touch $@
+
 # Debian packages the project needs and a fresh machine may lack.
 system-npm:
 	@command -v npm >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y npm; }
+
+# The database-facing tests also run on a throwaway PostgreSQL cluster (tests/databases.py
+# runs initdb and pg_ctl in a temporary folder; no system service is needed).
+system-postgresql:
+	@command -v pg_ctl >/dev/null 2>&1 || ls /usr/lib/postgresql/*/bin/pg_ctl >/dev/null 2>&1 || \
+		{ $(SUDO) apt-get update && $(SUDO) apt-get install -y postgresql; }
 
 system-chromium:
 	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y chromium; }

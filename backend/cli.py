@@ -6,10 +6,13 @@
     exostudy simulate --seed S --script NAME --out FILE.csv
     exostudy replay --angles IN.csv --controller umc ... --out TICKS.csv
     exostudy human-dataset --out FILE.json     the simulated reference human data
-    exostudy user add NAME                     create an experimenter (password on stdin)
-    exostudy user list                         list the experimenter accounts
+    exostudy user add NAME [--admin]           create an account (password on stdin)
+    exostudy user passwd|disable|enable NAME   new password (stdin) / turn an account off/on
+    exostudy user list                         list the accounts, their role and state
     exostudy virtual-study --participants 8 --seed S --out DIR   the protocol, simulated
+    exostudy cohort --participants N --seed S --out DIR   power and sample size, simulated
     exostudy results --study ID --out DIR [--db URL]   a study's tables and figures
+    exostudy export --study ID --bids DIR [--db URL]   a study as a BIDS-motion dataset
 """
 
 from __future__ import annotations
@@ -100,13 +103,32 @@ def _user(args: argparse.Namespace) -> int:
         with make_session_factory(engine)() as session:
             if args.action == "list":
                 for u in session.scalars(select(User).order_by(User.username)):
-                    print(f"{u.username}\t{'active' if u.active else 'disabled'}")
+                    print(f"{u.username}\t{u.role}\t{'active' if u.active else 'disabled'}")
                 return 0
             if not args.name:
-                raise ValueError("user add: give the NAME of the account")
+                raise ValueError(f"user {args.action}: give the NAME of the account")
+            if args.action != "add":
+                found = session.scalars(select(User).where(User.username == args.name)).first()
+                if found is None:
+                    raise ValueError(f"user {args.action}: no account named {args.name!r}")
+                try:
+                    if args.action == "passwd":
+                        accounts.change_password(session, found, _read_password(
+                            sys.stdin.isatty()))
+                        accounts.revoke_all(session, found)
+                    else:
+                        accounts.set_active(session, found, args.action == "enable")
+                except accounts.AccountError as exc:
+                    raise ValueError(str(exc)) from exc
+                audit.record(session, "command line", args.action, "user", found.id,
+                             {"username": found.username})
+                session.commit()
+                print(f"{args.action}: done for {found.username!r}")
+                return 0
             password = _read_password(sys.stdin.isatty())
             try:
-                user = accounts.create_user(session, args.name, password)
+                user = accounts.create_user(session, args.name, password,
+                                            "admin" if args.admin else None)
             except accounts.AccountError as exc:
                 raise ValueError(str(exc)) from exc
             audit.record(session, "command line", "create", "user", user.id,
@@ -134,6 +156,32 @@ def _virtual_study(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cohort(args: argparse.Namespace) -> int:
+    import time
+
+    from controller.evaluation.cohort import CohortConfig, simulate_cohort
+    from controller.evaluation.cohort_report import analyse, write_outputs
+    from controller.factory import load_models, load_utilities
+
+    cfg = CohortConfig(participants=args.participants, seed=args.seed,
+                       controllers=tuple(c.strip() for c in args.controllers.split(",")
+                                         if c.strip()),
+                       rate_hz=args.rate)
+    models = load_models({"models_path": args.models}) if args.models else None
+    utilities = (load_utilities({"utilities_path": args.utilities}) if args.utilities
+                 else None)
+    t0 = time.monotonic()
+    if args.processes < 1:
+        raise ValueError("--processes: at least 1")
+    cohort = simulate_cohort(cfg, models, utilities, processes=args.processes)
+    t1 = time.monotonic()
+    paths = write_outputs(cohort, analyse(cohort, seed=args.seed), Path(args.out))
+    print(f"cohort of {cfg.participants} simulated in {t1 - t0:.1f} s, statistics and files "
+          f"in {time.monotonic() - t1:.1f} s; wrote {len(paths)} files to {args.out} "
+          "(see README.md there)")
+    return 0
+
+
 def _results(args: argparse.Namespace) -> int:
     from backend.core.config import Settings
     from backend.db import migrate
@@ -158,6 +206,38 @@ def _results(args: argparse.Namespace) -> int:
     finally:
         engine.dispose()
     print(f"wrote {len(paths)} files for study {args.study} to {args.out}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from backend.core.config import Settings
+    from backend.db import migrate
+    from backend.db.engine import make_engine, make_session_factory
+    from backend.lab.bids_export import dataset_files
+
+    url = args.db or Settings().database_url
+    if "://" not in url:
+        if not Path(url).is_file():
+            raise FileNotFoundError(f"--db: no database file at {url}")
+        url = f"sqlite:///{Path(url).resolve()}"
+    if migrate.current(url) is None:
+        raise ValueError(f"--db: {url} is not an ExoStudy database (no schema revision)")
+    migrate.upgrade(url)
+    out = Path(args.bids)
+    if out.exists() and any(out.iterdir()):
+        raise ValueError(f"--bids: {out} is not empty; give a new or empty folder")
+    engine = make_engine(url)
+    n = 0
+    try:
+        with make_session_factory(engine)() as db:
+            for rel, data in dataset_files(engine, db, args.study):
+                path = out / rel
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+                n += 1
+    finally:
+        engine.dispose()
+    print(f"wrote a BIDS dataset of {n} files for study {args.study} to {out}")
     return 0
 
 
@@ -194,9 +274,12 @@ def build_parser() -> argparse.ArgumentParser:
     h.set_defaults(func=_human_dataset)
 
     u = sub.add_parser("user", help="experimenter accounts: `user add NAME` reads the "
-                       "password from standard input; `user list`")
-    u.add_argument("action", choices=["add", "list"])
+                       "password from standard input; `user passwd NAME`, `user disable NAME`, "
+                       "`user enable NAME`, `user list`")
+    u.add_argument("action", choices=["add", "list", "passwd", "disable", "enable"])
     u.add_argument("name", nargs="?", default=None)
+    u.add_argument("--admin", action="store_true",
+                   help="with add: an administrator (the first account always is)")
     u.set_defaults(func=_user)
 
     v = sub.add_parser("virtual-study", help="run the paper's protocol on virtual "
@@ -219,6 +302,25 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--out", required=True)
     v.set_defaults(func=_virtual_study)
 
+    c = sub.add_parser("cohort", help="simulate N virtual participants through the "
+                       "controllers (batch replay) and compute confidence intervals, paired "
+                       "tests and power curves")
+    c.add_argument("--participants", type=int, default=100)
+    c.add_argument("--seed", type=int, default=1)
+    c.add_argument("--controllers", default="umc,eumc,pec",
+                   help="comma-separated: umc, eumc, pec")
+    c.add_argument("--rate", type=float, default=None,
+                   help="every controller at this rate (Hz); default: the paper's rates")
+    c.add_argument("--models", default=None, help="model set JSON (default: fitted from the "
+                   "simulated data collection)")
+    c.add_argument("--utilities", default=None, help="utility set JSON (default: from the "
+                   "simulated reference human dataset)")
+    c.add_argument("--processes", type=int, default=1,
+                   help="spread the participants over this many processes (default 1: "
+                   "bench/bench_cohort.py found one process faster up to 100 participants)")
+    c.add_argument("--out", required=True)
+    c.set_defaults(func=_cohort)
+
     r = sub.add_parser("results", help="write a study's tables (CSV, Markdown), figures "
                        "(PNG, SVG) and trial timelines from an existing database")
     r.add_argument("--study", type=int, required=True, help="the study's id")
@@ -228,6 +330,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-timelines", action="store_true",
                    help="skip the per-trial five-panel figures")
     r.set_defaults(func=_results)
+
+    e = sub.add_parser("export", help="write a study as a BIDS-motion dataset")
+    e.add_argument("--study", type=int, required=True, help="the study's id")
+    e.add_argument("--bids", required=True, help="a new or empty folder to write into")
+    e.add_argument("--db", default=None, help="SQLite file or database URL (default: "
+                   "EXOSTUDY_DATABASE_URL, i.e. the server's database)")
+    e.set_defaults(func=_export)
 
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")
@@ -242,6 +351,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv and argv[0] in passthrough:
         import importlib
 
+        if argv[0] == "device-sim":
+            from backend.device_process import die_with_parent
+
+            die_with_parent()  # a server-spawned simulator never outlives its server
         module = importlib.import_module(passthrough[argv[0]])
         code: int = module.main(argv[1:])
         return code

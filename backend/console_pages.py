@@ -28,6 +28,12 @@ def _page(request: Request, name: str) -> Response:
     return FileResponse(static / name)
 
 
+@router.get("/admin")
+def admin(request: Request) -> Response:
+    """Accounts: one's password and logins; for an admin, every account."""
+    return _page(request, "admin.html")
+
+
 @router.get("/console")
 def console(request: Request) -> Response:
     """Studies: list and create."""
@@ -44,6 +50,12 @@ def study(request: Request, study_id: PageId) -> Response:
 def results(request: Request, study_id: PageId) -> Response:
     """A study's results: tables, figures, trials, what-if replay, model evaluation."""
     return _page(request, "results.html")
+
+
+@router.get("/console/cohorts")
+def cohorts(request: Request) -> Response:
+    """Virtual cohorts: run one, follow its progress, read its tables and power curves."""
+    return _page(request, "cohorts.html")
 
 
 @router.get("/console/sessions/{session_id}")

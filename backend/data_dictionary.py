@@ -24,6 +24,10 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "height_m": ("m", "body height"),
         "mass_kg": ("kg", "body mass"),
         "consent_date": ("ISO 8601 date", "date informed consent was given"),
+        "site": ("", "site that recruited the participant (empty: single-site study)"),
+        "consent_version": ("", "version of the study's consent document agreed to"),
+        "withdrawn_at": ("ISO 8601 UTC", "when the participant withdrew (kept, excluded "
+                         "from results); empty otherwise"),
     }),
     "study_sessions": ("One row per visit: data collection (demonstrations) or evaluation.", {
         "participant_id": ("", "participant id"),
@@ -36,8 +40,8 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "label": ("", "label the participant saw (A, B, C)"),
         "controller": ("", "controller behind the label: umc, eumc or pec"),
     }),
-    "recordings": ("Continuous 100 Hz recordings of demonstrations (no locks); ticks in "
-                   "ticks/recording-<id>.csv.", {
+    "recordings": ("Continuous 100 Hz recordings of demonstrations (no locks; status "
+                   "recording, stopped or interrupted); ticks in ticks/recording-<id>.csv.", {
         "session_id": ("", "session id"),
         "run_id": ("", "worker run that produced the ticks"),
         "label": ("", "label given when recording"),
@@ -80,7 +84,8 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "human_source": ("", "human motion dataset used: simulated:<version> or imported:<file>"),
         "error": ("", "why computing failed, if it did"),
     }),
-    "trials": ("Evaluation trials; ticks in ticks/trial-<id>.csv.", {
+    "trials": ("Evaluation trials (status planned, running, completed, aborted or "
+               "interrupted); ticks in ticks/trial-<id>.csv.", {
         "session_id": ("", "session id"),
         "controller": ("", "umc, eumc or pec"),
         "task": ("", "task performed (script name in simulation)"),
@@ -91,7 +96,12 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "config_snapshot": ("JSON", "the exact controller configuration the trial ran with"),
         "started_at": ("ISO 8601 UTC", "start"),
         "ended_at": ("ISO 8601 UTC", "end"),
-        "end_reason": ("", "reason given when it ended"),
+        "end_reason": ("", "reason given when it ended, or why it was interrupted (its "
+                       "worker or the server stopped)"),
+        "tick_count": ("", "ticks stored for the trial when it ended"),
+        "quality_flags": ("JSON", "device clock faults in the ticks: time_gaps (count), "
+                          "missing_s, largest_gap_s, time_backwards (count), "
+                          "largest_backstep_s; {} when none"),
     }),
     "lock_events": ("Lock commands and mechanism changes per trial, derived from the ticks.", {
         "trial_id": ("", "trial id"),
@@ -108,6 +118,8 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "instrument_version": ("", "instrument version the score was computed with"),
         "condition_label": ("", "blinded controller label the answers are about"),
         "answers": ("JSON", "item id -> answer on the instrument's scale"),
+        "link_form": ("", "position of the form in its link's list (from 0); empty when "
+                      "not entered through a link"),
         "score": ("instrument's range", "total score (SUS 0-100, EUS 0-10)"),
         "subscale_scores": ("JSON", "subscale -> score"),
         "submitted_at": ("ISO 8601 UTC", "when submitted"),
@@ -117,6 +129,27 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "link_id": ("", "participant link it came through"),
         "choice": ("", "blinded label preferred, or no_preference"),
         "submitted_at": ("ISO 8601 UTC", "when submitted"),
+    }),
+    "markers": ("Event markers: from the console, from other software's LSL marker "
+                "streams, and the system's trial start and stop.", {
+        "session_id": ("", "session id"),
+        "trial_id": ("", "trial whose run produced the marker's tick; empty between trials"),
+        "run_id": ("", "worker run of the marker's tick"),
+        "t": ("s", "device time of the tick the marker is placed at"),
+        "lsl_time": ("s", "the same instant on the Lab Streaming Layer clock"),
+        "label": ("", "marker label (console button, LSL sample text, trial_start/stop)"),
+        "note": ("", "free text typed with the marker"),
+        "source": ("", "console, lsl or system"),
+        "stream_id": ("", "the LSL marker stream subscription it came from"),
+    }),
+    "xdf_attachments": ("LabRecorder XDF files attached to a session (the files "
+                        "themselves are in the BIDS export's sourcedata).", {
+        "session_id": ("", "session id"),
+        "filename": ("", "file name as uploaded"),
+        "size_bytes": ("bytes", "file size"),
+        "sha256": ("", "SHA-256 of the file"),
+        "streams": ("JSON", "each stream: name, type, channels, samples, LSL time span, "
+                    "trials covered, clock offset of ExoStudy's own stream (ms)"),
     }),
 }
 

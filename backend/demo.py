@@ -49,7 +49,7 @@ def ensure_demo(db: Session, models: ModelSet, utilities: UtilitySet,
     if db.scalar(select(func.count()).select_from(User)) or db.scalar(
             select(func.count()).select_from(Study)):
         return False
-    user = accounts.create_user(db, DEMO_USER, DEMO_PASSWORD)
+    user = accounts.create_user(db, DEMO_USER, DEMO_PASSWORD, "admin", published=True)
     db.flush()
     study = Study(name=DEMO_STUDY, created_by=user.id, description=(
         "Virtual participants on the simulated exoskeleton. V01-V06 recorded the "

@@ -28,8 +28,16 @@ class CsvError(ValueError):
 
 
 def parse_human_data(text: str, source: str) -> HumanMotionData:
-    """Parse and validate; raises `CsvError` at the first problem."""
+    """Parse and validate; raises `CsvError` at the first problem (also for what the
+    csv module itself refuses, such as a field longer than its 128 KiB limit)."""
     reader = csv.DictReader(io.StringIO(text))
+    try:
+        return _parse(reader, source)
+    except csv.Error as exc:
+        raise CsvError(reader.line_num, "file", str(exc)) from None
+
+
+def _parse(reader: csv.DictReader[str], source: str) -> HumanMotionData:
     header = [h.strip() for h in (reader.fieldnames or [])]
     for c in COLUMNS:
         if c not in header:

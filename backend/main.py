@@ -2,21 +2,27 @@
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI, Request
+from fastapi import Depends, FastAPI, Request
 from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy.orm import Session, sessionmaker
 
-from backend import console_pages, viewer
-from backend.api.deps import SESSION_COOKIE, login_from_token
+from backend import accounts, activity, console_pages, viewer
+from backend.api import docs_assets, web_surface
+from backend.api.deps import SESSION_COOKIE, authorize, document_access, login_from_token
+from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors
 from backend.api.routes import (
     audit,
     auth,
+    cohorts,
     health,
+    lab,
     live,
     model_sets,
     participant_forms,
@@ -41,6 +47,27 @@ from backend.runtime import Runtime
 log = logging.getLogger(__name__)
 
 
+def refuse_published_passwords(settings: Settings, sessions: sessionmaker[Session]) -> None:
+    """Refuse to serve beyond this machine while an account has a published password
+    (the demo's, printed in the README): anyone on the network could log in."""
+    with sessions() as db:
+        names = accounts.published_password_accounts(db)
+    if not names:
+        return
+    host = settings.host.strip("[]")
+    try:
+        loopback = ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = host == "localhost"
+    if not loopback:
+        raise RuntimeError(
+            f"refusing to listen on {settings.host}: account(s) {', '.join(names)} still "
+            "have the published demo password; change it (`exostudy user passwd NAME`) "
+            "or disable the account (`exostudy user disable NAME`) first")
+    log.warning("account(s) %s still have the published demo password: change it before "
+                "serving beyond this machine", ", ".join(names))
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app. Migrations are applied at start-up, so a fresh clone just works."""
     settings = settings or get_settings()
@@ -54,11 +81,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.sessions = make_session_factory(engine)
         with app.state.sessions() as db:
             ensure_built_ins(db)
+        # What a killed server left running ends as interrupted, with its tick counts,
+        # before a new worker could attach anything to it.
+        closed = activity.recover(engine)
+        if closed:
+            log.warning("closed after an unclean stop: %s", ", ".join(closed))
         runtime = Runtime(settings, engine)
         app.state.runtime = runtime
         app.state.jobs = JobRunner(app.state.sessions)
         await runtime.start()
         try:
+            refuse_published_passwords(settings, app.state.sessions)
             yield
         finally:
             await runtime.stop()
@@ -71,11 +104,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         summary="Intent estimation and decision-theoretic control for a quasi-passive hip "
         "exoskeleton, and the studies around it.",
         lifespan=lifespan,
+        # The one access check of every route, present and future (backend/api/deps.py).
+        dependencies=[Depends(authorize)],
+        # /docs is served from local assets below (no CDN): studies run offline.
+        docs_url=None,
+        redoc_url=None,
     )
+    app.add_middleware(web_surface.BodyLimit, limit=settings.max_body_bytes,
+                       limits={"/utility-sets/import": settings.max_upload_bytes})
+    app.add_middleware(web_surface.SecurityHeaders)
+    docs_assets.install(app, settings.frontend_dir)
+    install_handlers(app)
     app.include_router(health.router)
     app.include_router(worker.router)
     app.include_router(live.router)
     app.include_router(auth.router)
+    app.include_router(auth.users)
     app.include_router(studies.router)
     app.include_router(participants.router)
     app.include_router(sessions.router)
@@ -88,10 +132,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(model_sets.router)
     app.include_router(trials.router)
     app.include_router(trial_segments.router)
+    app.include_router(lab.router)
     app.include_router(results.router)
+    app.include_router(cohorts.router)
     app.include_router(console_pages.router)
     app.include_router(viewer.router)
     document_framework_errors(app)
+    document_access(app)
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

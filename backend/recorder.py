@@ -3,6 +3,12 @@
 Ticks wait in memory at most `flush_interval` seconds (setting `db_flush_interval`,
 at most 1 s), so a killed server loses at most that much. Each worker run becomes a
 `runs` row; its ticks reference it.
+
+While the database refuses writes (disk full, locked), ticks are kept for the next
+attempt up to `backlog_limit`; beyond it the oldest are dropped and counted
+(`dropped`), so memory stays bounded and the loss is visible in health. `last_error`
+is cleared by the next successful write: health reports the present, `failures` and
+`dropped` the history.
 """
 
 from __future__ import annotations
@@ -10,6 +16,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+import time
 from collections import Counter
 from datetime import UTC, datetime
 
@@ -37,9 +44,12 @@ def _summarise(config: dict[str, object]) -> dict[str, object]:
 class TickRecorder:
     """Buffers tick batches and inserts them on a background thread."""
 
-    def __init__(self, engine: Engine, flush_interval: float = 0.5) -> None:
+    def __init__(self, engine: Engine, flush_interval: float = 0.5,
+                 backlog_limit: int = 30_000) -> None:
         self.engine = engine
         self.flush_interval = flush_interval
+        self.backlog_limit = backlog_limit
+        self.dropped = 0
         self._pending: list[tuple[int, TickRecord]] = []
         self._lock = threading.Lock()
         self._flush_lock = threading.Lock()
@@ -109,9 +119,24 @@ class TickRecorder:
         with self._lock:
             run_id = self._runs.get(batch.run_token)
             if run_id is None:
+                # Its run row could not be created (database down): counted as lost.
                 log.warning("ticks for unknown run token %s dropped", batch.run_token)
+                self.dropped += len(batch.records)
                 return
             self._pending.extend((run_id, r) for r in batch.records)
+            self._trim()
+
+    def _trim(self) -> None:
+        """Drop the oldest pending ticks beyond the limit (call with `_lock` held)."""
+        excess = len(self._pending) - self.backlog_limit
+        if excess > 0:
+            del self._pending[:excess]
+            self.dropped += excess
+
+    @property
+    def backlog(self) -> int:
+        """Ticks received and not yet written."""
+        return len(self._pending)
 
     def flush(self) -> int:
         """Insert everything pending now; returns the number of ticks written.
@@ -144,7 +169,9 @@ class TickRecorder:
             log.exception("writing %d ticks failed", len(rows))
             with self._lock:
                 self._pending = pending + self._pending
+                self._trim()
             return 0
+        self.last_error = ""
         for run_id, n in Counter(run_id for run_id, _ in pending).items():
             self._counts[run_id] = self._counts.get(run_id, 0) + n
         self.written += len(rows)
@@ -161,5 +188,9 @@ class TickRecorder:
         return self._sql
 
     def _run(self) -> None:
-        while not self._stop.wait(self.flush_interval):
+        # On a fixed schedule: a slow write does not stretch the time the next ticks
+        # wait in memory (what a killed server loses).
+        due = time.monotonic() + self.flush_interval
+        while not self._stop.wait(max(0.0, due - time.monotonic())):
             self.flush()
+            due = max(due + self.flush_interval, time.monotonic())

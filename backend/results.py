@@ -35,7 +35,7 @@ import numpy as np
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend import tick_queries
+from backend import tick_queries, trial_quality
 from backend.db.evidence import (
     LiftSegment,
     ModelSetRecord,
@@ -51,7 +51,7 @@ from backend.db.models import (
     QuestionnaireResponse,
     StudySession,
 )
-from controller.config import ControllerConfig
+from controller.config import ControllerConfig, SettingError
 from controller.evaluation import (
     DecisionOutcome,
     FalsePositiveTable,
@@ -127,6 +127,8 @@ class TrialResult:
     task: str
     truth: GroundTruth
     evaluation: RecordingEvaluation
+    #: Device time gaps or time going backwards (`backend.trial_quality`); {} if none.
+    quality_flags: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -284,7 +286,8 @@ def evaluate_trial(engine: Engine, db: Session, trial: Trial) -> TrialResult:
     part = _participant_of(db, trial)
     ev = evaluate_recording(cols, part.code, trial.controller, truth.lifts, truth.gait,
                             recording=f"trial-{trial.id}")
-    return TrialResult(trial.id, part.code, trial.controller, trial.task, truth, ev)
+    return TrialResult(trial.id, part.code, trial.controller, trial.task, truth, ev,
+                       dict(trial.quality_flags or {}))
 
 
 # --------------------------------------------------------------------------- a study
@@ -377,6 +380,9 @@ def results_document(res: StudyResults) -> dict[str, Any]:
                      "usable segments; they count in no lift table")
     if not res.questionnaire_scores:
         notes.append("no questionnaire responses in this study")
+    for t in res.trials:
+        if t.quality_flags:
+            notes.append(f"trial {t.trial_id}: {trial_quality.describe(t.quality_flags)}")
     return {
         "study_id": res.study_id,
         "tables": tables,
@@ -384,7 +390,8 @@ def results_document(res: StudyResults) -> dict[str, Any]:
                     "controller": t.controller, "task": t.task, "truth": t.truth.source,
                     "truth_note": t.truth.note, "lifts": len(t.truth.lifts),
                     "incomplete_lifts": t.truth.incomplete_lifts,
-                    "gait_trials": len(t.truth.gait)} for t in res.trials],
+                    "gait_trials": len(t.truth.gait),
+                    "quality_flags": t.quality_flags} for t in res.trials],
         "skipped": res.skipped,
         "notes": notes,
     }
@@ -439,8 +446,12 @@ def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure
             models = ModelSet.from_json(ms.document)
     part = _participant_of(db, trial)
     title = f"Trial {trial.id}: {part.code}, {trial.controller.upper()}, {trial.task}"
+    from backend.lab.markers import trial_markers
+
+    marks = [(m.t, m.label) for m in trial_markers(db, trial.id)
+             if m.t is not None and m.source != "system"]
     return render_figure(controller_output_figure(cols, models=models, lifts=truth.lifts,
-                                                  title=title))
+                                                  title=title, markers=marks))
 
 
 # --------------------------------------------------------------------------- what-if
@@ -479,10 +490,15 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
         base = ControllerConfig.from_json(snap) if snap else ControllerConfig()
         merged = base.to_json() | dict(settings or {})
         config = ControllerConfig.from_json(merged)
+    except SettingError as exc:
+        raise ResultsError(f"settings.{exc.field}", exc.problem) from exc
     except (TypeError, ValueError) as exc:
         raise ResultsError("settings", str(exc)) from exc
     if rate_hz is not None:
-        config = config.at_rate(rate_hz)
+        try:
+            config = config.at_rate(rate_hz)
+        except SettingError as exc:
+            raise ResultsError("rate_hz", exc.problem) from exc
     cfg: dict[str, Any] = {"settings": config}
     if controller in NEEDS_MODELS:
         cfg["models"] = _document(db, ModelSetRecord, model_set_id or trial.model_set_id,
@@ -569,7 +585,10 @@ def leave_one_participant_out(engine: Engine, db: Session, model_set_id: int,
         # live UMC reads them.
         angles[rid] = np.column_stack([c["t"], c["q_raw_left"], c["q_raw_right"],
                                        c["q_left"], c["q_right"]])
-    config = ControllerConfig() if rate_hz is None else ControllerConfig().at_rate(rate_hz)
+    try:
+        config = ControllerConfig() if rate_hz is None else ControllerConfig().at_rate(rate_hz)
+    except SettingError as exc:
+        raise ResultsError("rate_hz", exc.problem) from exc
     params = ms.params or {}
     predicted_names = [*MODEL_NAMES, "none"]
     decision_names = [ACTION_NAMES[a - 1] for a in (Action.LOCK_BOTH, Action.LOCK_LEFT,

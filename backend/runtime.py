@@ -8,7 +8,6 @@ from __future__ import annotations
 import asyncio
 import logging
 import subprocess
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -16,17 +15,36 @@ from typing import Any
 
 from sqlalchemy import Engine
 
-from backend import bootstrap
+from backend import activity, bootstrap, device_process
 from backend.core.config import Settings
+from backend.lab.hub import Lab
 from backend.recorder import TickRecorder
 from backend.schemas.live import DatabaseHealth, DeviceHealth, Health, WorkerHealth
 from backend.stream import LiveStream
-from backend.worker.messages import CalibrationResult, RunStarted, TickBatch, WorkerConfig
+from backend.worker.messages import (
+    CalibrationResult,
+    CommandResult,
+    RunStarted,
+    TickBatch,
+    WorkerConfig,
+)
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
+from controller.device.auth import load_or_create_key
 from controller.factory import NEEDS_MODELS
+from controller.spec import ControllerSpec
 
 log = logging.getLogger(__name__)
+
+#: The longest a command to a live worker may go unanswered. Not a guess at how long
+#: the answer takes (every command is answered, in order with the ticks before it, and a
+#: sped-up simulation never runs ahead of what the server stores): only a hung worker
+#: reaches it. A worker that dies fails the wait at once, with its exit reason.
+COMMAND_TIMEOUT_S = 120.0
+#: A sped-up simulation waits while the recorder holds more ticks than this (a third of
+#: its default backlog limit), at most `RECORDER_WAIT_S` per batch.
+RECORDER_HOLD = 10_000
+RECORDER_WAIT_S = 30.0
 
 
 def _finite(x: float | None) -> float | None:
@@ -43,7 +61,8 @@ class Runtime:
         host, port = settings.device_host_port
         self.calibration: CalibrationResult | None = None
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
-        self._run_waiters: list[tuple[str, asyncio.Future[int]]] = []
+        self._command_waiters: dict[int, asyncio.Future[CommandResult]] = {}
+        self._run_ids: dict[int, int] = {}  # worker run token -> runs.id
         self._runs_started = 0
         self._last_run_token = 0
         self.worker_config = WorkerConfig(
@@ -52,12 +71,20 @@ class Runtime:
             device_port=port,
             device_seed=settings.device_seed,
             device_script=settings.device_script,
+            device_key_file=str(settings.device_key_file),
             precompression_pct=settings.precompression_pct,
             device_speed=settings.device_speed,
             models_path=str(settings.models_path),
         )
-        self.recorder = TickRecorder(engine, settings.db_flush_interval)
+        self.recorder = TickRecorder(engine, settings.db_flush_interval,
+                                     settings.db_backlog_limit)
+        #: Held by every route that starts, stops or switches what the worker runs for
+        #: the study (trials, recordings, controller, simulation, calibration): one at
+        #: a time, so "is anything running?" and "start it" are one step.
+        self.activity = asyncio.Lock()
         self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
+        # LSL outlets and event markers: one more consumer of the tick batches.
+        self.lab = Lab(settings.lsl_enabled, settings.lsl_name, engine, self.stream)
         self.supervisor = WorkerSupervisor(
             self.worker_config,
             WorkerCallbacks(
@@ -66,6 +93,7 @@ class Runtime:
                 on_exit=self._on_exit,
                 on_event=self._on_event,
                 on_calibration=self._on_calibration,
+                on_command_result=self._on_command_result,
             ),
         )
         self.device_process: subprocess.Popen[bytes] | None = None
@@ -103,42 +131,77 @@ class Runtime:
             settings["calibration"] = [self.calibration.offset_left,
                                        self.calibration.offset_right]
         settings.update(overrides or {})
-        ControllerConfig.from_json(settings)  # refuse a bad setting here, not in the worker
-        out: dict[str, Any] = {"settings": settings}
-        if name in NEEDS_MODELS:
-            out["models_path"] = str(self.settings.models_path)
-            out["utilities_path"] = str(self.utilities_path())
-        return out
+        # Refuse a bad setting here (SettingError names the field), not in the worker.
+        spec = ControllerSpec(
+            name, ControllerConfig.from_json(settings),
+            models_path=str(self.settings.models_path) if name in NEEDS_MODELS else None,
+            utilities_path=str(self.utilities_path()) if name in NEEDS_MODELS else None)
+        return spec.to_config()
 
     def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
         """Switch the worker's controller (a new run starts)."""
         self.supervisor.set_controller(name, self.controller_config(name, overrides))
 
     async def switch_controller(
-        self, name: str, config: dict[str, Any], timeout: float = 20.0,
+        self, name: str, config: dict[str, Any], timeout: float = COMMAND_TIMEOUT_S,
         max_ticks: int | None = None,
     ) -> int:
         """Switch to `name` with a complete `config` and wait until the worker runs it;
         returns the new run's id. With `max_ticks` the worker ends the run by itself
-        after that many samples. Raises RuntimeError if the worker is down or refuses."""
+        after that many samples. Raises RuntimeError if the worker is down or refuses
+        (with the worker's reason)."""
+        # The last check before the worker: a ValueError (SettingError) naming the field.
+        config = ControllerSpec.from_config(name, config).to_config()
         if not self.supervisor.state.alive:
             raise RuntimeError("the worker is not running: restart it first")
-        loop = asyncio.get_running_loop()
-        fut: asyncio.Future[int] = loop.create_future()
-        errors_before = len(self.supervisor.state.errors)
-        self._run_waiters.append((name, fut))
-        self.supervisor.set_controller(name, config, max_ticks)
+        fut = self._command_future()
+        rid = self.supervisor.set_controller(name, config, max_ticks)
+        answer = await self._answer(rid, fut, f"start {name}", timeout)
+        if not answer.ok:
+            raise RuntimeError(answer.message)
+        return self._run_ids[answer.run_token]
+
+    def _command_future(self) -> asyncio.Future[CommandResult]:
+        return asyncio.get_running_loop().create_future()
+
+    async def _answer(self, rid: int, fut: asyncio.Future[CommandResult], what: str,
+                      timeout: float) -> CommandResult:
+        """The worker's answer to request `rid`; RuntimeError if it dies first."""
+        if not rid:
+            raise RuntimeError(f"the worker is not running: it cannot {what}")
+        self._command_waiters[rid] = fut
         try:
-            deadline = loop.time() + timeout
-            while not fut.done():
-                if len(self.supervisor.state.errors) > errors_before:
-                    raise RuntimeError(self.supervisor.state.errors[-1])
-                if loop.time() > deadline or not self.supervisor.state.alive:
-                    raise RuntimeError(f"the worker did not start {name}")
-                await asyncio.sleep(0.02)
-            return fut.result()
+            return await self._until_answered(fut, what, timeout)
         finally:
-            self._run_waiters = [(n, f) for n, f in self._run_waiters if f is not fut]
+            self._command_waiters.pop(rid, None)
+
+    async def _until_answered(self, fut: asyncio.Future[Any], what: str,
+                              timeout: float) -> Any:
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout
+        while not fut.done():
+            if not self.supervisor.state.alive:
+                reason = self.supervisor.state.exit_reason or "exited"
+                raise RuntimeError(f"the worker stopped ({reason}) before it could {what}")
+            if loop.time() > deadline:
+                raise RuntimeError(f"the worker did not answer within {timeout:.0f} s: "
+                                   f"it could not {what}")
+            await asyncio.wait([fut], timeout=0.1)
+        return fut.result()
+
+    def _on_command_result(self, result: CommandResult) -> None:
+        loop = self.stream._loop
+        if loop is None:
+            return
+
+        def resolve() -> None:
+            # Looked up on the event loop, where the waiter registers right after the
+            # send: an answer faster than that registration is still delivered.
+            fut = self._command_waiters.get(result.request_id)
+            if fut is not None and not fut.done():
+                fut.set_result(result)
+
+        loop.call_soon_threadsafe(resolve)
 
     async def set_simulation(self, seed: int, script: str, speed: float | None = None) -> None:
         """Put another virtual participant (seed) or script on the simulated device: the
@@ -164,12 +227,20 @@ class Runtime:
         if self.settings.device_kind == "sim":
             # The running worker swaps its simulated device (no process start); a worker
             # that is down picks the new configuration up when it starts.
-            if not self.supervisor.set_simulation(seed, script, speed):
+            fut = self._command_future()
+            rid = self.supervisor.set_simulation(seed, script, speed)
+            if rid is None:
                 await asyncio.to_thread(self.supervisor.restart)
+            else:
+                answer = await self._answer(rid, fut, "change the simulation",
+                                            COMMAND_TIMEOUT_S)
+                if not answer.ok:
+                    raise RuntimeError(answer.message)
         elif self.settings.device_spawn_simulator:
             if self.device_process is not None:
-                self.device_process.terminate()
-                await asyncio.to_thread(self.device_process.wait, 3.0)
+                await asyncio.to_thread(device_process.stop, self.device_process,
+                                        self._device_pid_file())
+                self.device_process = None
             await asyncio.to_thread(self.start_device_simulator)
         else:
             raise ValueError("device: the device is real hardware: there is no simulation "
@@ -197,23 +268,27 @@ class Runtime:
     async def calibrate(self, seconds: float, max_std_deg: float) -> CalibrationResult:
         """Ask the worker to calibrate and wait for the outcome."""
         loop = asyncio.get_running_loop()
-        rid = self.supervisor.request_calibration(seconds, max_std_deg)
         fut: asyncio.Future[CalibrationResult] = loop.create_future()
+        rid = self.supervisor.request_calibration(seconds, max_std_deg)
         self._calibration_waiters[rid] = fut
         try:
-            return await asyncio.wait_for(fut, seconds + 5.0)
+            # Answered after `seconds` of samples, or abandoned with a reason.
+            result: CalibrationResult = await self._until_answered(
+                fut, "calibrate", COMMAND_TIMEOUT_S + seconds)
+            return result
         finally:
             self._calibration_waiters.pop(rid, None)
 
     def _on_calibration(self, result: CalibrationResult) -> None:
+        self.lab.on_calibration(result.ok, result.message)
         if result.ok:
             self.calibration = result
-        fut = self._calibration_waiters.get(result.request_id)
         loop = self.stream._loop
-        if fut is not None and loop is not None:
+        if loop is not None:
 
             def resolve() -> None:
-                if not fut.done():
+                fut = self._calibration_waiters.get(result.request_id)
+                if fut is not None and not fut.done():
                     fut.set_result(result)
 
             loop.call_soon_threadsafe(resolve)
@@ -229,8 +304,18 @@ class Runtime:
         self.supervisor.config = self.worker_config
         self.recorder.start()
         await self.stream.start()
+        self.lab.start()
+        if self.settings.device_kind == "udp":
+            # First start: a new link key, private to this user (mode 0600).
+            load_or_create_key(self.settings.device_key_file)
         if self.settings.device_kind == "udp" and self.settings.device_spawn_simulator:
-            self.start_device_simulator()
+            try:
+                self.start_device_simulator()
+            except device_process.DeviceStartError as exc:
+                # The server still starts (health shows the device down and why); the
+                # worker retries the address until a device answers.
+                log.error("%s", exc)
+                self.supervisor.state.errors.append(str(exc))
         if self.settings.start_worker:
             self.supervisor.start()
         self._status_task = asyncio.create_task(self._status_loop(), name="status-loop")
@@ -251,52 +336,78 @@ class Runtime:
         self.recorder.worker_exited("server shutdown")
         self.recorder.stop()
         await self.stream.stop()
+        self.lab.stop()
         if self.device_process is not None:
-            self.device_process.terminate()
-            try:
-                self.device_process.wait(3.0)
-            except subprocess.TimeoutExpired:
-                self.device_process.kill()
+            device_process.stop(self.device_process, self._device_pid_file())
+
+    def _device_pid_file(self) -> Path:
+        return self.settings.run_dir / f"device-sim-{self.settings.device_host_port[1]}.pid"
 
     def start_device_simulator(self) -> None:
-        """Run the simulated exoskeleton as its own process on the device address."""
+        """Run the simulated exoskeleton as its own process on the device address, after
+        stopping one an earlier server left there; returns once it holds the port.
+        Raises `device_process.DeviceStartError` (with the reason) if it cannot."""
         host, port = self.settings.device_host_port
+        pid_file = self._device_pid_file()
+        stale = device_process.reclaim(pid_file, port)
+        if stale is not None:
+            log.warning("stopped device simulator %d left by an earlier server", stale)
         cmd = [
-            sys.executable, "-m", "backend.cli", "device-sim",
             "--port", str(port), "--seed", str(self.settings.device_seed),
             "--script", self.settings.device_script,
             "--precompression", str(self.settings.precompression_pct),
             "--bind", host,
             # The only address the device takes commands from: this machine's worker.
             "--host", "127.0.0.1" if host in ("127.0.0.1", "localhost") else host,
+            "--key-file", str(self.settings.device_key_file),
         ]
-        self.device_process = subprocess.Popen(cmd)
-        time.sleep(0.3)
+        self.device_process = device_process.spawn(
+            cmd, port, pid_file, self.settings.run_dir / f"device-sim-{port}.log")
 
     # Supervisor callbacks (reader thread).
     def _on_ticks(self, batch: TickBatch) -> None:
         self.recorder.add(batch)
         self.stream.push(batch.records)
+        self.lab.on_ticks(batch)
+        if self.supervisor.config.device_speed > 1.0:
+            self._wait_for_recorder()
+
+    def _wait_for_recorder(self) -> None:
+        """A sped-up simulation is paced by what the database stores: while the
+        recorder's backlog is high this (reader) thread waits, the pipe fills and the
+        worker holds its simulated device (see `backend.worker.process._hold`), so a
+        slow disk or a loaded machine slows the simulation instead of dropping ticks.
+        Bounded, so a database that refuses writes for long ends in the recorder's
+        counted drops, as for a real-time device."""
+        deadline = time.monotonic() + RECORDER_WAIT_S
+        while (self.recorder.backlog > RECORDER_HOLD and self.supervisor.state.alive
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
 
     def _on_run_started(self, msg: RunStarted) -> None:
         run_id = self.recorder.run_started(msg, msg.device_kind)
+        self.lab.on_run_started(msg.run_token, run_id)
         self.stream.run_id = run_id
+        self._run_ids[msg.run_token] = run_id
         self._runs_started += 1
         self._last_run_token = msg.run_token
-        loop = self.stream._loop
-        for name, fut in list(self._run_waiters):
-            if name == msg.controller and loop is not None:
-
-                def resolve(f: asyncio.Future[int] = fut) -> None:
-                    if not f.done():
-                        f.set_result(run_id)
-
-                loop.call_soon_threadsafe(resolve)
-                break
         self._on_event("run", {"run_id": run_id, "controller": msg.controller})
 
     def _on_exit(self, code: int | None, reason: str) -> None:
-        self.recorder.worker_exited(reason)
+        # Everything the worker sent is stored and its run closed first, so the trial
+        # it ran is closed with its real tick count.
+        try:
+            self.recorder.worker_exited(reason)
+        except Exception:
+            log.exception("closing the run of the exited worker failed")
+        try:
+            closed = activity.interrupt_running(self.recorder.engine,
+                                                f"the worker stopped: {reason}")
+        except Exception:
+            log.exception("closing what the exited worker ran failed")
+            return
+        if closed:
+            log.warning("worker stopped (%s): %s interrupted", reason, ", ".join(closed))
 
     def _on_event(self, kind: str, data: dict[str, Any]) -> None:
         self.stream.broadcast_json({"type": "status", "health": self.health().model_dump()})
@@ -329,12 +440,16 @@ class Runtime:
             kind=self.settings.device_kind,
             last_sample_age_s=_finite(s.last_sample_age_s) if s else None,
             faults=list(s.device_faults) if s else [],
+            implausible_samples=s.implausible if s else 0,
+            link_drops=dict(s.link_drops) if s else {},
         )
         db = DatabaseHealth(
             ticks_written=self.recorder.written,
             write_failures=self.recorder.failures,
             last_error=self.recorder.last_error,
             current_run_id=self.recorder.current_run_id,
+            backlog=self.recorder.backlog,
+            ticks_dropped=self.recorder.dropped,
         )
         ok = worker.alive and device.alive and not self.recorder.last_error
         return Health(

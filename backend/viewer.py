@@ -1,11 +1,16 @@
 """The 3D view: a viser scene of the wearer's pelvis and thighs and the exoskeleton's
 links, coloured by lock state, moved by the live ticks.
 
-viser runs its own server (thread and event loop) bound to 127.0.0.1 on a free port, so
-the only way in is through this app: `/viewer/` serves viser's self-contained client
+viser runs its own server (thread and event loop) bound to 127.0.0.1 on a free port.
+The only way in is through this app: `/viewer/` serves viser's self-contained client
 page behind the login, and the WebSocket `/viewer` (where the client connects, derived
 from the page's URL) is relayed to viser byte for byte, keeping its subprotocol. The
 server and the tick consumer start on the first visit and stop with the process.
+
+viser's own port answers nobody but the relay: every request to it (HTTP or WebSocket
+handshake) must carry a random secret that only this process knows (`_SECRET`, sent by
+the relay as a header), or it gets 403. Any other local user or process that finds the
+port therefore sees nothing, without the app's login.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import contextlib
 import json
 import logging
 import math
+import secrets
 import socket
 import threading
 from dataclasses import dataclass, field
@@ -62,6 +68,48 @@ class _Viewer:
     task: asyncio.Task[None] | None = field(default=None, repr=False)
 
 
+#: The header and the per-process secret the relay sends to viser's port.
+SECRET_HEADER = "X-ExoStudy-Viewer-Secret"
+_SECRET = secrets.token_urlsafe(32)
+
+
+class _Guarded:
+    """Stands in for the `websockets` package inside viser's server module only, so
+    that viser's `websockets.asyncio.server.serve(...)` gets a `process_request` that
+    refuses (403) any request without the secret before viser's own handler runs."""
+
+    def __init__(self, real: Any, path: tuple[str, ...] = ()) -> None:
+        self._real, self._path = real, path
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self._real, name)
+        if (*self._path, name) in (("asyncio",), ("asyncio", "server")):
+            return _Guarded(attr, (*self._path, name))
+        if self._path == ("asyncio", "server") and name == "serve":
+            return _guarded_serve(attr)
+        return attr
+
+
+def _guarded_serve(serve: Any) -> Any:
+    def wrapper(*args: Any, process_request: Any = None, **kwargs: Any) -> Any:
+        def check(connection: Any, request: Any) -> Any:
+            sent = request.headers.get(SECRET_HEADER, "")
+            if not secrets.compare_digest(sent.encode(), _SECRET.encode()):
+                return connection.respond(403, "the 3D view is reached through ExoStudy\n")
+            return process_request(connection, request) if process_request else None
+
+        return serve(*args, process_request=check, **kwargs)
+
+    return wrapper
+
+
+def _guard_viser() -> None:
+    from viser.infra import _infra
+
+    if not isinstance(_infra.websockets, _Guarded):
+        _infra.websockets = _Guarded(_infra.websockets)  # type: ignore[assignment]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -106,6 +154,7 @@ def _build_scene(server: Any) -> dict[str, Any]:
 def _start() -> _Viewer:
     import viser
 
+    _guard_viser()
     # viser moves to the next port if the one asked for is taken: always read it back.
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     # The share button talks to an outside server; studies run offline.
@@ -222,6 +271,7 @@ async def viewer_socket(websocket: WebSocket) -> None:
     asked = [p for p in websocket.scope.get("subprotocols", []) if p.startswith("viser-v")]
     upstream_cm = connect(f"ws://127.0.0.1:{viewer.port}",
                           subprotocols=[Subprotocol(p) for p in asked] or None,
+                          additional_headers={SECRET_HEADER: _SECRET},
                           compression=None, max_size=None, open_timeout=5)
     try:
         upstream = await upstream_cm.__aenter__()

@@ -34,6 +34,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import tempfile  # noqa: E402
+
+from controller.device.auth import load_or_create_key  # noqa: E402
 from controller.device.base import LockCommand, Sample, Status  # noqa: E402
 from controller.device.udp import UdpDevice  # noqa: E402
 from controller.sim.device_server import request_realtime  # noqa: E402
@@ -61,11 +64,16 @@ class StillExoskeleton:
         )
 
 
+#: The link key host and emulator share (protocol version 2 authenticates every packet).
+KEY_FILE = Path(tempfile.gettempdir()) / f"exostudy-bench-{os.getuid()}.key"
+
+
 def _serve_still(port: int, duration: float, queue: Any, stop: Any) -> None:
     from controller.sim.device_server import serve
 
     model = StillExoskeleton()
-    stats = serve(port, 0, "still", duration=duration, stop_event=stop, model=model)
+    stats = serve(port, 0, "still", duration=duration, stop_event=stop, model=model,
+                  key=load_or_create_key(KEY_FILE))
     queue.put(stats.summary())
 
 
@@ -85,7 +93,7 @@ def _pct(values: list[float], q: float) -> float:
 def _drive(port: int, seconds: float) -> dict[str, Any]:
     """The worker's side: one command per sample, locking both sides 0.3 s of every 2 s."""
     host_s: list[float] = []
-    dev = UdpDevice(device_port=port)
+    dev = UdpDevice(device_port=port, key=load_or_create_key(KEY_FILE))
     dev.open()
     try:
         first = None
@@ -130,6 +138,7 @@ def run(
     """Start the emulator process, drive it for `minutes`, stop it; (host, device) results."""
     port = _free_port()
     seconds = 60.0 * minutes
+    load_or_create_key(KEY_FILE)
     if model == "still":
         ctx = multiprocessing.get_context("spawn")
         queue = ctx.Queue()
@@ -144,7 +153,7 @@ def run(
     cmd = [
         sys.executable, "-m", "controller.sim.device_server",
         "--port", str(port), "--seed", str(seed), "--script", script,
-        "--duration", str(seconds + 600.0),
+        "--duration", str(seconds + 600.0), "--key-file", str(KEY_FILE),
     ] + (["--realtime"] if realtime else [])  # fmt: skip
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     server = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)

@@ -20,10 +20,16 @@ BENCHES = [
     ("CSV export of a 10-minute trial", ["bench_export.py"]),
     ("tick recorder into SQLite", ["bench_recorder.py"]),
     ("UDP device round trip and emulator lateness", ["bench_udp.py", "--minutes", "1"]),
+    ("cost of the device link's authentication", ["bench_link_auth.py"]),
     ("live path with 0, 3 and 4 browser consoles", ["bench_live.py", "--seconds", "30"]),
     ("live path, all five plots in view", ["bench_live.py", "--seconds", "30",
                                            "--viewport", "1280x2100"]),
     ("console first page, cold", ["bench_console_load.py", "--runs", "10"]),
+    ("safety: worker and server SIGKILL, watchdog", ["bench_faults.py", "--kills", "6",
+                                                      "--repeats", "10"]),
+    ("LSL outlets on and off, marker latency", ["bench_lab.py", "--seconds", "30"]),
+    ("virtual cohort: 10, 50, 100 participants x 3 controllers", ["bench_cohort.py"]),
+    ("100 Hz loop with and without a CPU hog", ["bench_loop_load.py", "--seconds", "20"]),
 ]
 
 

@@ -1,10 +1,8 @@
 """Controllers by name, so that configuration (a database row, a CLI flag) can pick one.
 
-A controller's configuration is a mapping:
-
-    {"settings": {...ControllerConfig fields...},          # optional, defaults otherwise
-     "models": {...ModelSet JSON...} or "models_path": "models.json",        # UMC, E-UMC
-     "utilities": {...UtilitySet JSON...} or "utilities_path": "utilities.json"}
+Every build goes through `controller.spec.ControllerSpec`, which validates the name, the
+settings and the set references first: a configuration that does not validate builds
+nothing. The mapping form is described there.
 """
 
 from __future__ import annotations
@@ -15,28 +13,24 @@ from pathlib import Path
 from typing import Any
 
 from controller.base import Controller
-from controller.config import ControllerConfig
 from controller.motion_model import ModelSet
 from controller.passthrough import PassThroughController
+from controller.spec import CONTROLLER_NAMES, NEEDS_MODELS, ControllerSpec
 from controller.utilities import UtilitySet
 
-Builder = Callable[[Mapping[str, Any]], Controller]
+Builder = Callable[[ControllerSpec], Controller]
+
+__all__ = ["NEEDS_MODELS", "ControllerSpec", "controller_names", "load_models",
+           "load_utilities", "make_controller", "make_from_spec"]
 
 
-def _settings(cfg: Mapping[str, Any]) -> ControllerConfig:
-    raw = cfg.get("settings", {})
-    if isinstance(raw, ControllerConfig):
-        return raw
-    if not isinstance(raw, Mapping):
-        raise ValueError("settings must be a mapping of controller parameters")
-    return ControllerConfig.from_json(dict(raw))
-
-
-def _load(cfg: Mapping[str, Any], key: str) -> dict[str, Any]:
-    inline = cfg.get(key)
+def _load(spec: ControllerSpec | Mapping[str, Any], key: str) -> dict[str, Any]:
+    if isinstance(spec, ControllerSpec):
+        inline, path = getattr(spec, key), getattr(spec, f"{key}_path")
+    else:
+        inline, path = spec.get(key), spec.get(f"{key}_path")
     if isinstance(inline, Mapping):
         return dict(inline)
-    path = cfg.get(f"{key}_path")
     if path is None:
         raise ValueError(f"this controller needs '{key}' or '{key}_path' in its configuration")
     p = Path(str(path))
@@ -51,47 +45,40 @@ def _load(cfg: Mapping[str, Any], key: str) -> dict[str, Any]:
     return data
 
 
-def load_models(cfg: Mapping[str, Any]) -> ModelSet:
+def load_models(cfg: ControllerSpec | Mapping[str, Any]) -> ModelSet:
     """The model set named by a controller configuration."""
     return ModelSet.from_json(_load(cfg, "models"))
 
 
-def load_utilities(cfg: Mapping[str, Any]) -> UtilitySet:
+def load_utilities(cfg: ControllerSpec | Mapping[str, Any]) -> UtilitySet:
     """The utility set named by a controller configuration."""
     return UtilitySet.from_json(_load(cfg, "utilities"))
 
 
-def _umc(cfg: Mapping[str, Any]) -> Controller:
+def _umc(spec: ControllerSpec) -> Controller:
     from controller.umc import UMC
 
-    return UMC(load_models(cfg), load_utilities(cfg), _settings(cfg))
+    return UMC(load_models(spec), load_utilities(spec), spec.settings)
 
 
-def _eumc(cfg: Mapping[str, Any]) -> Controller:
+def _eumc(spec: ControllerSpec) -> Controller:
     from controller.umc import EUMC
 
-    return EUMC(load_models(cfg), load_utilities(cfg), _settings(cfg))
+    return EUMC(load_models(spec), load_utilities(spec), spec.settings)
 
 
-def _pec(cfg: Mapping[str, Any]) -> Controller:
+def _pec(spec: ControllerSpec) -> Controller:
     from controller.pec import PEC
 
-    return PEC(_settings(cfg))
+    return PEC(spec.settings)
 
 
-def _none(cfg: Mapping[str, Any]) -> Controller:
-    return PassThroughController(_settings(cfg).layout)
+def _none(spec: ControllerSpec) -> Controller:
+    return PassThroughController(spec.settings.layout)
 
 
 _REGISTRY: dict[str, Builder] = {"none": _none, "umc": _umc, "eumc": _eumc, "pec": _pec}
-
-#: Controllers that need a model set and a utility set.
-NEEDS_MODELS: frozenset[str] = frozenset({"umc", "eumc"})
-
-
-def register(name: str, build: Builder) -> None:
-    """Make a controller available under `name`."""
-    _REGISTRY[name] = build
+assert set(_REGISTRY) == set(CONTROLLER_NAMES)
 
 
 def controller_names() -> tuple[str, ...]:
@@ -99,12 +86,12 @@ def controller_names() -> tuple[str, ...]:
     return tuple(sorted(_REGISTRY))
 
 
+def make_from_spec(spec: ControllerSpec) -> Controller:
+    """Build the controller a validated specification names."""
+    return _REGISTRY[spec.name](spec)
+
+
 def make_controller(name: str, config: Mapping[str, Any] | None = None) -> Controller:
-    """Build the controller called `name` from its configuration."""
-    try:
-        build = _REGISTRY[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown controller {name!r}; choose one of {', '.join(controller_names())}"
-        ) from None
-    return build(config or {})
+    """Build the controller called `name` from its configuration mapping, validating it
+    first (`controller.config.SettingError`, a ValueError naming the field, if not)."""
+    return make_from_spec(ControllerSpec.from_config(name, config))

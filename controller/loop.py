@@ -114,6 +114,8 @@ class ControlLoop:
         self._last_seq: int | None = None
         self._cmd_seq = 0
         self.last_sample_at: float | None = None
+        #: Ticks whose sample failed a plausibility check (for health).
+        self.implausible = 0
 
     def tick(self, timeout: float = 0.05) -> TickRecord | None:
         """One iteration; None when no sample arrived within `timeout` seconds."""
@@ -131,6 +133,8 @@ class ControlLoop:
             record = TickRecord(
                 seq=sample.seq, t=sample.t, t_host=time.time(), flags=int(TickFlag.CONTROLLER_ERROR)
             )
+        if record.plausibility:
+            self.implausible += 1
         if gap:
             self.timing.gaps += 1
             record = record.with_(flags=record.flags | int(TickFlag.GAP))

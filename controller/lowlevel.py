@@ -1,7 +1,7 @@
 """The low-level controller's lock hold (`e_k` in the paper).
 
 A solenoid needs time to seat the pawl in the ratchet, so each side's lock command,
-once requested, stays on for `hold_s` after the last request (hardware.md: 0.3 s). At
+once requested, stays on for `hold_s` after the last request (the paper: 0.3 s). At
 100 Hz that is 30 ticks: a request at tick k keeps the output on at ticks k..k+29, and
 a new request restarts the count. There is no commanded unlock.
 """

@@ -1,7 +1,9 @@
 """Recording mode: angles in, no locks out.
 
 Used while demonstrations are recorded and whenever no controller is active. It still
-converts counts to angles and reports the mechanism state so that the record is complete.
+converts counts to angles and reports the mechanism state so that the record is complete,
+and flags implausible samples like every controller (`controller.plausibility`), so
+recordings show them too; their angles are kept, as nothing is decided on them.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from controller.base import Controller
 from controller.device.base import ENCODER_COUNTS, Sample, Status
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.tick import Action, TickFlag, TickRecord
+from controller.tick_kernel import SampleChecker
 
 
 class PassThroughController(Controller):
@@ -22,9 +25,11 @@ class PassThroughController(Controller):
 
     def __init__(self, layout: EncoderLayout = DEFAULT_LAYOUT) -> None:
         self.layout = layout
+        self.checker = SampleChecker()
 
     def reset(self) -> None:
-        """Stateless: nothing to forget."""
+        """Forget the plausibility reference (nothing else is kept)."""
+        self.checker.reset()
 
     def step(self, sample: Sample) -> TickRecord:
         """Convert the sample; flag it if it is unusable."""
@@ -52,7 +57,11 @@ class PassThroughController(Controller):
             flags |= TickFlag.BAD_SAMPLE
             return base.with_(flags=int(flags), compute_us=(time.perf_counter() - t0) * 1e6)
         ql, al, qr, ar = self.layout.joint_angles(c)
+        plausibility = 0 if flags else self.checker.check(sample.t, ql, qr, al, ar)
+        if plausibility:
+            flags |= TickFlag.IMPLAUSIBLE
         return base.with_(
+            plausibility=plausibility,
             q_raw_left=ql,
             q_raw_right=qr,
             q_left=ql,

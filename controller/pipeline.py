@@ -5,8 +5,9 @@ trigger, the observation window, the decision, the 0.3 s lock hold and the torqu
 estimate. All of it runs in one compiled call, `controller.tick_kernel.tick`, over the
 state a `TickCore` holds; subclasses (`UMC`, `EUMC`, `PEC`) only choose the decision
 mode, its rate and its inputs. The batch replay calls the same `tick`, so a replay runs
-exactly the code of the live loop. A sample that cannot be trusted yields a flagged
-tick with no lock: `step` never raises.
+exactly the code of the live loop. A sample that cannot be trusted (malformed, faulty,
+or implausible for a human hip: `controller.plausibility`) yields a flagged tick with no
+new lock: `step` never raises.
 """
 
 from __future__ import annotations

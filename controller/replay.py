@@ -25,9 +25,9 @@ import math
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, cast
+from typing import cast
 
 import numpy as np
 from numba import njit
@@ -38,10 +38,11 @@ from controller.calibration import calibrate
 from controller.config import ControllerConfig
 from controller.device.replay import ReplayDevice
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout, angle_to_count
-from controller.factory import NEEDS_MODELS, controller_names, load_models, make_controller
+from controller.factory import NEEDS_MODELS, controller_names, load_models, make_from_spec
 from controller.loop import ControlLoop
 from controller.pipeline import PipelineController
 from controller.sim.plant import _CAM, _OUTPUT, plant_step
+from controller.spec import ControllerSpec
 from controller.tick import TickColumns, TickRecord, columns_from_records, records_from_columns
 from controller.tick_csv import write_columns_csv
 from controller.tick_kernel import N_OUT, O_LOCK_L, O_LOCK_R, OUT_FIELDS, layout_array, tick
@@ -119,7 +120,7 @@ def read_angles_csv(path: Path) -> AngleRecording:
 def replay_kernel(
     cfg_f: FloatArray, cfg_i: IntArray, torque_k: FloatArray,
     kal_st: FloatArray, kal_k: FloatArray, hold: IntArray, win: FloatArray, win_pc: IntArray,
-    ctl: IntArray,
+    ctl: IntArray, pl: FloatArray,
     bank_prm: FloatArray, crit: FloatArray, acc: FloatArray, bank_d: FloatArray,
     bank_i: IntArray, bank_s: FloatArray, bank_ok: BoolArray,
     priors: FloatArray, p_obs: FloatArray, post: FloatArray, table: FloatArray, eu: FloatArray,
@@ -158,7 +159,7 @@ def replay_kernel(
         counts[k, 3] = c3
         status_out[k] = status
         row = out[k]
-        tick(cfg_f, cfg_i, torque_k, kal_st, kal_k, hold, win, win_pc, ctl,
+        tick(cfg_f, cfg_i, torque_k, kal_st, kal_k, hold, win, win_pc, ctl, pl,
              bank_prm, crit, acc, bank_d, bank_i, bank_s, bank_ok,
              priors, p_obs, post, table, eu, c0, c1, c2, c3, t[k], status, row)
         lock_l = row[O_LOCK_L] != 0.0
@@ -272,19 +273,19 @@ def build(
     """The controller for a replay, calibrated from the recording's start for E-UMC."""
     if name not in controller_names():
         raise ValueError(f"unknown controller {name!r}; choose one of {controller_names()}")
-    cfg: dict[str, Any] = {}
-    if name in NEEDS_MODELS:
-        if models is None or utilities is None:
-            raise ValueError(f"controller {name} needs --models and --utilities")
-        cfg = {"models_path": str(models), "utilities_path": str(utilities)}
+    if name in NEEDS_MODELS and (models is None or utilities is None):
+        raise ValueError(f"controller {name} needs --models and --utilities")
+    spec = ControllerSpec(name, settings,
+                          models_path=None if models is None else str(models),
+                          utilities_path=None if utilities is None else str(utilities))
     if name == "eumc" and settings.calibration is None:
-        mset = load_models(cfg)
+        mset = load_models(spec)
         start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
         n = round(calibrate_seconds * 100)
         cal = calibrate(rec.q[:n], start)
-        settings = settings.with_calibration(cal.offset_left, cal.offset_right)
-    cfg["settings"] = settings
-    return make_controller(name, cfg)
+        spec = replace(spec, settings=settings.with_calibration(cal.offset_left,
+                                                                cal.offset_right))
+    return make_from_spec(spec)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -56,6 +56,22 @@ class TickFlag(enum.IntFlag):
     NOT_CALIBRATED = 1 << 4  # the controller needs a calibration it does not have
     HARD_STOP = 1 << 5  # a locked side reached the 22 mm compression limit
     GAP = 1 << 6  # device sequence numbers skipped before this sample
+    IMPLAUSIBLE = 1 << 7  # failed a plausibility check: the `plausibility` column says which
+
+
+class Plausibility(enum.IntFlag):
+    """Why a well-formed sample cannot be a human hip in this exoskeleton (the
+    `plausibility` column). Bounds and their sources: `controller.plausibility`."""
+
+    OK = 0
+    JUMP = 1 << 0  # hip angle moved faster than a hip can since the last good sample
+    VELOCITY = 1 << 1  # filtered hip velocity beyond what a hip does
+    REPEATED = 1 << 2  # device time did not advance: a repeated or stale sample
+    TIME_BACKWARDS = 1 << 3  # device time went back: the device restarted or was replaced
+    TOO_EARLY = 1 << 4  # less than half a period after the last good sample
+    RANGE = 1 << 5  # hip flexion or spring deflection outside the mechanism's range
+    RESYNC = 1 << 6  # first sample after a silence: filters restart from here
+    ACCELERATION = 1 << 7  # off the course the hip was on by more than a hip can turn
 
 
 NAN = math.nan
@@ -116,6 +132,7 @@ class TickRecord:
     torque_left: float = NAN
     torque_right: float = NAN
     flags: int = 0
+    plausibility: int = 0  # `Plausibility` bits; 0 for a plausible sample
     compute_us: float = NAN  # time spent in the controller for this tick
     truth_activity: str = ""  # simulated wearer's ground truth, empty for real hardware
     truth_lift: int = -1
@@ -209,7 +226,12 @@ TICK_FIELD_DOCS: dict[str, tuple[str, str]] = {
     "torque_left": ("Nm", "left exoskeleton extension torque from the actuator model"),
     "torque_right": ("Nm", "right exoskeleton extension torque from the actuator model"),
     "flags": ("bits", "TickFlag bits: 1 bad sample, 2 device fault, 4 controller error, "
-              "8 overrun, 16 not calibrated, 32 hard stop, 64 sequence gap"),
+              "8 overrun, 16 not calibrated, 32 hard stop, 64 sequence gap, "
+              "128 implausible sample"),
+    "plausibility": ("bits", "why the sample is implausible: 1 angle jump, 2 hip velocity, "
+                     "4 repeated sample, 8 device time backwards, 16 sample too early, "
+                     "32 out of mechanical range, 64 first sample after a silence, "
+                     "128 acceleration"),
     "compute_us": ("us", "controller compute time for this tick"),
     "truth_activity": ("", "simulated ground truth: activity (empty for real hardware)"),
     "truth_lift": ("", "simulated ground truth: lift index within the trial, -1 if none"),

@@ -4,7 +4,8 @@
 the sample, counts to angles, calibration offsets, Kalman velocities and the trigger,
 the observation window, the decision of the UMC, E-UMC or PEC (an integer mode), the
 0.3 s lock hold, the mechanism state and the torque estimate. It writes one row of
-numbers (`OUT_FIELDS`, the numeric `TickRecord` fields from `q_raw_left` to `flags`)
+numbers (`OUT_FIELDS`, the numeric `TickRecord` fields from `q_raw_left` to
+`plausibility`)
 and keeps all state in preallocated arrays owned by a `TickCore`.
 
 Why compiled, and why one function: replaying a 10-minute recording must take well
@@ -40,21 +41,29 @@ from controller.intent import _intent_kernel
 from controller.kalman import HipVelocityFilter, kalman_step
 from controller.lowlevel import LockHold, hold_update
 from controller.onset import ModelBank, ObservationWindow, _bank_kernel, window_push, window_start
-from controller.tick import MODEL_NAMES, Action, TickFlag, TickRecord
+from controller.plausibility import (
+    ALPHA_RANGE,
+    ANGLE_NOISE_RAD,
+    HIP_ACCELERATION_MAX,
+    HIP_VELOCITY_MAX,
+    MIN_INTERVAL_S,
+    Q_RANGE,
+    RESYNC_S,
+)
+from controller.tick import MODEL_NAMES, Action, Plausibility, TickFlag, TickRecord
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
-#: Hip flexion outside this range (rad) cannot be a human hip: the sample is bad.
-Q_RANGE = (math.radians(-60.0), math.radians(160.0))
 
 #: Decision modes of `tick`.
 MODE_UMC, MODE_EUMC, MODE_PEC = 0, 1, 2
 
 _NAMES = TickRecord.field_names()
-#: Columns of the output row: the numeric `TickRecord` fields `q_raw_left` .. `flags`.
-OUT_FIELDS: tuple[str, ...] = _NAMES[_NAMES.index("q_raw_left") : _NAMES.index("flags") + 1]
+#: Columns of the output row: the numeric `TickRecord` fields `q_raw_left` .. `plausibility`.
+OUT_FIELDS: tuple[str, ...] = _NAMES[_NAMES.index("q_raw_left") :
+                                     _NAMES.index("plausibility") + 1]
 N_OUT = len(OUT_FIELDS)
 _col = OUT_FIELDS.index
 O_QRAW_L, O_QRAW_R, O_Q_L, O_Q_R = (_col(n) for n in ("q_raw_left", "q_raw_right", "q_left",
@@ -68,6 +77,7 @@ O_ACTION, O_LOCK_L, O_LOCK_R = _col("action"), _col("lock_left"), _col("lock_rig
 O_LOCKED_L, O_LOCKED_R = _col("locked_left"), _col("locked_right")
 O_ALPHA_L, O_ALPHA_R = _col("alpha_left"), _col("alpha_right")
 O_TORQUE_L, O_TORQUE_R, O_FLAGS = _col("torque_left"), _col("torque_right"), _col("flags")
+O_PLAUS = _col("plausibility")
 assert OUT_FIELDS[O_MODEL : O_MODEL + 6] == ("d_squat", "l_squat", "s_start_squat",
                                              "s_curr_squat", "accepted_squat", "p_obs_squat")
 assert OUT_FIELDS[O_MODEL + 6 * len(MODEL_NAMES)] == "post_squat"
@@ -76,7 +86,13 @@ assert OUT_FIELDS[O_EU : O_EU + 4] == ("eu_no_lock", "eu_lock_both", "eu_lock_ri
 
 # Constants in `cfg_f` and `cfg_i`.
 F_THRESHOLD, F_OFF_L, F_OFF_R, F_DEADBAND, F_Q_LO, F_Q_HI = range(6)
-N_CFG_F = 6
+F_A_LO, F_A_HI, F_VMAX, F_NOISE, F_MIN_DT, F_RESYNC, F_AMAX = range(6, 13)
+N_CFG_F = 13
+# Plausibility state in `pl`: a reference exists, its device time and raw hip angles, the
+# device time of the last sample seen (accepted or not), and the velocity between the last
+# two accepted samples (if there were two).
+P_HAVE, P_T, P_QL, P_QR, P_T_SEEN, P_HAVE_V, P_VL, P_VR = range(8)
+N_PL = 8
 I_MODE, I_DIVIDER, I_CALIBRATED, I_HOLD, I_RADIUS, I_LAYOUT = range(6)
 N_CFG_I = I_LAYOUT + 8  # layout offsets (4) then directions (4)
 # Controller state in `ctl`: tick index, E-UMC ticks since the trigger rose, last action.
@@ -88,6 +104,11 @@ _FAULT = int(TickFlag.DEVICE_FAULT)
 _ERROR = int(TickFlag.CONTROLLER_ERROR)
 _NOT_CAL = int(TickFlag.NOT_CALIBRATED)
 _HARD = int(TickFlag.HARD_STOP)
+_IMPL = int(TickFlag.IMPLAUSIBLE)
+_PJUMP, _PVEL, _PREP, _PBACK, _PEARLY, _PRANGE, _PRESYNC, _PACC = (int(b) for b in (
+    Plausibility.JUMP, Plausibility.VELOCITY, Plausibility.REPEATED,
+    Plausibility.TIME_BACKWARDS, Plausibility.TOO_EARLY, Plausibility.RANGE,
+    Plausibility.RESYNC, Plausibility.ACCELERATION))
 _S_FAULTS = int(Status.ENCODER_FAULT | Status.SUPPLY_FAULT)
 _S_LOCKED_L, _S_LOCKED_R = int(Status.LOCKED_LEFT), int(Status.LOCKED_RIGHT)
 _S_HARD = int(Status.HARD_STOP_LEFT | Status.HARD_STOP_RIGHT)
@@ -110,13 +131,107 @@ def _defaults(out: FloatArray) -> None:
     out[O_LOCKED_L] = 0.0
     out[O_LOCKED_R] = 0.0
     out[O_FLAGS] = 0.0
+    out[O_PLAUS] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _no_new_lock(hold: IntArray, hold_ticks: int, ctl: IntArray, out: FloatArray, flags: int,
+                 plaus: int) -> None:
+    """Finish a tick that cannot be trusted: no new request, so no new lock; a lock the
+    hold already carries (decided on trusted ticks) stays on to its end, because
+    dropping a solenoid for one tick mid-seat and raising it again would be a new lock."""
+    lock_l, lock_r = hold_update(hold, hold_ticks, False, False)
+    ctl[C_TICK] += 1
+    out[O_LOCK_L] = 1.0 if lock_l else 0.0
+    out[O_LOCK_R] = 1.0 if lock_r else 0.0
+    out[O_FLAGS] = flags
+    out[O_PLAUS] = plaus
+
+
+@njit(cache=True, nogil=True)
+def check_sample(
+    cfg_f: FloatArray, pl: FloatArray, kal_st: FloatArray, kal_k: FloatArray, win_pc: IntArray,
+    t: float, q_l: float, q_r: float, a_l: float, a_r: float,
+) -> int:
+    """The `Plausibility` bits of a well-formed sample (0: plausible), updating the
+    reference in `pl`. Bounds: `controller.plausibility`.
+
+    Device time is checked against the last sample seen (repeated, backwards) and the
+    last accepted one (too early); angles against the last accepted one (jump) and
+    against where the last two accepted ones say the hip is heading (acceleration), so
+    a single glitch costs one tick and the next good sample is compared with the good
+    ones before it. Time going backwards is a new device: the filters and the window restart
+    and the sample becomes the new reference (flagged). A silence longer than the
+    resync time restarts them too. An accepted sample more than one period after the
+    previous accepted one (samples skipped here or lost on the link) first advances the
+    velocity filter by the missing periods, so it does not read the longer step as a
+    faster hip.
+    """
+    bits = 0
+    if not (cfg_f[F_A_LO] <= a_l <= cfg_f[F_A_HI] and cfg_f[F_A_LO] <= a_r <= cfg_f[F_A_HI]):
+        bits |= _PRANGE
+    seen = pl[P_T_SEEN]
+    first = pl[P_HAVE] == 0.0
+    if not first and t == seen:
+        return bits | _PREP  # nothing else changes: the same sample again
+    pl[P_T_SEEN] = t
+    if not first and t < seen:
+        kal_st[0] = 0.0  # the filter re-initialises at its next sample
+        win_pc[0] = 0
+        win_pc[1] = 0
+        pl[P_HAVE] = 0.0
+        return bits | _PBACK
+    if bits:
+        return bits
+    if first:
+        pl[P_HAVE] = 1.0
+        pl[P_HAVE_V] = 0.0
+        pl[P_T] = t
+        pl[P_QL] = q_l
+        pl[P_QR] = q_r
+        return 0
+    dt = t - pl[P_T]
+    if dt < cfg_f[F_MIN_DT]:
+        return _PEARLY
+    if dt > cfg_f[F_RESYNC]:
+        kal_st[0] = 0.0
+        win_pc[0] = 0
+        win_pc[1] = 0
+        pl[P_HAVE_V] = 0.0
+        pl[P_T] = t
+        pl[P_QL] = q_l
+        pl[P_QR] = q_r
+        return _PRESYNC
+    # The bounds grow with the time since the last accepted sample, but only up to two
+    # periods: a reading that stays off (an encoder that jumped and stayed) is not let
+    # in gradually, as a fast movement would be read from it; it waits for the resync.
+    db = min(dt, 2.0 * kal_k[0])
+    bound = cfg_f[F_VMAX] * db + cfg_f[F_NOISE]
+    if abs(q_l - pl[P_QL]) > bound or abs(q_r - pl[P_QR]) > bound:
+        return _PJUMP
+    if pl[P_HAVE_V] != 0.0:
+        # The velocity is a backward difference (half a period old), so the hip can be
+        # a * dt^2 off its course, not a * dt^2 / 2.
+        reach = cfg_f[F_AMAX] * db * db + cfg_f[F_NOISE]
+        if (abs(q_l - pl[P_QL] - pl[P_VL] * dt) > reach
+                or abs(q_r - pl[P_QR] - pl[P_VR] * dt) > reach):
+            return _PACC
+    for _ in range(round(dt / kal_k[0]) - 1):  # kal_k[0]: the filter's period
+        kalman_step(kal_st, kal_k, math.nan, math.nan)  # predict only
+    pl[P_VL] = (q_l - pl[P_QL]) / dt
+    pl[P_VR] = (q_r - pl[P_QR]) / dt
+    pl[P_HAVE_V] = 1.0
+    pl[P_T] = t
+    pl[P_QL] = q_l
+    pl[P_QR] = q_r
+    return 0
 
 
 @njit(cache=True, nogil=True)
 def tick(
     cfg_f: FloatArray, cfg_i: IntArray, torque_k: FloatArray,
     kal_st: FloatArray, kal_k: FloatArray, hold: IntArray, win: FloatArray, win_pc: IntArray,
-    ctl: IntArray,
+    ctl: IntArray, pl: FloatArray,
     bank_prm: FloatArray, crit: FloatArray, acc: FloatArray, bank_d: FloatArray,
     bank_i: IntArray, bank_s: FloatArray, bank_ok: BoolArray,
     priors: FloatArray, p_obs: FloatArray, post: FloatArray, table: FloatArray, eu: FloatArray,
@@ -125,12 +240,14 @@ def tick(
     """One tick: the sample (four counts, device time, `Status` bits) in, `out` row out.
 
     A sample that cannot be trusted (time not finite, a count out of range, a device
-    fault, a hip angle outside `Q_RANGE`) gives a flagged row with no lock: the hold
-    keeps counting so a later good tick resumes the right state, but nothing is
-    commanded on a tick we cannot trust.
+    fault, a hip angle outside `Q_RANGE`) gives a flagged row with no new lock: the hold
+    keeps counting (a lock already held runs out), but nothing is newly commanded on a
+    tick we cannot trust (`_no_new_lock`). A well-formed sample that a hip cannot
+    produce (`check_sample`) is treated the same way, flagged IMPLAUSIBLE with reasons.
     """
     _defaults(out)
     flags = 0
+    plaus = 0
     q_raw_l = q_raw_r = alpha_l = alpha_r = 0.0
     if not math.isfinite(t) or not (
         0 <= c0 < ENCODER_COUNTS and 0 <= c1 < ENCODER_COUNTS
@@ -150,15 +267,30 @@ def tick(
         if not (cfg_f[F_Q_LO] <= q_raw_l <= cfg_f[F_Q_HI]
                 and cfg_f[F_Q_LO] <= q_raw_r <= cfg_f[F_Q_HI]):
             flags = _BAD
+            plaus = _PRANGE
+        else:
+            plaus = check_sample(cfg_f, pl, kal_st, kal_k, win_pc, t, q_raw_l, q_raw_r,
+                                 alpha_l, alpha_r)
+            if plaus != 0:
+                flags = _IMPL
+            if plaus & (_PBACK | _PRESYNC):
+                # A restarted device, or one whose 100 ms watchdog has let go during the
+                # silence: a held lock sent now would be a new lock. Drop it.
+                hold[0] = 0
+                hold[1] = 0
     if flags != 0:
-        hold_update(hold, cfg_i[I_HOLD], False, False)
-        ctl[C_TICK] += 1
-        out[O_FLAGS] = flags
+        _no_new_lock(hold, cfg_i[I_HOLD], ctl, out, flags, plaus)
         return
 
     q_l = q_raw_l - cfg_f[F_OFF_L]
     q_r = q_raw_r - cfg_f[F_OFF_R]
     w_l, w_r = kalman_step(kal_st, kal_k, q_l, q_r)
+    if abs(w_l) > cfg_f[F_VMAX] or abs(w_r) > cfg_f[F_VMAX]:
+        # The angles passed the jump bound but the filter says no hip moves like this
+        # (a series of glitches just under it): no decision while it says so.
+        window_push(win, win_pc, q_l, q_r)
+        _no_new_lock(hold, cfg_i[I_HOLD], ctl, out, _IMPL, _PVEL)
+        return
     trig = w_l >= cfg_f[F_THRESHOLD] and w_r >= cfg_f[F_THRESHOLD]
     window_push(win, win_pc, q_l, q_r)
     size = win.shape[0] // 2
@@ -269,6 +401,41 @@ def _no_decider() -> tuple[FloatArray | IntArray | BoolArray, ...]:
     )
 
 
+def float_constants(c: ControllerConfig) -> FloatArray:
+    """The `cfg_f` array of `tick` and `check_sample` for a configuration."""
+    offsets = c.calibration if c.calibration is not None else (0.0, 0.0)
+    out = np.array([c.velocity_threshold, offsets[0], offsets[1], c.lock_deadband,
+                    Q_RANGE[0], Q_RANGE[1], ALPHA_RANGE[0], ALPHA_RANGE[1],
+                    HIP_VELOCITY_MAX, ANGLE_NOISE_RAD, MIN_INTERVAL_S, RESYNC_S,
+                    HIP_ACCELERATION_MAX])
+    assert out.size == N_CFG_F
+    return out
+
+
+class SampleChecker:
+    """`check_sample` on its own, for a controller that decides nothing (recording mode):
+    its ticks carry the same plausibility flags as every other controller's."""
+
+    def __init__(self) -> None:
+        self.cfg_f = float_constants(ControllerConfig())
+        self.state = np.zeros(N_PL)
+        # The check restarts or advances a velocity filter and a window; here they only
+        # keep `check_sample`'s signature (nothing reads them).
+        self._filter = HipVelocityFilter()
+        self._window = np.zeros(2, dtype=np.int64)
+
+    def reset(self) -> None:
+        """Forget the reference."""
+        self.state[:] = 0.0
+
+    def check(self, t: float, q_l: float, q_r: float, a_l: float, a_r: float) -> int:
+        """The `Plausibility` bits of one decoded sample (0: plausible)."""
+        if not (Q_RANGE[0] <= q_l <= Q_RANGE[1] and Q_RANGE[0] <= q_r <= Q_RANGE[1]):
+            return int(_PRANGE)
+        return int(check_sample(self.cfg_f, self.state, self._filter.state,
+                                self._filter.constants, self._window, t, q_l, q_r, a_l, a_r))
+
+
 def layout_array(layout: EncoderLayout) -> IntArray:
     """Offsets then directions of an encoder layout, as the kernels read them."""
     return np.array([*layout.offsets, *layout.directions], dtype=np.int64)
@@ -291,7 +458,6 @@ class TickCore:
             raise ValueError("the UMC and E-UMC need a model bank, priors and utilities")
         if divider < 1:
             raise ValueError(f"divider must be >= 1 tick, got {divider}")
-        offsets = c.calibration if c.calibration is not None else (0.0, 0.0)
         self.mode = mode
         self.torque = TorqueModel(c.precompression_pct)
         # The Python objects own the arrays `tick` updates, so their properties (filtered
@@ -300,8 +466,9 @@ class TickCore:
         self.hold = LockHold(c.hold_s)
         self.window = ObservationWindow(c.window)
         self.ctl = np.array([0, -1, _NO_LOCK], dtype=np.int64)
-        self.cfg_f = np.array([c.velocity_threshold, offsets[0], offsets[1], c.lock_deadband,
-                               Q_RANGE[0], Q_RANGE[1]])
+        self.cfg_f = float_constants(c)
+        #: Plausibility reference (see `check_sample`).
+        self.plaus = np.zeros(N_PL)
         radius = -1 if c.band is None else int(c.band)
         if decider is not None:
             radius = decider.bank.radius
@@ -324,7 +491,7 @@ class TickCore:
         self.args: tuple[FloatArray | IntArray | BoolArray, ...] = (
             self.cfg_f, self.cfg_i, self.torque.constants, self.velocity.state,
             self.velocity.constants, self.hold.counters, self.window.buffer,
-            self.window.pos_count, self.ctl, *dec,
+            self.window.pos_count, self.ctl, self.plaus, *dec,
         )
 
     def reset(self) -> None:
@@ -333,6 +500,7 @@ class TickCore:
         self.window.reset()
         self.hold.reset()
         self.ctl[:] = (0, -1, _NO_LOCK)
+        self.plaus[:] = 0.0
 
     @property
     def tick_index(self) -> int:

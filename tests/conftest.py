@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,17 +25,53 @@ def default_sets(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return models, folder
 
 
+#: Test modules that talk to the database through the storage layer, the API or the
+#: migrations: each of their tests runs on SQLite and on PostgreSQL (a throwaway
+#: cluster, tests/databases.py). `EXOSTUDY_TEST_DATABASES=sqlite` runs SQLite only.
+DATABASE_FACING = {
+    "test_migrations", "test_study_records_migration", "test_recorder", "test_studies",
+    "test_participants", "test_sessions", "test_questionnaires", "test_preferences",
+    "test_audit", "test_auth", "test_access", "test_data_protection", "test_export",
+}
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """Run the database-facing modules' tests once per database engine."""
+    from tests.databases import postgres_server
+
+    module = metafunc.module.__name__.rsplit(".", 1)[-1]
+    wanted = os.environ.get("EXOSTUDY_TEST_DATABASES", "sqlite,postgresql").split(",")
+    if ("db_url" in metafunc.fixturenames and module in DATABASE_FACING
+            and postgres_server() is None and "postgresql" in wanted):
+        metafunc.parametrize("db_url", ["sqlite", "postgresql"], indirect=True)
+
+
+@pytest.fixture(scope="session")
+def postgres_cluster() -> Iterator[str]:
+    """A PostgreSQL server for the run: a throwaway cluster started on first use."""
+    from tests.databases import ThrowawayCluster
+
+    cluster = ThrowawayCluster()
+    try:
+        yield cluster.url
+    finally:
+        cluster.stop()
+
+
 @pytest.fixture
-def db_url(tmp_path: Path) -> Iterator[str]:
+def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
     """A new, empty database per test (migrations are applied by whoever opens it).
 
-    A SQLite file by default. With `EXOSTUDY_DATABASE_URL` pointing at a PostgreSQL
-    server, a fresh database is created there for each test and dropped after it, so
-    the same suite checks that nothing depends on SQLite.
+    A SQLite file by default; a fresh database on the throwaway PostgreSQL cluster for
+    the `postgresql` runs of the database-facing modules. With `EXOSTUDY_DATABASE_URL`
+    pointing at a PostgreSQL server, every test gets a fresh database there instead.
     """
     from tests.databases import fresh_database
 
-    with fresh_database(tmp_path) as url:
+    server = None
+    if getattr(request, "param", "sqlite") == "postgresql":
+        server = request.getfixturevalue("postgres_cluster")
+    with fresh_database(tmp_path, server) as url:
         yield url
 
 

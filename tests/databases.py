@@ -1,9 +1,19 @@
-"""Fresh test databases: a SQLite file by default, or a new database on the PostgreSQL
-server `EXOSTUDY_DATABASE_URL` points at (created for the test, dropped after it)."""
+"""Fresh test databases: a SQLite file, or a new database on a PostgreSQL server (created
+for the test, dropped after it).
+
+The server is `EXOSTUDY_DATABASE_URL` when it points at PostgreSQL; otherwise, for the
+database-facing tests, a throwaway cluster this module starts itself from Debian's
+`postgresql` package (`initdb` and `pg_ctl` in a temporary folder, listening on a Unix
+socket only, no system service), stopped and deleted at the end of the run.
+"""
 
 from __future__ import annotations
 
+import glob
 import os
+import shutil
+import subprocess
+import tempfile
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -11,15 +21,74 @@ from pathlib import Path
 
 
 def postgres_server() -> str | None:
-    """The PostgreSQL URL the suite should run against, if any."""
+    """The PostgreSQL URL the whole suite should run against, if any."""
     url = os.environ.get("EXOSTUDY_DATABASE_URL", "")
     return url if url.startswith("postgresql") else None
 
 
+def _postgres_bin(name: str) -> str | None:
+    """`initdb`/`pg_ctl` from PATH or Debian's versioned folder (newest first)."""
+    found = shutil.which(name)
+    if found:
+        return found
+    candidates = sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"),
+                        key=lambda p: int(Path(p).parts[4]) if Path(p).parts[4].isdigit()
+                        else 0, reverse=True)
+    return candidates[0] if candidates else None
+
+
+class ThrowawayCluster:
+    """A PostgreSQL cluster in a temporary folder. PostgreSQL refuses to run as root, so
+    under root it runs as the `postgres` account the Debian package creates."""
+
+    def __init__(self) -> None:
+        initdb, pg_ctl = _postgres_bin("initdb"), _postgres_bin("pg_ctl")
+        if initdb is None or pg_ctl is None:
+            raise RuntimeError("PostgreSQL's initdb/pg_ctl not found: `make test` installs "
+                               "Debian's postgresql package")
+        self.pg_ctl = pg_ctl
+        self.folder = Path(tempfile.mkdtemp(prefix="exostudy-pg-"))
+        self.data = self.folder / "data"
+        self.socket_dir = self.folder / "socket"
+        self.socket_dir.mkdir()
+        self.port = 5432
+        self._as: list[str] = []
+        if os.geteuid() == 0:
+            self._as = ["runuser", "-u", "postgres", "--"]
+            shutil.chown(self.folder, "postgres")
+            shutil.chown(self.socket_dir, "postgres")
+        self._run([initdb, "-D", str(self.data), "-U", "exostudy", "-A", "trust",
+                   "-E", "UTF8", "--no-sync", "--locale=C.UTF-8"])
+        options = (f"-k {self.socket_dir} -p {self.port} -c listen_addresses='' "
+                   "-c fsync=off -c synchronous_commit=off -c full_page_writes=off "
+                   "-c max_connections=200")
+        self._run([pg_ctl, "-D", str(self.data), "-o", options, "-w", "-t", "60",
+                   "-l", str(self.folder / "server.log"), "start"])
+
+    def _run(self, cmd: list[str]) -> None:
+        done = subprocess.run([*self._as, *cmd], capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd[:2])} failed: {done.stderr or done.stdout}")
+
+    @property
+    def url(self) -> str:
+        """SQLAlchemy URL of the cluster's maintenance database, over the socket."""
+        return (f"postgresql+psycopg://exostudy@/postgres?host={self.socket_dir}"
+                f"&port={self.port}")
+
+    def stop(self) -> None:
+        """Stop the server and delete the folder."""
+        try:
+            self._run([self.pg_ctl, "-D", str(self.data), "-m", "immediate", "stop"])
+        finally:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+
 @contextmanager
-def fresh_database(folder: Path) -> Iterator[str]:
-    """The URL of a new, empty database; SQLite lives in `folder`."""
-    server = postgres_server()
+def fresh_database(folder: Path, server: str | None = None) -> Iterator[str]:
+    """The URL of a new, empty database: on `server` (or `postgres_server()`) when
+    given, else a SQLite file in `folder`."""
+    server = server or postgres_server()
     if server is None:
         yield f"sqlite:///{folder / 'exostudy.db'}"
         return

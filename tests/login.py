@@ -26,9 +26,12 @@ def create_experimenter(db_url: str, username: str = USERNAME,
 
 
 def log_in(client: TestClient, credentials: dict[str, str]) -> None:
-    """Log the client in with the session cookie."""
+    """Log the client in with the session cookie, and send what the pages send with
+    every change: the same-origin `Origin` and the CSRF token of the login."""
     r = client.post("/api/auth/login", json=credentials)
     assert r.status_code == 200, r.text
+    client.headers["Origin"] = str(client.base_url).rstrip("/")
+    client.headers["X-CSRF-Token"] = r.cookies["exostudy_csrf"]
 
 
 def bearer(client: TestClient, credentials: dict[str, str]) -> dict[str, str]:

@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
-from typing import Annotated
+from typing import Annotated, Any, Literal, NoReturn
 
-from fastapi import Depends, HTTPException, Request
+from fastapi import Depends, FastAPI, HTTPException, Request, WebSocketException
+from fastapi.routing import APIRoute, iter_route_contexts
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session, sessionmaker
+from starlette.requests import HTTPConnection
+from starlette.routing import BaseRoute
 
+from backend import access as access_rules
 from backend.accounts import resolve_token
+from backend.api import web_surface
+from backend.api.errors import not_found
+from backend.api.params import MAX_ID
 from backend.db.models import AuthToken, User
 from backend.runtime import Runtime
 
@@ -78,3 +86,196 @@ def current_user(login: CurrentLogin) -> User:
 
 
 CurrentUser = Annotated[User, Depends(current_user)]
+
+
+# --- Authorisation: one dependency for every route -----------------------------------
+# `authorize` is installed on the application (`FastAPI(dependencies=...)`), so every
+# route, including ones added later, passes through it. A route states what it needs
+# with `openapi_extra=access("owner")` (or another rule); without that, a path with an
+# id the resolvers know (`study_id`, `participant_id`, `trial_id`, ...) needs the
+# `viewer` role in that id's study to read and `experimenter` to change anything; a
+# path with only ids no resolver knows needs the admin role (add a resolver in
+# backend/access.py); a path without ids needs a login to read and admin to change.
+
+ACCESS_KEY = "x-exostudy-access"
+AccessRule = Literal["public", "participant", "login", "admin", "worker",
+                     "viewer", "experimenter", "owner"]
+_READ = {"GET", "HEAD", "OPTIONS"}
+
+
+def access(rule: AccessRule) -> dict[str, Any]:
+    """What a route needs, for its decorator: `openapi_extra=access("owner")`."""
+    return {ACCESS_KEY: rule}
+
+
+def _path_params(route: BaseRoute) -> list[str]:
+    return re.findall(r"\{(\w+)", getattr(route, "path", ""))
+
+
+def rule_of(route: BaseRoute, method: str) -> AccessRule:
+    """The rule a route's operation is checked against (declared, else the default)."""
+    extra = getattr(route, "openapi_extra", None) or {}
+    declared = extra.get(ACCESS_KEY)
+    if declared is not None:
+        return declared
+    params = _path_params(route)
+    if any(p in access_rules.RESOLVERS for p in params):
+        return "viewer" if method in _READ else "experimenter"
+    if any(p.endswith("_id") for p in params):
+        # An id no resolver knows cannot be placed in a study: fail closed.
+        return "admin"
+    return "login" if method in _READ else "admin"
+
+
+def _refuse(status: int, message: str) -> NoReturn:
+    headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
+    raise HTTPException(status, message, headers=headers)
+
+
+def _credentials(conn: HTTPConnection) -> tuple[str | None, str | None]:
+    scheme, _, value = conn.headers.get("authorization", "").partition(" ")
+    bearer_token = value.strip() if scheme.lower() == "bearer" and value.strip() else None
+    return bearer_token, conn.cookies.get(SESSION_COOKIE)
+
+
+def _target(db: Session, conn: HTTPConnection, route: BaseRoute
+            ) -> access_rules.Target | None:
+    """The study the path's first known id belongs to; 404 if that id is unknown.
+    A malformed id returns None: the route's own validation answers 422."""
+    for name in _path_params(route):
+        resolver = access_rules.RESOLVERS.get(name)
+        if resolver is None:
+            continue
+        raw = str(conn.path_params.get(name, ""))
+        if not raw.isascii() or not raw.isdigit() or not 1 <= int(raw) <= MAX_ID:
+            return None
+        found = resolver(db, int(raw))
+        if found is None:
+            not_found(name.removesuffix("_id").replace("_", " "), int(raw))
+        return found
+    return None
+
+
+def _check(db: Session, conn: HTTPConnection, route: BaseRoute, rule: AccessRule,
+           user: User) -> None:
+    if rule == "login":
+        return
+    if rule == "admin":
+        if user.role != "admin":
+            _refuse(403, "this needs the admin role")
+        return
+    if rule == "worker":
+        if user.role == "admin":
+            return
+        running = access_rules.running_study(db)
+        if running is not None:
+            g = access_rules.grant(db, user, running)
+            if g is None or not access_rules.at_least(g.role, "experimenter"):
+                _refuse(403, f"study {running} is using the device: only its experimenters "
+                        "and owners (or an admin) may control the worker")
+            return
+        if not access_rules.at_least(access_rules.best_study_role(db, user), "experimenter"):
+            _refuse(403, "controlling the worker needs the experimenter role in a study")
+        return
+    assert rule in access_rules.STUDY_ROLES, f"unknown access rule {rule!r}"
+    target = _target(db, conn, route)
+    if target is None:
+        # No study in the path (or a malformed id, which the route refuses with 422):
+        # the caller must hold the role somewhere.
+        if not access_rules.at_least(access_rules.best_study_role(db, user), rule):
+            _refuse(403, f"this needs the {rule} role in a study")
+        return
+    g = access_rules.grant(db, user, target.study_id)
+    if g is None:
+        _refuse(403, f"study {target.study_id}: you are not a member of this study")
+    if not access_rules.at_least(g.role, rule):
+        _refuse(403, f"study {target.study_id}: this needs the {rule} role; you are {g.role}")
+    if not access_rules.site_allows(db, g, target.participant_id):
+        _refuse(403, f"participant {target.participant_id}: belongs to another site than "
+                f"yours ({g.site})")
+    conn.state.grant = g
+
+
+def authorize(conn: HTTPConnection) -> None:
+    """The single access check of every route (see the comment above `access`).
+
+    401 without a valid login, 403 for a role or site that does not allow the
+    operation, 404 for an unknown id in the path, 403 for a cookie-authenticated change
+    from another origin or without the CSRF token; WebSockets from another origin are
+    refused."""
+    allowed = conn.app.state.settings.allowed_origins
+    if conn.scope["type"] == "websocket":
+        if web_surface.origin_verdict(conn, allowed) is False:
+            raise WebSocketException(1008, "cross-site WebSocket refused")
+        return
+    route = conn.scope.get("route")
+    if route is None or not getattr(route, "path", "").startswith("/api/"):
+        return  # pages and assets: static shells whose data comes through the API
+    method = conn.scope["method"]
+    rule = rule_of(route, method)
+    unsafe = method not in _READ
+    if rule in ("public", "participant"):
+        if unsafe and web_surface.origin_verdict(conn, allowed) is False:
+            _refuse(403, "Origin: requests from another site are refused")
+        return
+    bearer_token, cookie_token = _credentials(conn)
+    with conn.app.state.sessions() as db:
+        found = resolve_token(db, bearer_token) if bearer_token else None
+        via_cookie = False
+        if found is None and cookie_token:
+            found = resolve_token(db, cookie_token)
+            via_cookie = found is not None
+        if found is None:
+            _refuse(401, "not logged in: POST /api/auth/login (cookie) or /api/auth/token "
+                    "(bearer)")
+        if via_cookie and unsafe and cookie_token:
+            if web_surface.origin_verdict(conn, allowed) is not True:
+                _refuse(403, "Origin: a change with the session cookie must come from this "
+                        "site's pages (Origin or Referer header)")
+            if not web_surface.csrf_ok(conn, cookie_token):
+                _refuse(403, f"{web_surface.CSRF_HEADER}: missing or wrong CSRF token (the "
+                        f"pages send the {web_surface.CSRF_COOKIE} cookie's value)")
+        _check(db, conn, route, rule, found[0])
+        conn.state.user_id = found[0].id
+
+
+def document_access(app: FastAPI) -> None:
+    """Make `app.openapi()` state each operation's rule (`x-exostudy-access`), its
+    security schemes and its 401/403 answers, from the same `rule_of` the check uses."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is not None:
+            return app.openapi_schema
+        schema = build()
+        schemes = schema.setdefault("components", {}).setdefault("securitySchemes", {})
+        schemes.setdefault("HTTPBearer", {"type": "http", "scheme": "bearer"})
+        schemes.setdefault("APIKeyCookie", {"type": "apiKey", "in": "cookie",
+                                            "name": SESSION_COOKIE})
+        # Routers are included lazily (FastAPI 0.16x): walk the flattened routes.
+        for context in iter_route_contexts(app.routes):
+            route = context.original_route
+            if not isinstance(route, APIRoute) or not route.include_in_schema:
+                continue
+            item = schema.get("paths", {}).get(context.path_format or route.path_format, {})
+            for method in route.methods or ():
+                op = item.get(method.lower())
+                if op is None:
+                    continue
+                rule = rule_of(route, method)
+                op[ACCESS_KEY] = rule
+                if "requestBody" in op:
+                    op.setdefault("responses", {}).setdefault(
+                        "413", {"description": "the body is larger than the server takes"})
+                if rule in ("public", "participant"):
+                    op.pop("security", None)
+                    continue
+                op.setdefault("security", [{"HTTPBearer": []}, {"APIKeyCookie": []}])
+                responses = op.setdefault("responses", {})
+                responses.setdefault("401", {"description": "not logged in"})
+                responses.setdefault("403", {"description": f"needs: {rule} (role, site, "
+                                             "or the CSRF check of a cookie login)"})
+        app.openapi_schema = schema
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

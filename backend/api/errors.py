@@ -7,9 +7,13 @@ from our own checks uses the same list-of-errors shape as FastAPI's request vali
 
 from __future__ import annotations
 
+import json
+from collections.abc import Sequence
 from typing import Any, NoReturn, TypeVar
 
-from fastapi import HTTPException
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -81,3 +85,37 @@ def commit_or_conflict(db: Session, field: str, problem: str) -> None:
         db.rollback()
         conflict(field, problem)
         raise AssertionError("unreachable") from exc
+
+
+def _json_safe(v: Any) -> bool:
+    """True if `v` encodes as strict JSON (no NaN/Infinity, no lone surrogates)."""
+    try:
+        json.dumps(v, allow_nan=False, ensure_ascii=False).encode("utf-8")
+    except (ValueError, TypeError, UnicodeEncodeError):
+        return False
+    return True
+
+
+def safe_validation_errors(errors: Sequence[Any]) -> list[dict[str, Any]]:
+    """FastAPI's validation errors, without the parts that cannot be JSON: the very
+    input that was refused (NaN, a lone surrogate) must not turn the 422 into a 500."""
+    out = []
+    for e in errors:
+        item = {k: e[k] for k in ("type", "loc", "msg") if k in e}
+        item["msg"] = str(item.get("msg", "")).encode("utf-8", "replace").decode("utf-8")
+        for k in ("input", "ctx"):
+            if k in e and _json_safe(e[k]) and len(json.dumps(e[k])) <= 1000:
+                item[k] = e[k]
+        out.append(item)
+    return out
+
+
+async def _validation_handler(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse(status_code=422,
+                        content={"detail": safe_validation_errors(exc.errors())})
+
+
+def install_handlers(app: FastAPI) -> None:
+    """Answer every request validation error with a 422 that can always be encoded."""
+    app.add_exception_handler(RequestValidationError, _validation_handler)

@@ -34,6 +34,10 @@ class Settings(BaseSettings):
     device_spawn_simulator: bool = True
     device_seed: int = 1
     device_script: str = "paper-evaluation"
+    #: The key that authenticates every packet of the device link (HMAC-SHA256): 64 hex
+    #: digits, created at first start with mode 0600, given to the spawned simulator.
+    #: For real hardware, the firmware is provisioned with the same key.
+    device_key_file: Path = PROJECT_ROOT / "var" / "device.key"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
     #: With `sim`: run the simulated wearer this many times faster than real time.
     device_speed: float = Field(default=1.0, ge=0.1, le=100.0)
@@ -54,14 +58,43 @@ class Settings(BaseSettings):
     #: Queue length per browser before the oldest message is dropped.
     stream_queue: int = Field(default=60, ge=1)
     #: Longest time (s) ticks wait in memory before they are written to the database.
-    db_flush_interval: float = Field(default=0.5, gt=0.0, le=1.0)
+    #: A killed server loses this plus the pipe and the write itself: with 0.5 s,
+    #: bench/bench_faults.py measured up to 0.54 s lost on a loaded machine; 0.25 s keeps
+    #: the loss under the 0.5 s the safety table promises.
+    db_flush_interval: float = Field(default=0.25, gt=0.0, le=1.0)
+
+    #: Publish the tick and marker streams on the Lab Streaming Layer (LabRecorder
+    #: records them beside the lab's other devices) and read subscribed marker streams.
+    lsl_enabled: bool = True
+    #: Name of the LSL tick stream; the marker stream is NAME-Markers. Two servers on
+    #: one network need different names.
+    lsl_name: str = Field(default="ExoStudy", min_length=1, max_length=100)
 
     #: Create the demo study and account in an empty database (see backend/demo.py).
     demo: bool = True
 
+    #: Origins (besides the server's own host) whose pages may send cookie-authenticated
+    #: changes and open WebSockets, e.g. ["https://exo.lab.example"] behind a proxy that
+    #: rewrites the Host header. Empty: same host only.
+    allowed_origins: list[str] = []
+    #: Always set the `Secure` flag on the session cookie (behind a TLS-terminating
+    #: proxy, where the app itself sees plain http).
+    secure_cookies: bool = False
+    #: Largest request body (bytes) read before 413; JSON bodies are small.
+    max_body_bytes: int = Field(default=1_000_000, ge=1024)
+    #: Larger limit for file uploads (utility-set import, data files).
+    max_upload_bytes: int = Field(default=64_000_000, ge=1024)
+
     #: Start the control worker with the server (tests switch it off).
     start_worker: bool = True
     frontend_dir: Path = PROJECT_ROOT / "frontend"
+    #: Pid and log files of the spawned device simulator (a restarted server stops a
+    #: simulator its predecessor left behind, found through the pid file).
+    run_dir: Path = PROJECT_ROOT / "var"
+    #: Most ticks kept in memory while the database refuses writes: 5 min at 100 Hz,
+    #: about 40 MB (1.3 kB a received tick, measured with tracemalloc). Beyond it the
+    #: oldest are dropped and counted in health; the worker keeps controlling.
+    db_backlog_limit: int = Field(default=30_000, ge=100)
 
     @field_validator("device_address")
     @classmethod

@@ -10,7 +10,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, Float, ForeignKey, Integer, String, Text
+from sqlalchemy import JSON, DateTime, Float, ForeignKey, Index, Integer, String, Text, text
 from sqlalchemy.orm import Mapped, mapped_column
 
 from backend.db.models import Base, utcnow
@@ -33,6 +33,14 @@ class Recording(Base):
     last_tick_id: Mapped[int | None] = mapped_column(Integer)
     notes: Mapped[str] = mapped_column(Text, default="")
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+    # At most one recording runs: the database refuses a second, whatever the server's
+    # own lock does (a partial unique index: SQLite and PostgreSQL both have them).
+    __table_args__ = (
+        Index("uq_recordings_one_running", "status", unique=True,
+              sqlite_where=text("status = 'recording'"),
+              postgresql_where=text("status = 'recording'")),
+    )
 
 
 class LiftSegment(Base):
@@ -142,6 +150,18 @@ class Trial(Base):
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     ended_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     end_reason: Mapped[str] = mapped_column(Text, default="")
+    #: Ticks stored for the trial when it ended (its run's), also when interrupted.
+    tick_count: Mapped[int | None] = mapped_column(Integer)
+    #: What is wrong with the trial's data, e.g. device time gaps or going backwards:
+    #: `backend.trial_quality.QualityFlags` as JSON; empty when nothing is.
+    quality_flags: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+
+    # At most one trial runs: the database refuses a second (see Recording).
+    __table_args__ = (
+        Index("uq_trials_one_running", "status", unique=True,
+              sqlite_where=text("status = 'running'"),
+              postgresql_where=text("status = 'running'")),
+    )
 
 
 class LockEvent(Base):

@@ -23,6 +23,7 @@ from sqlalchemy import (
     Table,
     Text,
     UniqueConstraint,
+    false,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeEngine
@@ -104,6 +105,13 @@ class User(Base):
     password_hash: Mapped[str] = mapped_column(String(255))
     active: Mapped[bool] = mapped_column(Boolean, default=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: Global role: "admin" manages accounts and acts as owner of every study; "member"
+    #: has only the roles its study memberships give (backend/access.py).
+    role: Mapped[str] = mapped_column(String(16), default="member", server_default="member")
+    #: True while the password is one printed in the README (the demo account's): the
+    #: server refuses a non-loopback host and every page warns until it is changed.
+    password_published: Mapped[bool] = mapped_column(Boolean, default=False,
+                                                     server_default=false())
 
 
 class AuthToken(Base):
@@ -135,6 +143,54 @@ class Study(Base):
     description: Mapped[str] = mapped_column(Text, default="")
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: What withdrawal does to a participant's data: "erase" (delete everything) or
+    #: "exclude" (keep, marked withdrawn and left out of results and exports), as the
+    #: study's approved protocol says.
+    withdrawal_policy: Mapped[str] = mapped_column(String(16), default="erase",
+                                                   server_default="erase")
+
+
+class StudyMember(Base):
+    """An account's role in a study (owner, experimenter, viewer), optionally limited
+    to one site's participants (REDCap's data access groups)."""
+
+    __tablename__ = "study_members"
+    __table_args__ = (UniqueConstraint("study_id", "user_id", name="uq_study_members"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"),
+                                          index=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"),
+                                         index=True)
+    role: Mapped[str] = mapped_column(String(16))
+    site: Mapped[str | None] = mapped_column(String(64))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class ConsentDocument(Base):
+    """One version of a study's consent text; participants record the version they
+    consented to. Versions are added, never edited."""
+
+    __tablename__ = "consent_documents"
+    __table_args__ = (UniqueConstraint("study_id", "version", name="uq_consent_version"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"),
+                                          index=True)
+    version: Mapped[str] = mapped_column(String(32))
+    text: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class LoginFailure(Base):
+    """A failed login, kept for throttling (per account and per address) and audit."""
+
+    __tablename__ = "login_failures"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, index=True)
+    username: Mapped[str] = mapped_column(String(64), index=True)
+    address: Mapped[str] = mapped_column(String(64), index=True)
 
 
 class Participant(Base):
@@ -154,6 +210,12 @@ class Participant(Base):
     consent_date: Mapped[date | None] = mapped_column(Date)
     notes: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: The site that recruited the participant (None: the study has one site).
+    site: Mapped[str | None] = mapped_column(String(64))
+    #: The consent document version the participant agreed to (see ConsentDocument).
+    consent_version: Mapped[str | None] = mapped_column(String(32))
+    #: Set when a participant of an "exclude" study withdraws; erased ones are deleted.
+    withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
 
 
 class ConditionLabel(Base):
@@ -239,6 +301,9 @@ class QuestionnaireResponse(Base):
     score computed at submission by that instrument version."""
 
     __tablename__ = "questionnaire_responses"
+    # One response per form of a link, enforced by the database: parallel submissions
+    # of the same form cannot both be stored (the loser gets 409).
+    __table_args__ = (UniqueConstraint("link_id", "link_form", name="uq_responses_link_form"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     participant_id: Mapped[int] = mapped_column(
@@ -250,6 +315,8 @@ class QuestionnaireResponse(Base):
     instrument_version: Mapped[str] = mapped_column(String(32))
     condition_label: Mapped[str | None] = mapped_column(String(16))
     answers: Mapped[dict[str, Any]] = mapped_column(JSON)
+    #: Index of the form in its link's `forms_due` (None: not entered through a link).
+    link_form: Mapped[int | None] = mapped_column(Integer)
     score: Mapped[float] = mapped_column(Float)
     subscale_scores: Mapped[dict[str, Any]] = mapped_column(JSON)
     submitted_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
@@ -259,6 +326,8 @@ class Preference(Base):
     """Which blinded condition the participant preferred ("none": no preference)."""
 
     __tablename__ = "preferences"
+    # One preference per link, enforced by the database (parallel submissions: 409).
+    __table_args__ = (UniqueConstraint("link_id", name="uq_preferences_link"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     participant_id: Mapped[int] = mapped_column(

@@ -4,9 +4,12 @@ and trials (the ORM rows stay in `backend.db.evidence`)."""
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+#: The largest id or sample index the 32-bit integer columns hold.
+_MAX_ID = 2_147_483_647
 
 SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
 TrialController = Literal["umc", "eumc", "pec"]
@@ -38,9 +41,9 @@ class RecordingOut(BaseModel):
 class SegmentIn(BaseModel):
     """A lift as sample indices from the recording's first tick."""
 
-    start: int = Field(ge=0)
-    peak: int = Field(ge=0)
-    end: int = Field(ge=0)
+    start: int = Field(ge=0, le=_MAX_ID)
+    peak: int = Field(ge=0, le=_MAX_ID)
+    end: int = Field(ge=0, le=_MAX_ID)
     label: SegmentLabel = "unlabelled"
 
     @model_validator(mode="after")
@@ -53,9 +56,9 @@ class SegmentIn(BaseModel):
 class SegmentUpdate(BaseModel):
     """Move a segment's edges or relabel it."""
 
-    start: int | None = Field(default=None, ge=0)
-    peak: int | None = Field(default=None, ge=0)
-    end: int | None = Field(default=None, ge=0)
+    start: int | None = Field(default=None, ge=0, le=_MAX_ID)
+    peak: int | None = Field(default=None, ge=0, le=_MAX_ID)
+    end: int | None = Field(default=None, ge=0, le=_MAX_ID)
     label: SegmentLabel | None = None
 
 
@@ -100,7 +103,8 @@ class ModelSetIn(BaseModel):
     """Fit a model set from labelled segments (a background job)."""
 
     name: str = Field(min_length=1, max_length=200)
-    segment_ids: list[int] = Field(min_length=6, max_length=10_000)
+    segment_ids: list[Annotated[int, Field(ge=1, le=_MAX_ID)]] = Field(min_length=6,
+                                                                        max_length=10_000)
     latent_dim: int | None = Field(default=None, ge=1, le=200)
     explained_variance: float = Field(default=0.95, gt=0.0, lt=1.0)
 
@@ -173,8 +177,9 @@ class TrialPlanIn(BaseModel):
                                                       "walking", "stairs"],
                              min_length=1, max_length=20)
     include_eumc: bool = True
-    model_set_id: int | None = None
-    utility_set_id: int | None = None
+    # Ids within what the id columns hold: a larger one is a 422, not a driver overflow.
+    model_set_id: int | None = Field(default=None, ge=1, le=_MAX_ID)
+    utility_set_id: int | None = Field(default=None, ge=1, le=_MAX_ID)
 
 
 class TrialStartIn(BaseModel):
@@ -211,6 +216,10 @@ class TrialOut(BaseModel):
     started_at: datetime | None
     ended_at: datetime | None
     end_reason: str
+    #: Ticks stored for the trial, set when it ends (also when interrupted).
+    tick_count: int | None = None
+    #: Device time gaps or time going backwards in the trial's ticks ({} when none).
+    quality_flags: dict[str, Any] | None = None
 
 
 class LockEventOut(BaseModel):

@@ -35,6 +35,7 @@ STREAM_FIELDS: tuple[str, ...] = (
     "locked_right",
     "torque_left",
     "torque_right",
+    "plausibility",
 )
 
 
@@ -77,6 +78,12 @@ class DeviceHealth(BaseModel):
     kind: str
     last_sample_age_s: float | None = None
     faults: list[str] = Field(default_factory=list)
+    implausible_samples: int = Field(default=0, description=(
+        "samples of the current run that failed a plausibility check (no lock taken)"))
+    link_drops: dict[str, int] = Field(default_factory=dict, description=(
+        "packets dropped by the UDP link since the worker started, by reason: host side "
+        "(auth, replay, ...) and, as the device reports them, device side (device_auth, "
+        "device_replay)"))
 
 
 class DatabaseHealth(BaseModel):
@@ -84,8 +91,13 @@ class DatabaseHealth(BaseModel):
 
     ticks_written: int
     write_failures: int
+    #: The error of the last write if it failed; "" once a write succeeds again.
     last_error: str = ""
     current_run_id: int | None = None
+    #: Ticks received and waiting to be written.
+    backlog: int = 0
+    #: Ticks lost because the backlog was full while writes failed.
+    ticks_dropped: int = 0
 
 
 class Health(BaseModel):

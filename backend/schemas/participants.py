@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import date
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -23,6 +23,19 @@ def _not_future(v: date | None) -> date | None:
     return v
 
 
+#: A site's short name ("Leuven", "site-2").
+SiteName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9 ._-]{0,63}$")]
+#: A consent document version ("1.0", "2026-03").
+ConsentVersion = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,31}$")]
+
+
+class WithdrawalOut(BaseModel):
+    """What withdrawal did: "erased" (nothing is left) or "excluded" (kept, marked)."""
+
+    participant_id: int
+    outcome: Literal["erased", "excluded"]
+
+
 class ParticipantIn(BaseModel):
     """A new participant; the code is unique within the study."""
 
@@ -36,6 +49,10 @@ class ParticipantIn(BaseModel):
     mass_kg: float | None = Field(default=None, ge=30.0, le=250.0, description="kilograms")
     consent_date: date | None = None
     notes: PlainText = ""
+    #: The recruiting site (a site-limited member's own site is used when absent).
+    site: SiteName | None = None
+    #: The consent document version agreed to (one of the study's versions).
+    consent_version: ConsentVersion | None = None
 
     _consent = field_validator("consent_date")(_not_future)
 
@@ -52,6 +69,8 @@ class ParticipantUpdate(BaseModel):
     mass_kg: float | None = Field(default=None, ge=30.0, le=250.0)
     consent_date: date | None = None
     notes: PlainText | None = None
+    site: SiteName | None = None
+    consent_version: ConsentVersion | None = None
 
     _consent = field_validator("consent_date")(_not_future)
 
@@ -71,6 +90,9 @@ class ParticipantOut(BaseModel):
     consent_date: date | None
     notes: str
     created_at: UtcDatetime
+    site: str | None = None
+    consent_version: str | None = None
+    withdrawn_at: UtcDatetime | None = None
 
 
 class ConditionIn(BaseModel):
@@ -91,5 +113,6 @@ class ConditionOut(BaseModel):
     id: int
     participant_id: int
     label: str
-    controller: str
+    #: The controller behind the label: the blinding key, shown to owners only.
+    controller: str | None
     created_at: UtcDatetime

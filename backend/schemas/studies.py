@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import Annotated, Literal
 
-from backend.schemas.fields import Name, PlainText, UtcDatetime
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+from backend.schemas.fields import Name, PlainText, UtcDatetime, _storable
+
+#: A site's short name ("Leuven", "site-2").
+SiteName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9 ._-]{0,63}$")]
 
 
 class StudyIn(BaseModel):
@@ -14,6 +19,8 @@ class StudyIn(BaseModel):
 
     name: Name
     description: PlainText = ""
+    #: What withdrawal does: erase the participant's data, or keep it excluded.
+    withdrawal_policy: Literal["erase", "exclude"] = "erase"
 
 
 class StudyUpdate(BaseModel):
@@ -23,6 +30,7 @@ class StudyUpdate(BaseModel):
 
     name: Name | None = None
     description: PlainText | None = None
+    withdrawal_policy: Literal["erase", "exclude"] | None = None
 
 
 class StudyOut(BaseModel):
@@ -34,4 +42,45 @@ class StudyOut(BaseModel):
     name: str
     description: str
     created_by: int | None
+    created_at: UtcDatetime
+    withdrawal_policy: str
+
+
+class MemberIn(BaseModel):
+    """An account's role in a study, optionally limited to one site's participants."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    username: Annotated[str, Field(min_length=1, max_length=64,
+                                   pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]*$")]
+    role: Literal["owner", "experimenter", "viewer"]
+    site: SiteName | None = None
+
+
+class MemberOut(BaseModel):
+    """A study member."""
+
+    user_id: int
+    username: str
+    role: str
+    site: str | None
+
+
+class ConsentIn(BaseModel):
+    """A new version of the study's consent document."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    version: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,31}$")]
+    text: Annotated[str, Field(min_length=1, max_length=100_000), AfterValidator(_storable)]
+
+
+class ConsentOut(BaseModel):
+    """A consent document version."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    version: str
+    text: str
     created_at: UtcDatetime

@@ -20,7 +20,13 @@ def make_device(config: WorkerConfig) -> Device:
             speed=config.device_speed,
         )
     if config.device_kind == "udp":
+        from pathlib import Path
+
+        from controller.device.auth import load_key
         from controller.device.udp import UdpDevice
 
-        return UdpDevice(device_host=config.device_host, device_port=config.device_port)
+        if not config.device_key_file:
+            raise ValueError("the UDP device needs its link key file (device_key_file)")
+        return UdpDevice(device_host=config.device_host, device_port=config.device_port,
+                         key=load_key(Path(config.device_key_file)))
     raise ValueError(f"unknown device kind {config.device_kind!r}; use 'sim' or 'udp'")

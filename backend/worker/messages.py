@@ -18,6 +18,8 @@ class WorkerConfig:
     device_port: int = 5555
     device_seed: int = 1
     device_script: str = "paper-evaluation"
+    #: UDP device: the file of the link key (the worker reads it; the key is not sent).
+    device_key_file: str = ""
     precompression_pct: float = 25.0
     #: In-process simulator only: samples this many times faster than real time.
     device_speed: float = 1.0
@@ -59,6 +61,10 @@ class WorkerStatus:
     device_alive: bool
     last_sample_age_s: float
     device_faults: tuple[str, ...] = ()
+    #: Samples of this run that failed a plausibility check (no lock was taken on them).
+    implausible: int = 0
+    #: Packets the device link dropped since the worker started, (reason, count).
+    link_drops: tuple[tuple[str, int], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +96,8 @@ class SetController:
     name: str
     config: dict[str, Any] = field(default_factory=dict)
     max_ticks: int | None = None
+    #: Answered by a `CommandResult` with this id (0: nobody waits for the answer).
+    request_id: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +112,8 @@ class SetSimulation:
     script: str
     #: Samples this many times faster than real time; None keeps the current speed.
     speed: float | None = None
+    #: Answered by a `CommandResult` with this id (0: nobody waits for the answer).
+    request_id: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,5 +146,23 @@ class CalibrationResult:
     samples: int = 0
 
 
-WorkerMessage = TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
+@dataclass(frozen=True, slots=True)
+class CommandResult:
+    """The worker's answer to a `SetController` or `SetSimulation` with a request id.
+
+    Sent after the command took effect (its `RunStarted` goes first, through the same
+    ordered pipe, so `run_token` is already known to the server) or was refused
+    (`ok` False, `message` says why). The server waits for this answer, not for a
+    guessed number of seconds: a slow worker is late, never wrongly reported as silent.
+    """
+
+    request_id: int
+    ok: bool
+    message: str = ""
+    #: The run the command started (0 if none).
+    run_token: int = 0
+
+
+WorkerMessage = (TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
+                 | CommandResult)
 ServerCommand = SetController | SetSimulation | StopWorker | Calibrate

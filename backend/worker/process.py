@@ -15,6 +15,7 @@ import collections
 import gc
 import math
 import os
+import resource
 import signal
 import threading
 import time
@@ -29,6 +30,7 @@ from backend.worker.devices import make_device
 from backend.worker.messages import (
     Calibrate,
     CalibrationResult,
+    CommandResult,
     RunStarted,
     SetController,
     SetSimulation,
@@ -40,6 +42,7 @@ from backend.worker.messages import (
     WorkerStatus,
 )
 from controller.calibration import CalibrationError, calibrate
+from controller.device.base import Device
 from controller.factory import load_models, make_controller
 from controller.loop import ControlLoop
 from controller.tick import TickRecord
@@ -47,6 +50,13 @@ from controller.tick import TickRecord
 #: Records kept for the server if it stops reading: one minute at 100 Hz.
 OUTBOX_LIMIT = 6000
 BATCH_INTERVAL_S = 0.02
+#: A sped-up simulation (device time is virtual) waits while more records than this are
+#: queued for the server, and resumes below `BACKLOG_RESUME`: the worker never produces
+#: faster than the server stores, so nothing is dropped and a command's answer is never
+#: stuck behind seconds of queued ticks on a loaded machine. 1,000 records are 0.125 s
+#: of an 80x simulation; a real-time device never waits (it cannot).
+BACKLOG_HOLD = 1000
+BACKLOG_RESUME = 250
 
 
 class _Outbox:
@@ -60,6 +70,7 @@ class _Outbox:
         self.broken = threading.Event()
         self.stop = threading.Event()
         self.run_token = 0
+        self._unsent = 0  # records put and not yet written to the pipe
         self._lock = threading.Lock()
         self.thread = threading.Thread(target=self._run, name="worker-outbox", daemon=True)
 
@@ -68,7 +79,14 @@ class _Outbox:
             if len(self.records) >= OUTBOX_LIMIT:
                 self.records.popleft()
                 self.dropped += 1
+            else:
+                self._unsent += 1
             self.records.append(record)
+
+    def backlog(self) -> int:
+        """Records waiting for the server (queued here or being written)."""
+        with self._lock:
+            return self._unsent
 
     def put(self, message: WorkerMessage) -> None:
         # Control messages go out after the records queued before them, so a RunStarted
@@ -103,6 +121,9 @@ class _Outbox:
             except (BrokenPipeError, EOFError, OSError):
                 self.broken.set()
                 return
+            if isinstance(msg, TickBatch):
+                with self._lock:
+                    self._unsent -= len(msg.records)
 
 
 def worker_main(
@@ -152,11 +173,17 @@ def worker_main(
         outbox.put(RunStarted(run_token, controller.name, dict(config.controller_config),
                               device.kind, pid))
         next_status = time.monotonic()
+        held = False  # a sped-up simulation waiting for the server (see `_hold`)
+        silent = False  # no sample within the last read's timeout (see below)
+        _loop_scheduling(_paced(config))
         while not stopping.is_set():
             if os.getppid() != parent_pid or outbox.broken.is_set():
                 exit_code = 4  # the server is gone: release and leave
                 break
-            while cmd_conn.poll():
+            commands = cmd_conn.poll()
+            if commands:
+                _loop_scheduling(False)  # building a controller is no real-time work
+            while commands and cmd_conn.poll():
                 try:
                     cmd = cmd_conn.recv()
                 except (EOFError, OSError):
@@ -165,24 +192,36 @@ def worker_main(
                 if isinstance(cmd, StopWorker):
                     stopping.set()
                 elif isinstance(cmd, SetController):
+                    rid, refused = cmd.request_id, ""
                     try:
                         new = make_controller(cmd.name, cmd.config)
                         new.warm_up()
                     except Exception as exc:
-                        outbox.put(WorkerError(f"controller {cmd.name!r} rejected: {exc}"))
-                        continue
+                        # A configuration that does not validate is refused, and the
+                        # controller it was meant to replace stops too: no locks until
+                        # the experimenter sends one that does (safety over continuity).
+                        refused = f"controller {cmd.name!r} rejected: {exc}; running 'none'"
+                        outbox.put(WorkerError(refused))
+                        if loop.controller.name == "none":
+                            _answer(outbox, rid, refused)
+                            continue
+                        new = make_controller("none")
+                        cmd = SetController("none", {})
                     loop.controller = new
                     current_config = dict(cmd.config)
                     run_ticks, run_limit = 0, cmd.max_ticks
                     run_token += 1
                     outbox.put(RunStarted(run_token, new.name, current_config, device.kind, pid))
                     outbox.run_token = run_token
+                    _answer(outbox, rid, refused, run_token)
                 elif isinstance(cmd, Calibrate):
                     calibration = _CalibrationJob(cmd, config, current_config)
                 elif isinstance(cmd, SetSimulation):
                     if config.device_kind != "sim":
-                        outbox.put(WorkerError("the device is not the in-process simulator: "
-                                               "there is no simulation to change"))
+                        refused = ("the device is not the in-process simulator: there is no "
+                                   "simulation to change")
+                        outbox.put(WorkerError(refused))
+                        _answer(outbox, cmd.request_id, refused)
                         continue
                     sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script,
                                          device_speed=cmd.speed or config.device_speed)
@@ -191,8 +230,10 @@ def worker_main(
                         fresh = make_controller(loop.controller.name, current_config)
                         fresh.warm_up()
                     except Exception as exc:
-                        outbox.put(WorkerError(f"simulation seed {cmd.seed}, script "
-                                               f"{cmd.script!r} rejected: {exc}"))
+                        refused = f"simulation seed {cmd.seed}, script {cmd.script!r} " \
+                                  f"rejected: {exc}"
+                        outbox.put(WorkerError(refused))
+                        _answer(outbox, cmd.request_id, refused)
                         continue
                     # Unlocked-safe between wearers: the old device lets go before the
                     # new one opens (a failure to open ends the worker, released).
@@ -201,6 +242,7 @@ def worker_main(
                     device = new_device
                     device.open()
                     config = sim_config
+                    _abandon(outbox, calibration, "the simulated wearer changed")
                     calibration = None
                     # Fresh timing too: health counts ticks from the new wearer's start.
                     loop = ControlLoop(device, fresh)
@@ -209,9 +251,19 @@ def worker_main(
                     run_token += 1
                     outbox.put(RunStarted(run_token, fresh.name, current_config, device.kind, pid))
                     outbox.run_token = run_token
+                    _answer(outbox, cmd.request_id, "", run_token)
+            if commands:
+                _loop_scheduling(_paced(config))
             if stopping.is_set():
                 break
-            record = loop.tick(timeout=0.05)
+            held = _hold(device, outbox, held)
+            record = None if held else loop.tick(timeout=0.05)
+            if record is None and not held and not silent and device.kind == "udp":
+                # 50 ms (5 samples) without a sample: send the release now instead of
+                # leaving a held lock to the device's 100 ms watchdog; a device that
+                # stopped talking may still be listening. Once per silence.
+                device.release()
+            silent = record is None and not held
             if record is not None:
                 outbox.put_record(record)
                 run_ticks += 1
@@ -219,6 +271,7 @@ def worker_main(
                     # A timed run is over: back to no controller (no locks), a new run.
                     loop.controller = make_controller("none")
                     current_config = {}
+                    _abandon(outbox, calibration, "the timed trial ended")
                     calibration = None
                     run_ticks, run_limit = 0, None
                     run_token += 1
@@ -261,6 +314,38 @@ def worker_main(
         raise SystemExit(exit_code)
 
 
+def _hold(device: Device, outbox: _Outbox, held: bool) -> bool:
+    """Whether a sped-up simulated device should wait for the server to catch up.
+
+    Only a simulation faster than real time waits (its device time is virtual, so
+    waiting changes nothing in the data); it restarts its clock when it resumes, so
+    the samples it skipped are not delivered in one burst.
+    """
+    # Duck-typed: a UDP worker does not import the simulator for this.
+    resync = getattr(device, "resync", None)
+    if resync is None or float(getattr(device, "speed", 1.0)) <= 1.0:
+        return False
+    if outbox.backlog() > (BACKLOG_RESUME if held else BACKLOG_HOLD):
+        time.sleep(0.002)
+        return True
+    if held:
+        resync()
+    return False
+
+
+def _answer(outbox: _Outbox, request_id: int, refused: str, run_token: int = 0) -> None:
+    """Answer a command the server waits for (request id 0: nobody waits)."""
+    if request_id:
+        outbox.put(CommandResult(request_id, not refused, refused, run_token))
+
+
+def _abandon(outbox: _Outbox, job: _CalibrationJob | None, why: str) -> None:
+    """A calibration cut short still gets its answer, with the reason."""
+    if job is not None:
+        outbox.put(CalibrationResult(job.cmd.request_id, False,
+                                     f"calibration abandoned: {why}", samples=len(job.q)))
+
+
 def _raise_priority() -> None:
     """Ask the scheduler to prefer the control loop over browsers and the web server.
     Needs privileges (root or CAP_SYS_NICE); without them the loop runs at normal
@@ -268,6 +353,48 @@ def _raise_priority() -> None:
     try:
         os.setpriority(os.PRIO_PROCESS, 0, -10)
     except (PermissionError, OSError):
+        pass
+
+
+#: Real-time priority of the loop thread (SCHED_FIFO, low in the 1..99 range: above
+#: every ordinary process, below the kernel's own real-time threads).
+LOOP_RT_PRIORITY = 10
+#: A real-time thread that computes this long without sleeping is a runaway; the kernel
+#: signals it (SIGXCPU) and the loop drops back to normal scheduling. A tick computes
+#: in well under a millisecond and then sleeps until the next sample.
+RT_RUNAWAY_US = 200_000
+
+
+def _paced(config: WorkerConfig) -> bool:
+    """Whether the device's clock paces the loop (hardware, or real-time simulation)."""
+    return config.device_kind != "sim" or config.device_speed <= 1.0
+
+
+def _loop_scheduling(device_paced: bool) -> None:
+    """Real-time scheduling for the loop thread while it follows a device's clock.
+
+    Nice -10 is a weight, not a guarantee: with both cores busy (benchmark
+    `bench/bench_loop_load.py`) the woken loop still waits behind ordinary processes
+    for milliseconds. SCHED_FIFO runs it as soon as its sample is due. Only for a
+    device that paces the loop (hardware, or the simulator at real-time speed): a
+    sped-up simulation runs flat out and must share the CPU with the server it feeds,
+    so it gets normal scheduling. Needs root or CAP_SYS_NICE, else nothing changes.
+    """
+    try:
+        if device_paced:
+            signal.signal(signal.SIGXCPU, _drop_realtime)
+            resource.setrlimit(resource.RLIMIT_RTTIME, (RT_RUNAWAY_US, RT_RUNAWAY_US * 10))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(LOOP_RT_PRIORITY))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (PermissionError, OSError, ValueError):
+        pass
+
+
+def _drop_realtime(_signum: int, _frame: FrameType | None) -> None:
+    try:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except OSError:
         pass
 
 
@@ -339,4 +466,6 @@ def _status(
         device_alive=age < 0.5,
         last_sample_age_s=age,
         device_faults=tuple(faults),
+        implausible=loop.implausible,
+        link_drops=tuple(sorted(loop.device.link_counters().items())),
     )

@@ -21,6 +21,7 @@ from typing import Any
 from backend.worker.messages import (
     Calibrate,
     CalibrationResult,
+    CommandResult,
     RunStarted,
     SetController,
     SetSimulation,
@@ -46,6 +47,7 @@ class WorkerCallbacks:
     on_exit: Callable[[int | None, str], None] = lambda code, reason: None
     on_event: Callable[[str, dict[str, Any]], None] = lambda kind, data: None
     on_calibration: Callable[[CalibrationResult], None] = lambda result: None
+    on_command_result: Callable[[CommandResult], None] = lambda result: None
 
 
 @dataclass
@@ -92,6 +94,10 @@ class WorkerSupervisor:
                 return
             if self._reader is not None:
                 self._reader.join(2.0)
+            if self.state.started_at is not None:
+                # A restarted worker never resumes the controller of a trial that has
+                # ended with its predecessor: it begins unlocked, with "none".
+                self.config = replace(self.config, controller="none", controller_config={})
             out_parent, out_child = self._ctx.Pipe(duplex=False)
             cmd_child, cmd_parent = self._ctx.Pipe(duplex=False)
             proc = self._ctx.Process(
@@ -147,33 +153,43 @@ class WorkerSupervisor:
         self.stop("restart")
         self.start()
 
+    def _next_request_id(self) -> int:
+        self._request_id += 1
+        return self._request_id
+
     def set_controller(self, name: str, config: dict[str, Any] | None = None,
-                       max_ticks: int | None = None) -> None:
+                       max_ticks: int | None = None) -> int:
         """Switch controller in the running worker; it takes effect at the next tick (and
-        ends after `max_ticks` samples, if given)."""
+        ends after `max_ticks` samples, if given). Returns the request id the worker's
+        `CommandResult` will carry, 0 when no worker runs (the configuration then
+        applies at the next start)."""
         with self._lock:
             self.config = replace(self.config, controller=name, controller_config=config or {})
             if self._cmd is None or not self.state.alive:
-                return
+                return 0
+            rid = self._next_request_id()
             try:
-                self._cmd.send(SetController(name, config or {}, max_ticks))
+                self._cmd.send(SetController(name, config or {}, max_ticks, rid))
             except (BrokenPipeError, OSError):
-                pass
+                return 0
+            return rid
 
-    def set_simulation(self, seed: int, script: str, speed: float | None = None) -> bool:
-        """Ask the running worker to switch its simulated wearer or script; False when
-        no worker runs (the new configuration then applies at the next start)."""
+    def set_simulation(self, seed: int, script: str, speed: float | None = None) -> int | None:
+        """Ask the running worker to switch its simulated wearer or script; returns the
+        request id its `CommandResult` will carry, None when no worker runs (the new
+        configuration then applies at the next start)."""
         with self._lock:
             speed = self.config.device_speed if speed is None else speed
             self.config = replace(self.config, device_seed=seed, device_script=script,
                                   device_speed=speed)
             if self._cmd is None or not self.state.alive:
-                return False
+                return None
+            rid = self._next_request_id()
             try:
-                self._cmd.send(SetSimulation(seed, script, speed))
+                self._cmd.send(SetSimulation(seed, script, speed, rid))
             except (BrokenPipeError, OSError):
-                return False
-            return True
+                return None
+            return rid
 
     def request_calibration(self, seconds: float, max_std_deg: float) -> int:
         """Ask the worker to calibrate over the next `seconds`; returns the request id.
@@ -181,8 +197,7 @@ class WorkerSupervisor:
         with self._lock:
             if self._cmd is None or not self.state.alive:
                 raise RuntimeError("the worker is not running")
-            self._request_id += 1
-            rid = self._request_id
+            rid = self._next_request_id()
             self._cmd.send(Calibrate(seconds, max_std_deg, rid))
             return rid
 
@@ -218,6 +233,8 @@ class WorkerSupervisor:
                 self.callbacks.on_run_started(msg)
             elif isinstance(msg, CalibrationResult):
                 self.callbacks.on_calibration(msg)
+            elif isinstance(msg, CommandResult):
+                self.callbacks.on_command_result(msg)
             elif isinstance(msg, WorkerError):
                 self.state.errors = [*self.state.errors[-19:], msg.message]
                 log.warning("worker: %s", msg.message)

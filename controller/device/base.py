@@ -113,6 +113,11 @@ class Device(ABC):
         """Human-readable faults seen since the last call (link loss, late packets, ...)."""
         return []
 
+    def link_counters(self) -> dict[str, int]:
+        """Packets dropped since `open()`, by reason (authentication, replay, ...), as the
+        host and, where it reports them, the device counted them; empty without a link."""
+        return {}
+
     def __enter__(self) -> Device:
         self.open()
         return self

@@ -76,6 +76,13 @@ class SimulatedDevice(Device):
         command, self._command = self._command, None
         return self.exo.tick(command)
 
+    def resync(self) -> None:
+        """Restart the sample clock from the next sample: after a reader paused on
+        purpose (a sped-up simulation waiting for its consumer), samples resume at the
+        requested rate instead of arriving all at once."""
+        if self._start is not None:
+            self._start = time.monotonic() - self.exo.seq * self.exo.dt / self.speed
+
     def send(self, command: LockCommand) -> None:
         """Store the command for the next tick."""
         self._command = command

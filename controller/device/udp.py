@@ -2,9 +2,13 @@
 
 The worker reads one sample per tick and answers with one command. This class keeps
 the link honest: it only accepts datagrams from the configured device address, drops
-malformed, duplicate and out-of-order packets, extends the 32-bit wire sequence to a
-host sequence that never goes backwards, and counts every irregularity so that
-`faults()` can tell the operator what the link is doing. It never blocks on send.
+packets that fail the authentication tag (forged or damaged), replays (a sequence number
+of the device's session already seen, a session of the device replaced earlier, a sample
+addressed to an earlier session of this host), malformed and out-of-order packets,
+extends the 32-bit wire sequence to a host sequence that never goes backwards, and
+counts every irregularity so that `faults()` and `link_counters()` can tell the operator
+what the link is doing. A device restart is a new device session, authenticated, not a
+guess from sequence numbers. It never blocks on send.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 
+from controller.device.auth import KEY_BYTES, PeerSessions, new_session
 from controller.device.base import NO_LOCK, Device, DeviceError, LockCommand, Sample
 from controller.device.protocol import (
     DEFAULT_PORT,
@@ -22,7 +27,7 @@ from controller.device.protocol import (
     CommandPacket,
     HelloPacket,
     ProtocolError,
-    decode,
+    decode_frame,
     encode_command,
     encode_hello,
     seq_diff,
@@ -30,7 +35,6 @@ from controller.device.protocol import (
 
 HELLO_INTERVAL_S = 0.5  # announce ourselves this often while no command is being sent
 OUTAGE_S = 0.05  # no sample for this long (5 periods) is reported as a link outage
-RESTART_AFTER = 25  # this many consecutive older sequence numbers mean the device restarted
 
 
 @dataclass
@@ -40,10 +44,14 @@ class LinkStats:
     samples: int = 0
     gaps: int = 0  # sequence jumps
     missing: int = 0  # samples lost inside those jumps
-    duplicates: int = 0
+    duplicates: int = 0  # authentic, but a sequence number of this session seen before
     stale: int = 0  # older than the last accepted sample (reordered or delayed)
-    restarts: int = 0  # device sequence restarted; host sequence continued
+    restarts: int = 0  # a new device session; host sequence continued
+    replayed: int = 0  # from a replaced device session, or to an earlier host session
     malformed: Counter[str] = field(default_factory=Counter)  # by ProtocolError reason
+    # The device's own counts of commands it dropped, as its latest sample reports them.
+    device_auth_drops: int = 0
+    device_replay_drops: int = 0
     foreign: int = 0  # datagrams from any address but the device's
     unexpected: int = 0  # valid packets of a type a device never sends
     outages: int = 0
@@ -71,7 +79,12 @@ class UdpDevice(Device):
         device_port: int = DEFAULT_PORT,
         local_port: int = 0,
         local_host: str | None = None,
+        *,
+        key: bytes,
     ) -> None:
+        if len(key) != KEY_BYTES:
+            raise DeviceError(f"the device key must be {KEY_BYTES} bytes, got {len(key)}")
+        self.key = key
         self.device_host = device_host
         self.device_port = device_port
         self.local_port = local_port
@@ -85,7 +98,8 @@ class UdpDevice(Device):
         self._host_seq = 0
         self._last_wire: int | None = None  # wire sequence of the last accepted sample
         self._host_ext = -1  # extended (host) sequence of the last accepted sample
-        self._backwards = 0  # consecutive samples older than the last accepted one
+        self.session = new_session()  # this host's session; a new one at every open()
+        self.device_sessions = PeerSessions()
         self._last_send = -float("inf")
         self._last_sample_at: float | None = None
         self._in_outage = False
@@ -110,6 +124,8 @@ class UdpDevice(Device):
             raise DeviceError(f"cannot open UDP link to {self.device_host}: {exc}") from exc
         self._device_addr = (ip, self.device_port)
         self._sock = sock
+        self.session = new_session()
+        self.device_sessions = PeerSessions()
         self._send_hello()
 
     def read(self, timeout: float) -> Sample | None:
@@ -155,7 +171,7 @@ class UdpDevice(Device):
             lock_right=command.lock_right,
             echo_seq=self._last_wire,
         )
-        if self._sendto(encode_command(packet)):
+        if self._sendto(encode_command(packet, self.key, self.session, self._device_session)):
             self.stats.commands_sent += 1
 
     def release(self) -> None:
@@ -186,6 +202,16 @@ class UdpDevice(Device):
             )
         if s.duplicates > r.duplicates:
             out.append(f"{s.duplicates - r.duplicates} duplicate sample(s) dropped")
+        if s.replayed > r.replayed:
+            out.append(f"{s.replayed - r.replayed} replayed sample(s) dropped")
+        if s.restarts > r.restarts:
+            out.append(f"{s.restarts - r.restarts} device restart(s): a new device session")
+        if s.device_auth_drops > r.device_auth_drops:
+            out.append(f"the device dropped {s.device_auth_drops - r.device_auth_drops} "
+                       "command(s) that failed authentication")
+        if s.device_replay_drops > r.device_replay_drops:
+            out.append(f"the device dropped {s.device_replay_drops - r.device_replay_drops} "
+                       "replayed or stale command(s)")
         if s.stale > r.stale:
             out.append(f"{s.stale - r.stale} out-of-order sample(s) dropped")
         new_bad = s.malformed - r.malformed
@@ -201,6 +227,19 @@ class UdpDevice(Device):
         self._reported = s.copy()
         return out
 
+    def link_counters(self) -> dict[str, int]:
+        """Packets dropped since `open()`, by reason, both sides (see `Device`)."""
+        s = self.stats
+        out = {"auth": s.malformed.get("auth", 0), "replay": s.replayed + s.duplicates,
+               "stale": s.stale, "foreign": s.foreign,
+               "malformed": sum(v for k, v in s.malformed.items() if k != "auth"),
+               "device_auth": s.device_auth_drops, "device_replay": s.device_replay_drops,
+               "device_restarts": s.restarts}
+        return out
+
+    @property
+    def _device_session(self) -> int:
+        return self.device_sessions.current or 0
     # -- internals -------------------------------------------------------------------
 
     def _require_open(self) -> socket.socket:
@@ -224,7 +263,9 @@ class UdpDevice(Device):
         return True
 
     def _send_hello(self) -> None:
-        if self._sendto(encode_hello(HelloPacket(host_seq=self._next_host_seq()))):
+        hello = encode_hello(HelloPacket(host_seq=self._next_host_seq()), self.key,
+                             self.session, self._device_session)
+        if self._sendto(hello):
             self.stats.hellos_sent += 1
 
     def _check_outage(self, now: float) -> None:
@@ -240,37 +281,47 @@ class UdpDevice(Device):
             self.stats.foreign += 1
             return None
         try:
-            packet = decode(data)
+            frame = decode_frame(data, self.key)
         except ProtocolError as exc:
             self.stats.malformed[exc.reason] += 1
             return None
+        packet = frame.packet
         if not isinstance(packet, Sample):
             self.stats.unexpected += 1
             return None
+        if frame.receiver != self.session:
+            # Authentic, but addressed to an earlier session of this host: recorded and
+            # sent again (or left over from before a restart).
+            self.stats.replayed += 1
+            return None
+        verdict = self.device_sessions.check(frame.sender, packet.seq % SEQ_MODULUS)
+        if verdict == "replay":
+            if frame.sender == self.device_sessions.current:
+                self.stats.duplicates += 1
+            else:
+                self.stats.replayed += 1
+            return None
         now = time.monotonic()
-        if self._last_wire is None:
-            self._host_ext = packet.seq - 1  # host sequence starts equal to the wire's
+        if verdict == "new" or self._last_wire is None:
+            if self._last_wire is not None:
+                # A new device session: the device restarted. The host sequence continues.
+                self.stats.restarts += 1
+                self._events.append(
+                    f"device restarted (new session) at sequence {packet.seq}; host "
+                    "sequence continues")
+            else:
+                self._host_ext = packet.seq - 1  # host sequence starts equal to the wire's
             step = 1
         else:
             step = seq_diff(packet.seq, self._last_wire)
             if step <= 0:
-                self._backwards += 1
-                if self._backwards < RESTART_AFTER:
-                    if step == 0:
-                        self.stats.duplicates += 1
-                    else:
-                        self.stats.stale += 1
-                    return None
-                # A run of "old" samples is a device that started counting again.
-                self.stats.restarts += 1
-                self._events.append(
-                    f"device sequence restarted at {packet.seq}; host sequence continues"
-                )
-                step = 1
-            elif step > 1:
+                self.stats.stale += 1  # reordered: a newer sample was already used
+                return None
+            if step > 1:
                 self.stats.gaps += 1
                 self.stats.missing += step - 1
-        self._backwards = 0
+        self.stats.device_auth_drops = frame.device_auth_drops
+        self.stats.device_replay_drops = frame.device_replay_drops
         if self._in_outage and self._last_sample_at is not None:
             gap_ms = 1000 * (now - self._last_sample_at)
             self._events.append(f"link outage ended: samples resumed after {gap_ms:.0f} ms")

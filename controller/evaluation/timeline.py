@@ -40,6 +40,8 @@ CHI2_95_2D = float(chi2.ppf(0.95, df=2))
 #: 0.1 s; the idle E-UMC computes no posterior at all).
 MAX_GAP_S = 0.15
 _LEFT, _RIGHT = "#6a3d9a", "#b15928"
+#: Event markers (console, LSL, system): a colour no panel uses for data.
+_MARKER = "#e7298a"
 
 
 class MotionModelLike(Protocol):
@@ -140,6 +142,7 @@ def controller_output_figure(
     progress_points: Sequence[float] = DEFAULT_PROGRESS_POINTS,
     title: str = "",
     dpi: int = DEFAULT_DPI,
+    markers: Sequence[tuple[float, str]] = (),
 ) -> Figure:
     """The five-panel controller output of ticks `start..stop-1` (size `TIMELINE_IN`).
 
@@ -155,6 +158,8 @@ def controller_output_figure(
         progress_points: progress values (0..1) at which ellipses are drawn.
         title: an optional figure title.
         dpi: pixels per inch.
+        markers: event markers as (device time `t`, label); those inside the stretch
+            are drawn as dashed lines across panels B-E, labelled on B.
 
     Time runs from the stretch's first tick. Angles are shown in degrees.
     """
@@ -300,4 +305,12 @@ def controller_output_figure(
         ax.set_xlim(float(t[0]), float(t[-1]) if n > 1 else 1.0)
     for ax in (ax_b, ax_c, ax_d):
         ax.tick_params(labelbottom=False)
+    for t_mark, label in markers:
+        x = float(t_mark - t_abs[0])
+        if not 0.0 <= x <= float(t[-1]):
+            continue
+        for ax in (ax_b, ax_c, ax_d, ax_e):
+            ax.axvline(x, color=_MARKER, lw=0.9, ls="--")
+        ax_b.annotate(label, (x, 1.0), xycoords=("data", "axes fraction"), xytext=(2, -2),
+                      textcoords="offset points", va="top", fontsize=6, color=_MARKER)
     return fig

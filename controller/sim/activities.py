@@ -6,7 +6,7 @@ and end at the participant's standing posture with zero velocity and acceleratio
 that a script is a smooth concatenation (the controllers differentiate the angles).
 Postural sway is added by the script over the whole timeline.
 
-Kinematic assumptions (the project's own, against `shared/spec/biomechanics.md`):
+Kinematic assumptions (the project's own, against `docs/simulated-wearer.md`):
 - Lifts: minimum-jerk lowering (1.1-1.45 s at nominal speed), a 0.25-0.55 s pause at
   the bottom (grasp or release), minimum-jerk raising (0.95-1.15 x the lowering time).
   Peak hip velocity is 1.875 x range / duration, i.e. 2-3 rad/s.
@@ -15,6 +15,8 @@ Kinematic assumptions (the project's own, against `shared/spec/biomechanics.md`)
   the other hip to 0.62-0.78 of it (the feet are at 90 degrees, so the trunk's bend is
   partly rotation and abduction for that hip); the trunk inclines 0.95 x the box-side
   hip flexion (lumbar flexion compensates the thighs' backward tilt).
+- Hip moments per leg come from `controller.sim.biomechanics`: half each in a squat,
+  from the stance geometry in an asymmetric stoop (no free share parameter).
 - Gait: one periodic template per kind over the leg's own cycle (0 = foot contact), the
   right leg half a cycle after the left; amplitude ramps in over the first 0.6 stride
   (gait initiation) and out over the last; kinds cross-fade over 0.8 s (a
@@ -39,6 +41,7 @@ from controller.sim.biomechanics import (
     gait_moment,
     lift_hip_moment,
     split_moment,
+    stoop_leg_moments,
 )
 from controller.sim.participant import VirtualParticipant
 
@@ -116,7 +119,7 @@ def stand(
     theta = np.tile(p.stand_flexion, (n, 1))
     body = Anthropometrics.from_body(p.mass_kg, p.height_m)
     total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), DT)
-    torque = split_moment(total, 0.5 + 0.5 * p.asymmetry)
+    torque = split_moment(total, 0.5)  # feet parallel, load on the midline
     act, lift = _labels(n, "stand", False)
     return Segment(theta, torque, act, lift, np.full(n, np.nan))
 
@@ -194,12 +197,10 @@ def lift(
     theta = stand_flex[None, :] + s * delta[None, :]
     if shape.kind == "squat":
         trunk = p.squat_trunk_ratio * (s @ delta) / 2.0
-        share: float = 0.5 + 0.5 * (shape.peak_deg[0] / shape.peak_deg[1] - 1.0)
         ref = int(np.argmin(shape.lag_s))
     else:
         ref = 0 if shape.kind == "stoop_left" else 1
         trunk = STOOP_TRUNK_RATIO * s[:, ref] * float(delta[ref])
-        share = p.box_side_share if ref == 0 else 1.0 - p.box_side_share
     u = t - shape.lag_s[ref]
     if pick_up:
         t_liftoff = shape.t_down + shape.t_pause
@@ -207,8 +208,16 @@ def lift(
     else:
         held = 1.0 - min_jerk((u - shape.t_down) / BOX_TRANSFER_S)
     body = Anthropometrics.from_body(p.mass_kg, p.height_m)
-    total = lift_hip_moment(body, trunk, box_kg * held, DT)
-    torque = split_moment(total, share)
+    if shape.kind == "squat":
+        # Feet parallel, load on the midline: each hip half (biomechanics docstring).
+        d_box = body.squat_box_distance(trunk, theta.mean(axis=1))
+        total = lift_hip_moment(body, trunk, box_kg * held, DT, box_distance=d_box)
+        torque = split_moment(total, 0.5)
+    else:
+        # The box stands where the hands reach it at the bottom of the bend.
+        bottom = np.array([STOOP_TRUNK_RATIO * float(delta[ref])])
+        reach = float(body.box_distance(bottom)[0])
+        torque = stoop_leg_moments(body, trunk, box_kg * held, DT, ref, reach)
     act, lift_idx = _labels(n, shape.kind, True)
     progress = np.clip(t / shape.duration, 0.0, 1.0)
     return Segment(theta, torque, act, lift_idx, progress)

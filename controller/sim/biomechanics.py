@@ -1,29 +1,66 @@
 """Hip extension moments of the simulated wearer (Nm, extension positive, per leg).
 
-Lifting uses the planar model of `shared/spec/biomechanics.md`:
+Why a model: no lab dataset ships with the project, yet the utilities the controllers
+decide with depend on how each *leg* is loaded. A free "share" of the load per leg
+decides the paper's asymmetric-stoop result by itself, so the split here follows from
+statics and the geometry of the paper's task, with inputs only from anthropometric
+tables, the protocol and the box mass.
 
-    M = g (m_HAT r sin(theta_trunk) + m_box d_box) - I_hip theta_trunk''
+Total moment about both hips (sagittal, top-down, Winter's HAT model):
 
-about both hips together, with theta_trunk the trunk inclination from vertical
-(forward positive). The spec writes `+ I_hip theta_trunk''` with the acceleration
-counted in the extension direction; here flexion is positive, hence the minus sign:
-decelerating the downward bend and accelerating the trunk up both need extension.
+    M = g (m_HAT r sin(theta_trunk) + m_box d_box) - (I_hip + m_box d_box^2) theta_trunk''
 
-Assumptions (the project's own, chosen to reproduce the spec's magnitudes):
-- Winter's table 4.1 anthropometrics: m_HAT = 0.678 m, hip height 0.530 H, shoulder
-  height 0.818 H, HAT centre of mass at 0.626 of hip-to-shoulder length, radius of
-  gyration 0.496 of that length about the centre of mass.
-- The box is a point mass at horizontal distance `d_box = 0.114 H + 0.6 L sin(theta_trunk)`
-  from the hips (held against the belly when upright; below the shoulders and a little
-  behind them when bent). Its inertia about the hips is added to I_hip.
-- The legs' own segments are ignored (the spec's model does); so are knee and ankle.
-- Split between legs: squat evenly (plus the participant's asymmetry), asymmetric stoop
-  `box_side_share` (55-65 %) on the box-side leg, for the whole moment.
-- Walking and stairs: the normative curves (Nm/kg) below, read from Winter and
-  Schwartz et al. 2008 (walking) and Riener et al. 2002 / Costigan et al. 2002 (stairs),
-  scaled by body mass and a per-participant factor. The planar model does not apply.
-With this model a 75 kg, 1.75 m wearer needs about 2.2 Nm/kg (squat, 10 kg), 2.0 Nm/kg
-(squat, 5 kg) and 3.1-3.4 Nm/kg (stoop, 10 kg) at peak, as in the spec.
+theta_trunk is the trunk inclination from vertical (forward positive); the minus sign
+is because flexion is positive here: slowing the bend and raising the trunk both need
+extension. This is what the legs together must supply about the pelvis' flexion axis.
+
+Inputs (Winter 2009, table 4.1 and figure 4.1, fractions of mass m and height H):
+HAT mass 0.678 m; hip height 0.530 H, shoulder height 0.818 H, knee height 0.285 H
+(so thigh length 0.245 H); HAT centre of mass at 0.626 and radius of gyration 0.496 of
+the hip-to-shoulder length; shoulder width 0.259 H; foot width 0.055 H. Hip joint
+centres 0.10 H apart (Bell et al. 1990 place them at 36 % of the inter-ASIS distance
+either side of the midline; inter-ASIS about 0.14 H).
+
+Per-leg split, by task:
+
+- **Squat and standing** (feet parallel at shoulder width, symmetric posture): the
+  upper body's load lies on the midline, so by the frontal lever rule each hip carries
+  half of it at the same sagittal lever arm: half the moment each.
+- **Asymmetric stoop** (the paper's protocol: feet at 90 degrees to each other, the box
+  in front of one foot; shoulder width between the feet, as the paper's source text
+  has it in a passage left out of the final version). Two facts of this geometry decide the
+  split. (1) The trunk bends *towards the box*: from the hip midpoint to a point on
+  the box-side foot's line (half the stance width to that side) at the box's reach
+  `d_reach` ahead. The upper body's load (HAT and box) therefore moves to the box side
+  by `y_u = x_u (w / 2) / d_reach`, with `x_u` its forward lever arm. By the frontal
+  lever rule between the hip joint centres (pelvis as a beam, abductor moments
+  neglected), the other hip carries `F = W_u (1/2 - y_u / h)`, and nothing once the
+  load lies beyond the box-side hip. (2) The other foot is turned out by 90 degrees,
+  so in the direction of the bend it reaches only half a foot width either side of
+  its ankle. That leg's hip moment about the flexion axis is its load times the
+  forward distance from the hip to its centre of pressure: the hip moves back by `D`
+  in a stoop (the whole-body centre of mass stays above the feet, the legs rotating
+  about the ankles), so the lever arm is `max(0, D - w_foot / 2)`. The box-side hip
+  supplies the rest of the total. Both hips together still supply exactly `M`.
+  `D` follows from keeping the whole-body centre of mass above the ankles:
+  `D = W_u x_u / (W_u + 0.8 m_thighs + 0.3 m_shanks)` (thigh and shank centres of mass
+  at about 0.8 and 0.3 of the hip's height when the straight legs tilt back).
+- **Box position.** The box is a point mass `d_box = 0.114 H + 0.6 L sin(theta_trunk)`
+  ahead of the hips in a stoop (against the belly upright, under and a little behind
+  the shoulders when bent). In a squat the box must clear the knees, which lie ahead
+  of the hips by `l_thigh sin(phi_thigh)` (thigh inclination = hip flexion - trunk
+  inclination); the box centre is then taken 0.20 m ahead of the knee (half a 0.3 m
+  box plus the knee's own depth; the paper gives no box size, so this is assumed).
+
+Not modelled: the legs' own inertia and weight (a straight prop leg's weight passes
+near its hip), knee and ankle moments, vertical accelerations of the upper body,
+out-of-plane moments. The non-box leg's moment is therefore a small, bounded
+remainder rather than zero: it is nonzero only while the load is still between the
+hips *and* the hip has moved back past the turned foot's edge.
+
+Walking and stairs use normative curves (Nm/kg) read from Winter and Schwartz et al.
+2008 (walking) and Riener et al. 2002 / Costigan et al. 2002 (stairs), scaled by body
+mass and a per-participant factor; the planar model does not apply to them.
 """
 
 from __future__ import annotations
@@ -40,7 +77,7 @@ G = 9.81
 
 @dataclass(frozen=True, slots=True)
 class Anthropometrics:
-    """Segment parameters of the head-arms-trunk (HAT) about the hips (Winter)."""
+    """Segment parameters of one wearer (Winter's proportions; see the module docstring)."""
 
     mass_kg: float
     height_m: float
@@ -48,6 +85,11 @@ class Anthropometrics:
     trunk_length: float  # hip to shoulder
     r_com: float  # hip to HAT centre of mass
     i_hip: float  # HAT moment of inertia about the hip axis
+    thigh_length: float = 0.0  # hip to knee
+    hip_spacing: float = 0.0  # between the hip joint centres
+    stance_width: float = 0.0  # between the feet's centre lines (shoulder width)
+    foot_width: float = 0.0
+    m_legs_tilt: float = 0.0  # leg mass that moves back with the hips, 0.8 thighs + 0.3 shanks
 
     @classmethod
     def from_body(cls, mass_kg: float, height_m: float) -> Anthropometrics:
@@ -58,28 +100,86 @@ class Anthropometrics:
         length = (0.818 - 0.530) * height_m
         r = 0.626 * length
         rho = 0.496 * length
-        return cls(mass_kg, height_m, m_hat, length, r, m_hat * (rho * rho + r * r))
+        return cls(
+            mass_kg, height_m, m_hat, length, r, m_hat * (rho * rho + r * r),
+            thigh_length=(0.530 - 0.285) * height_m,
+            hip_spacing=0.10 * height_m,
+            stance_width=0.259 * height_m,
+            foot_width=0.055 * height_m,
+            m_legs_tilt=(0.8 * 2 * 0.100 + 0.3 * 2 * 0.0465) * mass_kg,
+        )
 
     def box_distance(self, trunk: FloatArray) -> FloatArray:
-        """Horizontal hip-to-box distance (m) at trunk inclination `trunk` (rad)."""
+        """Horizontal hip-to-box distance (m) in a stoop at trunk inclination `trunk`."""
         return 0.114 * self.height_m + 0.6 * self.trunk_length * np.sin(trunk)
+
+    def squat_box_distance(self, trunk: FloatArray, hip_flexion: FloatArray) -> FloatArray:
+        """Hip-to-box distance (m) in a squat: as in a stoop, but clear of the knees."""
+        thigh = np.clip(np.asarray(hip_flexion) - np.asarray(trunk), 0.0, np.pi / 2)
+        knees = self.thigh_length * np.sin(thigh) + SQUAT_BOX_AHEAD_OF_KNEE_M
+        return np.maximum(self.box_distance(trunk), knees)
+
+
+#: Box centre ahead of the knee joint in a squat (m): half a 0.3 m box plus the
+#: knee's depth. The paper gives no box size; this is an assumption.
+SQUAT_BOX_AHEAD_OF_KNEE_M = 0.20
+
+
+def _box_distance(
+    body: Anthropometrics, trunk: FloatArray, box_distance: FloatArray | None
+) -> FloatArray:
+    return body.box_distance(trunk) if box_distance is None else np.asarray(box_distance)
 
 
 def lift_hip_moment(
-    body: Anthropometrics, trunk: FloatArray, box_kg: FloatArray, dt: float
+    body: Anthropometrics, trunk: FloatArray, box_kg: FloatArray, dt: float,
+    box_distance: FloatArray | None = None,
 ) -> FloatArray:
     """Total hip extension moment of both hips (Nm) from the planar model.
 
     `trunk` (rad) and `box_kg` are sampled every `dt` seconds; the trunk must be smooth
-    because its second derivative is taken numerically.
+    because its second derivative is taken numerically. `box_distance` (m) overrides
+    the stoop's box position (a squat passes `squat_box_distance`).
     """
     trunk = np.asarray(trunk, dtype=np.float64)
     box = np.asarray(box_kg, dtype=np.float64)
-    d_box = body.box_distance(trunk)
+    d_box = _box_distance(body, trunk, box_distance)
     acc = np.gradient(np.gradient(trunk, dt), dt) if trunk.size > 2 else np.zeros_like(trunk)
     inertia = body.i_hip + box * d_box * d_box
     static = G * (body.m_hat * body.r_com * np.sin(trunk) + box * d_box)
     return np.asarray(static - inertia * acc, dtype=np.float64)
+
+
+def stoop_leg_moments(
+    body: Anthropometrics, trunk: FloatArray, box_kg: FloatArray, dt: float,
+    box_side: int, reach_m: float,
+) -> FloatArray:
+    """Per-leg moments (K, 2) of an asymmetric stoop towards a box in front of the
+    `box_side` foot (0 left, 1 right) standing `reach_m` ahead of the hips.
+
+    The non-box leg carries its hip's vertical load times the lever arm left between
+    its turned foot and the hip that moved back; the box-side leg the rest (module
+    docstring). Both add up to `lift_hip_moment`.
+    """
+    if box_side not in (0, 1):
+        raise ValueError(f"box_side must be 0 (left) or 1 (right), got {box_side}")
+    if reach_m <= 0:
+        raise ValueError(f"the box must stand ahead of the hips, got reach {reach_m} m")
+    trunk = np.asarray(trunk, dtype=np.float64)
+    box = np.asarray(box_kg, dtype=np.float64)
+    total = lift_hip_moment(body, trunk, box, dt)
+    w_upper = G * (body.m_hat + box)
+    static = G * (body.m_hat * body.r_com * np.sin(trunk) + box * body.box_distance(trunk))
+    x_u = np.maximum(static / w_upper, 0.0)  # forward lever arm of the upper body's load
+    y_u = x_u * (0.5 * body.stance_width) / reach_m  # its shift towards the box side
+    load = w_upper * np.clip(0.5 - y_u / body.hip_spacing, 0.0, 1.0)
+    back = w_upper * x_u / (w_upper + G * body.m_legs_tilt)  # hips behind the ankles
+    lever = np.maximum(back - 0.5 * body.foot_width, 0.0)
+    other = load * lever
+    out = np.empty((trunk.size, 2))
+    out[:, 1 - box_side] = other
+    out[:, box_side] = total - other
+    return out
 
 
 def split_moment(total: FloatArray, share_left: FloatArray | float) -> FloatArray:

@@ -1,11 +1,13 @@
 """The simulated exoskeleton as a network device: the device side of `docs/device-protocol.md`.
 
 It behaves like the firmware would, so the host cannot tell the difference: samples at
-100 Hz on an absolute schedule, commands only from the configured host address, the
-100 ms watchdog that drops the solenoids, and a count of every packet sent late. The
-host's port is learned from its first valid HELLO or COMMAND (from the configured IP);
-the simulated wearer starts moving at that moment, so a given seed gives the host the
-same data every run.
+100 Hz on an absolute schedule, commands only from the configured host address and only
+with a valid authentication tag (the key shared with the host), never a replayed or
+stale one (`controller.device.auth`), the 100 ms watchdog that drops the solenoids, and
+a count of every packet sent late or dropped. The host's port and session are learned
+from its first authentic HELLO or COMMAND (from the configured IP); the simulated
+wearer starts moving at that moment, so a given seed gives the host the same data every
+run.
 """
 
 from __future__ import annotations
@@ -24,9 +26,11 @@ import time
 from collections import Counter, deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import FrameType
 from typing import Any, Protocol
 
+from controller.device.auth import PeerSessions, load_key, new_session
 from controller.device.base import LockCommand, Sample, Status
 from controller.device.protocol import (
     DEFAULT_PORT,
@@ -34,7 +38,7 @@ from controller.device.protocol import (
     CommandPacket,
     HelloPacket,
     ProtocolError,
-    decode,
+    decode_frame,
     encode_sample,
     seq_diff,
 )
@@ -89,6 +93,9 @@ class ServerStats:
     foreign: int = 0  # datagrams from any IP but the configured host
     unexpected: int = 0  # valid packets of a type a host never sends
     malformed: Counter[str] = field(default_factory=Counter)  # by ProtocolError reason
+    # Authentic but seen before, from a replaced host session, or addressed to an
+    # earlier boot of this device.
+    replayed: int = 0
     watchdog_releases: int = 0  # transitions from commanded to released
     host_changes: int = 0  # the host's port changed after it was first learned
     resyncs: int = 0  # schedule rebased after a stall
@@ -123,6 +130,8 @@ class ServerStats:
             "foreign": self.foreign,
             "unexpected": self.unexpected,
             "malformed": dict(self.malformed),
+            "auth_failures": self.malformed.get("auth", 0),
+            "replayed": self.replayed,
             "unknown_version": self.malformed.get("version", 0),
             "watchdog_releases": self.watchdog_releases,
             "host_changes": self.host_changes,
@@ -144,8 +153,20 @@ class DeviceServer:
         loop: bool,
         duration: float | None,
         stop: StopFlag,
+        key: bytes,
+        rate_factor: int = 1,
     ) -> None:
+        if rate_factor < 1:
+            raise ValueError(f"rate_factor must be >= 1, got {rate_factor}")
         self.sock = sock
+        self.key = key
+        #: This boot of the device; samples carry it, commands must name it.
+        self.session = new_session()
+        self.hosts = PeerSessions()
+        #: Fault probe: each model period is sent as this many samples, evenly spaced
+        #: in real and device time (a device sending too fast, with honest times).
+        self.rate_factor = rate_factor
+        self._last_sim: Sample | None = None
         self.model = model
         self.host_ip = socket.gethostbyname(host_address)
         self.host_port: int | None = None
@@ -169,7 +190,7 @@ class DeviceServer:
             if self.stop.is_set() or time.monotonic() >= end:
                 return self.stats
             self._wait_and_receive(min(time.monotonic() + 0.05, end))
-        dt = self.model.dt
+        dt = self.model.dt / self.rate_factor
         start = time.monotonic()
         k = 0
         while not self.stop.is_set():
@@ -203,17 +224,21 @@ class DeviceServer:
             if not self._released:
                 self.stats.watchdog_releases += 1
             self._released = True
-        sim = self.model.tick(command)
+        if k % self.rate_factor == 0 or self._last_sim is None:
+            self._last_sim = self.model.tick(command)
+        sim = self._last_sim
         # The device knows what it drives: solenoid bits mirror the command applied.
         status = (sim.status & ~SOLENOIDS) | (Status.SOLENOID_LEFT if command.lock_left else 0)
         status |= Status.SOLENOID_RIGHT if command.lock_right else 0
         if not alive:
             status |= Status.WATCHDOG_RELEASED
-        dt = self.model.dt
+        dt = self.model.dt / self.rate_factor
         wire = Sample(seq=k, t=k * dt, counts=sim.counts, status=Status(status), truth=sim.truth)
-        assert self.host_port is not None
+        assert self.host_port is not None and self.hosts.current is not None
         try:
-            self.sock.sendto(encode_sample(wire), (self.host_ip, self.host_port))
+            data = encode_sample(wire, self.key, self.session, self.hosts.current,
+                                 self.stats.malformed.get("auth", 0), self.stats.replayed)
+            self.sock.sendto(data, (self.host_ip, self.host_port))
         except (OSError, ProtocolError):
             # A model that produced an unencodable sample must not stop the device; the
             # host sees the missing sequence number as a gap.
@@ -254,15 +279,25 @@ class DeviceServer:
             self.stats.foreign += 1
             return
         try:
-            packet = decode(data)
+            frame = decode_frame(data, self.key)
         except ProtocolError as exc:
             self.stats.malformed[exc.reason] += 1
             return
+        packet = frame.packet
         if not isinstance(packet, CommandPacket | HelloPacket):
             self.stats.unexpected += 1
             return
-        if port != self.host_port:
-            if self.host_port is not None:
+        # A COMMAND must name this boot of the device (a recorded one names an earlier
+        # boot); a HELLO may not know it yet. A new host session may start with either.
+        if isinstance(packet, CommandPacket) and frame.receiver != self.session:
+            self.stats.replayed += 1
+            return
+        verdict = self.hosts.check(frame.sender, packet.host_seq)
+        if verdict == "replay":
+            self.stats.replayed += 1
+            return
+        if port != self.host_port or verdict == "new":
+            if self.host_port is not None and port != self.host_port:
                 self.stats.host_changes += 1
             self.host_port = port
             self.stats.host = f"{ip}:{port}"
@@ -327,12 +362,16 @@ def serve(
     *,
     model: ExoskeletonModel | None = None,
     bind_address: str | None = None,
+    key: bytes,
+    rate_factor: int = 1,
 ) -> ServerStats:
     """Run the simulated exoskeleton on UDP `port` for the host at `host_address`.
 
     Returns when `stop_event` is set, SIGINT/SIGTERM arrives (main thread only), the
     script ends (`loop=False`) or `duration` seconds after the call. `model` replaces
-    the `SimulatedExoskeleton` built from seed/script (tests use a stub).
+    the `SimulatedExoskeleton` built from seed/script (tests use a stub). `key` is the
+    link key shared with the host; `rate_factor` > 1 makes a device that sends that
+    many times too fast (a fault probe).
     """
     if model is None:
         from controller.sim.exoskeleton import SimulatedExoskeleton
@@ -355,7 +394,8 @@ def serve(
     try:
         sock.bind((bind_address or _default_bind(host_address), port))
         sock.setblocking(False)
-        return DeviceServer(sock, model, host_address, loop, duration, stop).run()
+        return DeviceServer(sock, model, host_address, loop, duration, stop, key,
+                            rate_factor).run()
     finally:
         sock.close()
         for signum, handler in previous.items():
@@ -389,7 +429,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--realtime", action="store_true", help="request SCHED_FIFO (needs CAP_SYS_NICE)"
     )
+    parser.add_argument("--key-file", required=True, type=Path,
+                        help="the link key shared with the host (64 hex digits, mode 0600)")
+    parser.add_argument("--rate-factor", type=int, default=1,
+                        help="fault probe: send each sample this many times, as fast")
     args = parser.parse_args(argv)
+    try:
+        key = load_key(args.key_file)
+    except ValueError as exc:
+        parser.error(str(exc))
+    if not 1 <= args.rate_factor <= 100:
+        parser.error("--rate-factor must be within 1..100")
     if args.realtime:
         print(f"device-sim: {request_realtime()}", file=sys.stderr, flush=True)
     print(
@@ -407,6 +457,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         loop=not args.no_loop,
         duration=args.duration,
         bind_address=args.bind,
+        key=key,
+        rate_factor=args.rate_factor,
     )
     print(json.dumps(stats.summary()), flush=True)
     return 0

@@ -28,7 +28,9 @@ from controller.sim import activities, biomechanics, participant
 from controller.sim.activities import GaitPiece, draw_lift, gait_cycle_values, lift, walk_amplitude
 from controller.sim.participant import VirtualParticipant
 
-GENERATOR_VERSION = "1"
+#: 2: per-leg moments from the stance geometry (no `box_side_share`), squat box clear
+#: of the knees.
+GENERATOR_VERSION = "2"
 DEFAULT_PARTICIPANTS = 24
 DEFAULT_REPETITIONS = 5
 DEFAULT_BOX_KG = 10.0
@@ -103,6 +105,7 @@ def reference_dataset(
             "mean_height_m": round(float(np.mean([p.height_m for p in people])), 3),
             "lifts": "pick-up: lowering without the box, raising with it",
             "walking": "one steady gait cycle from left heel strike",
+            "leg_split": "statics of the task's geometry (controller.sim.biomechanics)",
         },
     )
 

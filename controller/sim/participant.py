@@ -6,7 +6,7 @@ that a seed names a person and the same seed always gives the same person. The
 activity generators add repetition-to-repetition variation on top of these means.
 
 Distributions are the project's own assumptions, chosen to cover the spreads reported
-in `shared/spec/biomechanics.md` and the paper's cohort (young adults, mostly male).
+in `docs/simulated-wearer.md` and the paper's cohort (young adults, mostly male).
 """
 
 from __future__ import annotations
@@ -45,7 +45,6 @@ class VirtualParticipant:
     squat_trunk_ratio: float  # trunk inclination over hip flexion in a squat (back upright)
     asymmetry: float  # left over right flexion ratio minus 1 (favours a leg)
     rep_variation: float  # relative SD of depth and duration between repetitions
-    box_side_share: float  # fraction of the hip moment carried by the box-side leg (stoop)
     stand_flexion_deg: tuple[float, float]  # true hip flexion when standing, left/right
     walk_range_deg: float  # hip flexion range in level walking
     stride_s: float  # walking stride duration
@@ -64,8 +63,6 @@ class VirtualParticipant:
             raise ValueError(f"sex must be one of {SEXES}, got {self.sex!r}")
         if not (40.0 <= self.mass_kg <= 150.0 and 1.4 <= self.height_m <= 2.1):
             raise ValueError(f"implausible body: {self.mass_kg} kg, {self.height_m} m")
-        if not 0.5 <= self.box_side_share <= 0.7:
-            raise ValueError("box_side_share must be within 0.5..0.7")
         if len(self.sway_phases) != 6:
             raise ValueError("sway_phases needs 3 phases per hip")
 
@@ -100,7 +97,6 @@ class VirtualParticipant:
             squat_trunk_ratio=float(r.uniform(0.36, 0.48)),
             asymmetry=asym,
             rep_variation=float(r.uniform(0.03, 0.07)),
-            box_side_share=float(r.uniform(0.55, 0.65)),
             stand_flexion_deg=(stand_l, stand_r),
             walk_range_deg=float(r.uniform(36.0, 46.0)),
             stride_s=float(r.uniform(1.0, 1.2)),
@@ -118,8 +114,14 @@ class VirtualParticipant:
 
     def donned(self, donning: int) -> VirtualParticipant:
         """The same person after donning number `donning`: a new standing offset of each
-        hip encoder (several degrees, the exoskeleton sits differently on the pelvis and
-        thighs each time) and a new slow drift (the straps settle during use)."""
+        hip encoder and a new slow drift (the straps settle during use).
+
+        Offsets are normal with a 3 degree SD, clipped at 7 degrees: "several degrees",
+        so about one hip in three is off by more than 3 degrees (half the wearers have one),
+        as the paper's participants 3 and 7 evidently had (their UMC failed, the
+        E-UMC's calibration fixed it). Drift: 0.3-1.2 degrees over a 2.5-10 minute
+        period. Both are assumptions (no measurement of this exoskeleton's fit is
+        published); `docs/simulated-wearer.md`."""
         r = _rng(self.seed, 2, int(donning))
         off = np.clip(r.normal(0.0, 3.0, 2), -7.0, 7.0)
         drift = r.uniform(0.3, 1.2, 2)

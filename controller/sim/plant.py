@@ -1,6 +1,6 @@
 """The exoskeleton's mechanism and sensors, one hip module per side, stepped at 100 Hz.
 
-Mechanism (`shared/spec/hardware.md`, the paper's "Hardware"):
+Mechanism (the paper's "Hardware" section):
 - The output link follows the thigh; unlocked, the cam link follows the output link.
 - The solenoid is driven exactly as commanded; holding a command for 0.3 s is the
   controller's low-level layer's job. The pawl needs the solenoid energised for a

@@ -3,6 +3,7 @@
 import { connectLive, Ring } from "/static/livestream.js";
 import { addProgress, createTimePlots, displayValue, PLOT_COLUMNS } from "/static/timeplots.js";
 import { createStateStrip, lastTick } from "/static/statestrip.js";
+import { createMarkerBar, markDrawn, noteMarker } from "/static/markers.js";
 
 const RATE_HZ = 100;
 const STRIP_COLUMNS = ["lock_left", "lock_right", "locked_left", "locked_right", "action", "trigger"];
@@ -49,7 +50,7 @@ const $ = (id) => document.getElementById(id);
 const plots = createTimePlots({
   angles: $("plot-angles"), velocities: $("plot-velocities"),
   posteriors: $("plot-posteriors"), progress: $("plot-progress"), torques: $("plot-torques"),
-}, { onDraw: () => { stats.draws += 1; } });
+}, { onDraw: () => { stats.draws += 1; }, onMarkersShown: markDrawn });
 const strip = createStateStrip($("strip"));
 stats.strip = strip.counts;
 window.addEventListener("resize", () => plots.resize());
@@ -74,6 +75,14 @@ windowSel.addEventListener("change", () => {
 });
 
 const trialId = new URLSearchParams(location.search).get("trial");
+// With ?session=ID the marker buttons and hotkeys of that session's study are shown.
+const markerSession = new URLSearchParams(location.search).get("session");
+if (markerSession && !trialId) {
+  createMarkerBar($("marker-bar"), Number(markerSession)).catch((err) => {
+    $("marker-bar").hidden = false;
+    $("marker-bar").textContent = `markers unavailable: ${err.message || err}`;
+  });
+}
 let ring = null;
 let replay = null;
 let dirty = false;
@@ -173,6 +182,7 @@ function startLive() {
       requestDraw();
     },
     onStatus: showHealth,
+    onMarker(m) { noteMarker(m); plots.addMarker(m); requestDraw(); },
     onState(state, retryMs) {
       if (state === "live") setConn("live", "live");
       else setConn("down", `disconnected, retrying in ${(retryMs / 1000).toFixed(1)} s`);
@@ -224,6 +234,10 @@ async function startReplay(id) {
     `${trial.task} · ${trial.status}`;
   const disp = Object.fromEntries(PLOTTED.map((n) => [n, (raw[n] || []).map((v) => displayValue(n, v))]));
   replay = { raw, disp, n: raw.t.length, index: 0 };
+  fetch(`/api/trials/${id}/markers`).then((r) => (r.ok ? r.json() : [])).then((list) => {
+    list.forEach(noteMarker);
+    plots.setMarkers(list);
+  });
   stats.replay = { trialId: id, samples: replay.n, index: 0, loaded: true };
   const scrub = $("scrub");
   scrub.max = String(Math.max(0, replay.n - 1));
@@ -285,6 +299,12 @@ function showHealth(h) {
     ? `period ${w.period_mean_ms.toFixed(2)} ms · jitter p99 ${w.jitter_p99_ms.toFixed(2)} ms · ` +
       `overruns ${w.overruns} · restarts ${w.restarts}`
     : `restarts ${w.restarts}`;
+  // Storage faults: unwritten ticks and ticks lost (the backlog is bounded) stay visible.
+  const db = h.database;
+  if (db && (db.last_error || db.ticks_dropped)) {
+    $("worker-timing").textContent += ` · database ${db.last_error ? "writes failing" : "writing"}` +
+      `, ${db.backlog} waiting, ${db.ticks_dropped} ticks lost`;
+  }
   if (w.controller && document.activeElement !== controllerSel) controllerSel.value = w.controller;
   const d = h.device;
   const dsEl = $("device-state");

@@ -1,7 +1,8 @@
 // The /ws/live stream for any page: reconnects, counts messages, gaps and drops.
-// Message formats: backend/schemas/live.py (LiveTicks, LiveStatus).
+// Message formats: backend/schemas/live.py (LiveTicks, LiveStatus) and
+// backend/schemas/lab.py (LiveMarker).
 
-export function connectLive({ onTicks, onStatus, onState }) {
+export function connectLive({ onTicks, onStatus, onState, onMarker }) {
   const counts = { messages: 0, samples: 0, gaps: 0, dropped: 0 };
   let lastSeq = 0;
   let retryMs = 500;
@@ -23,6 +24,8 @@ export function connectLive({ onTicks, onStatus, onState }) {
         onTicks && onTicks(msg);
       } else if (msg.type === "status") {
         onStatus && onStatus(msg.health);
+      } else if (msg.type === "marker") {
+        onMarker && onMarker(msg.marker);
       }
     };
     ws.onclose = () => {

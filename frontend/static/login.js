@@ -4,8 +4,17 @@ const form = document.getElementById("login");
 const error = document.getElementById("login-error");
 
 function nextPath() {
+  // Only a path on this site: browsers read "/\evil.example" as "//evil.example", so
+  // resolve the value the way the browser will and compare origins.
   const next = new URLSearchParams(location.search).get("next") || "/live";
-  return next.startsWith("/") && !next.startsWith("//") ? next : "/live";
+  if (!next.startsWith("/") || /[\\\s]/.test(next)) return "/live";
+  let url;
+  try {
+    url = new URL(next, location.origin);
+  } catch {
+    return "/live";
+  }
+  return url.origin === location.origin ? url.pathname + url.search + url.hash : "/live";
 }
 
 form.addEventListener("submit", async (event) => {

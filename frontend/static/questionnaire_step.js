@@ -16,7 +16,8 @@ function renderChoices() {
   $("#link-choices thead tr").replaceChildren(h("th", {}, "condition"),
     ...instruments.map((i) => h("th", {}, i.title || i.key)));
   $("#link-choices tbody").replaceChildren(...conditions.map((c) => h("tr", { "data-condition": c.label },
-    h("td", {}, h("strong", {}, c.label), h("span", { class: "muted small" }, ` (${LABEL[c.controller] ?? c.controller})`)),
+    // The controller is shown to the study's owners only (null for other roles).
+    h("td", {}, h("strong", {}, c.label), c.controller ? h("span", { class: "muted small" }, ` (${LABEL[c.controller] ?? c.controller})`) : ""),
     ...instruments.map((i) => h("td", {}, h("input", {
       type: "checkbox", name: "form", value: `${i.key}|${c.label}`, checked: true,
       "aria-label": `${i.key} for condition ${c.label}` }))))));

@@ -12,6 +12,7 @@ import { createSegmentPlot, LABEL_COLOURS } from "/static/segmentplot.js";
 import { drawEmpty, drawModelSet } from "/static/modelplot.js";
 import { createUtilityPlots } from "/static/utilityplot.js";
 import { Stillness } from "/static/stillness.js";
+import { createMarkerBar, createStreamPicker, markDrawn, noteMarker } from "/static/markers.js";
 
 const sessionId = Number(location.pathname.split("/").pop());
 const MODEL_NAMES = ["squat", "stoop_left", "stoop_right"];
@@ -30,7 +31,8 @@ let studyId = null;
 
 // ------------------------------------------------------------ live stream
 const ring = new Ring(["t", "q_left", "q_right"], 1000);
-const livePlots = createTimePlots({ angles: $("#live-angles") }, { height: 180 });
+const livePlots = createTimePlots({ angles: $("#live-angles") },
+  { height: 180, onMarkersShown: markDrawn });
 const strip = createStateStrip($("#strip"));
 page.strip = strip.counts;
 const stillness = new Stillness();
@@ -46,6 +48,7 @@ connectLive({
     page.samples += msg.columns.t.length;
     dirty = true;
   },
+  onMarker(m) { if (m.session_id === sessionId) { noteMarker(m); livePlots.addMarker(m); } },
   onStatus(hlth) {
     page.health = hlth;
     $("#worker-line").textContent = hlth.worker.alive
@@ -496,6 +499,8 @@ $("#calib-run").addEventListener("click", (ev) => act(ev.target, $("#calib-msg")
 // ------------------------------------------------------------ start
 async function start() {
   await loadSession();
+  await createMarkerBar($("#marker-bar"), sessionId);
+  createStreamPicker($("#lsl-streams"), sessionId);
   if (session.kind === "data_collection") {
     await loadRecordings();
     const stopped = recordings.filter((r) => r.status === "stopped");

@@ -10,20 +10,27 @@ export function createStateStrip(root) {
     <div class="strip-cell" id="strip-left" data-lock="off"><span class="strip-side">LEFT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>
     <div class="strip-cell strip-action" id="strip-action" data-action="1"><span class="strip-side">ACTION</span>
-      <span class="strip-value">no lock</span><span class="strip-sub">trigger –</span></div>
+      <span class="strip-value">no lock</span><span class="strip-sub">trigger –</span>
+      <span class="strip-sub strip-implausible" id="strip-implausible" hidden>implausible sample</span></div>
     <div class="strip-cell" id="strip-right" data-lock="off"><span class="strip-side">RIGHT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>`;
   const left = root.querySelector("#strip-left");
   const right = root.querySelector("#strip-right");
   const action = root.querySelector("#strip-action");
-  const counts = { lockChanges: 0, lockOnSeen: 0 };
+  const implausible = root.querySelector("#strip-implausible");
+  // Ticks whose sample failed a plausibility check (controller/tick.py Plausibility):
+  // no lock is taken on them, and the strip says so while they last.
+  const counts = { lockChanges: 0, lockOnSeen: 0, implausible: 0 };
+  const REASONS = [[1, "angle jump"], [2, "hip velocity"], [4, "repeated"],
+    [8, "time backwards"], [16, "too early"], [32, "out of range"], [64, "resync"],
+    [128, "acceleration"]];
   let last = null;
 
   const leftParts = [left.querySelector(".strip-value"), left.querySelector(".strip-sub")];
   const rightParts = [right.querySelector(".strip-value"), right.querySelector(".strip-sub")];
   const actionParts = [action.querySelector(".strip-value"), action.querySelector(".strip-sub")];
   // What is on screen, so that an unchanged tick touches no DOM (no style or layout work).
-  const shown = { left: "", right: "", action: "" };
+  const shown = { left: "", right: "", action: "", plausibility: 0 };
 
   function side(key, cell, parts, held, engaged) {
     const now = `${held ? 1 : 0}${engaged ? 1 : 0}`;
@@ -42,6 +49,7 @@ export function createStateStrip(root) {
     observe(columns) {
       const l = columns.lock_left || [];
       const r = columns.lock_right || [];
+      for (const p of columns.plausibility || []) if (p) counts.implausible += 1;
       for (let i = 0; i < l.length; i++) {
         const key = `${l[i] ? 1 : 0}${r[i] ? 1 : 0}`;
         if (last !== null && key !== last) counts.lockChanges += 1;
@@ -54,6 +62,13 @@ export function createStateStrip(root) {
       if (!tick) return;
       side("left", left, leftParts, tick.lock_left, tick.locked_left);
       side("right", right, rightParts, tick.lock_right, tick.locked_right);
+      const p = tick.plausibility || 0;
+      if (shown.plausibility !== p) {
+        shown.plausibility = p;
+        implausible.hidden = !p;
+        implausible.textContent = p ? `implausible sample: ${REASONS.filter(([b]) => p & b)
+          .map(([, n]) => n).join(", ")}` : "";
+      }
       const a = tick.action ?? 1;
       const now = `${a}/${tick.trigger ? 1 : 0}`;
       if (shown.action === now) return;

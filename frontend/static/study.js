@@ -1,6 +1,7 @@
 // A study: its participants (create, edit, consent date) and their sessions.
 import { get, patch, post } from "/static/api.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
+import { createLabelEditor } from "/static/markers.js";
 
 const studyId = Number(location.pathname.split("/").pop());
 let participants = [];
@@ -14,6 +15,7 @@ async function loadStudy() {
   $("#study-title").textContent = s.name;
   $("#study-description").textContent = s.description;
   $("#export").href = `/api/studies/${studyId}/export.zip`;
+  $("#export-bids").href = `/api/studies/${studyId}/export.bids.zip`;
   $("#results-link").href = `/console/studies/${studyId}/results`;
 }
 
@@ -107,4 +109,5 @@ $("#session-form").addEventListener("submit", (ev) => {
   });
 });
 
-Promise.all([loadStudy(), loadParticipants()]).catch(showFatal);
+Promise.all([loadStudy(), loadParticipants(),
+  createLabelEditor($("#marker-labels"), studyId)]).catch(showFatal);

@@ -91,7 +91,39 @@ export function displayValue(name, v) {
   return v;
 }
 
-export function createTimePlots(containers, { threshold = 1.0, height = 220, onDraw = () => {} } = {}) {
+// Event markers (backend/schemas/lab.py MarkerOut): a dashed line and the label at the
+// marker's tick time. Calls `onShown(labels)` with the labels drawn in view.
+function markerLines(getMarkers, onShown) {
+  return (u) => {
+    const x0 = u.scales.x.min;
+    const x1 = u.scales.x.max;
+    const markers = getMarkers();
+    if (x0 == null || !markers.length) return;
+    const { ctx } = u;
+    const shown = [];
+    ctx.save();
+    ctx.setLineDash([4, 4]);
+    ctx.lineWidth = 2;
+    ctx.strokeStyle = "#9c36b5";
+    ctx.fillStyle = "#9c36b5";
+    ctx.font = `${11 * devicePixelRatio}px system-ui`;
+    for (const m of markers) {
+      if (m.t == null || m.t < x0 || m.t > x1) continue;
+      const px = u.valToPos(m.t, "x", true);
+      ctx.beginPath();
+      ctx.moveTo(px, u.bbox.top);
+      ctx.lineTo(px, u.bbox.top + u.bbox.height);
+      ctx.stroke();
+      ctx.fillText(m.label, px + 4, u.bbox.top + 12 * devicePixelRatio);
+      shown.push(m.label);
+    }
+    ctx.restore();
+    onShown(shown);
+  };
+}
+
+export function createTimePlots(containers, { threshold = 1.0, height = 220, onDraw = () => {},
+  onMarkersShown = () => {} } = {}) {
   const plots = {};
   const state = { threshold };
   const c = containers;
@@ -152,8 +184,18 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
     }, [[], [], []], c.torques);
   }
 
+  state.markers = [];
+  const drawMarkers = markerLines(() => state.markers, onMarkersShown);
+  for (const plot of Object.values(plots)) (plot.hooks.draw ||= []).push(drawMarkers);
+
   return {
     plots,
+    // Markers to draw (`{t, label}` on the device time axis); redraws at once.
+    setMarkers(list) {
+      state.markers = list;
+      for (const plot of Object.values(plots)) plot.redraw(false, false);
+    },
+    addMarker(m) { this.setMarkers([...state.markers, m].slice(-200)); },
     // `cols`: display-unit arrays by column name, `t` included. With `only` (a set of
     // plot names), the other plots keep their last picture: a plot scrolled out of view
     // costs nothing until it comes back (the caller redraws it then).

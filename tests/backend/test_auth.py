@@ -15,7 +15,7 @@ from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.models import AuditEntry, AuthToken, User
 from backend.main import create_app
-from tests.login import PASSWORD, USERNAME, bearer
+from tests.login import PASSWORD, USERNAME, bearer, log_in
 
 
 def test_login_sets_an_httponly_cookie_and_me_answers(
@@ -54,7 +54,7 @@ def test_bearer_token_for_scripts_and_logout_revokes_only_that_login(
     app = create_app(settings)
     with TestClient(app) as script, TestClient(app) as browser:
         headers = bearer(script, experimenter)
-        browser.post("/api/auth/login", json=experimenter)
+        log_in(browser, experimenter)
         assert script.get("/api/studies", headers=headers).status_code == 200
         assert script.get("/api/studies").status_code == 401  # no cookie in this client
         assert script.post("/api/auth/logout", headers=headers).status_code == 204
@@ -113,9 +113,9 @@ def test_cli_user_add_reads_the_password_from_stdin(
     assert "already exists" in capsys.readouterr().err
     monkeypatch.setattr("sys.stdin", io.StringIO("short\n"))
     assert cli.main(["user", "add", "jo"]) == 2
-    assert "at least 8" in capsys.readouterr().err
+    assert "at least 15" in capsys.readouterr().err
     assert cli.main(["user", "list"]) == 0
-    assert capsys.readouterr().out.split() == ["maria", "active"]
+    assert capsys.readouterr().out.split() == ["maria", "admin", "active"]
     with TestClient(create_app(settings)) as client:
         r = client.post("/api/auth/login",
                         json={"username": "maria", "password": "a long passphrase"})

@@ -57,7 +57,10 @@ def server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
 
 @pytest.fixture
 def page(browser: Any, request: pytest.FixtureRequest) -> Iterator[Any]:
-    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    # bypass_csp: the app's Content-Security-Policy forbids evaluating strings, which
+    # Playwright's polling `wait_for_function` does in the page; the CSP itself is
+    # checked in a context without the bypass (tests/browser/test_access_pages.py).
+    context = browser.new_context(viewport={"width": 1280, "height": 900}, bypass_csp=True)
     outside: list[str] = []
 
     def guard(route: Any) -> None:

@@ -108,3 +108,56 @@ def test_experimenter_makes_a_link_and_sees_the_sus_score_in_the_console(
     cells = row.query_selector_all("td")
     assert [c.inner_text() for c in cells[1:4]] == [label, "PEC", f"{_sus(answers):.1f}"]
     assert page.locator("#participant-responses tbody tr").count() == 1
+
+
+def test_the_form_on_a_tablet_shows_anchors_progress_big_targets_and_keeps_answers(
+        quiet_server: str, page: Any, experimenter: dict[str, str]) -> None:
+    api = httpx.Client(base_url=quiet_server)
+    token = api.post("/api/auth/token", json=experimenter).json()["access_token"]
+    api.headers["Authorization"] = f"Bearer {token}"
+    sid = api.post("/api/studies", json={"name": "tablet"}).json()["id"]
+    pid = api.post(f"/api/studies/{sid}/participants", json={"code": "P1"}).json()["id"]
+    for label, ctrl in (("A", "umc"), ("B", "pec")):
+        api.post(f"/api/participants/{pid}/conditions", json={"label": label, "controller": ctrl})
+    link = api.post(f"/api/participants/{pid}/links", json={
+        "forms": [{"instrument_key": "sus", "condition_label": "A"}],
+        "preference": True}).json()
+
+    page.set_viewport_size({"width": 768, "height": 1024})  # a 10-inch tablet, portrait
+    page.goto(link["url"])
+    page.wait_for_selector("form[data-form='0']")
+    assert page.inner_text("#form-progress") == "Form 1 of 2"
+    # The SUS's anchors, where the published form has them: over 1 and over 5.
+    q1 = page.locator("fieldset[data-item='q1'] label.choice")
+    assert q1.count() == 5
+    assert q1.nth(0).inner_text().startswith("Strongly disagree")
+    assert q1.nth(4).inner_text().startswith("Strongly agree")
+    assert [q1.nth(i).locator(".anchor").count() for i in range(5)] == [1, 0, 0, 0, 1]
+    anchor_box = q1.nth(0).locator(".anchor").bounding_box()
+    radio_box = q1.nth(0).locator("input").bounding_box()
+    assert anchor_box["y"] + anchor_box["height"] <= radio_box["y"] + 1
+    # Every choice is a touch target of at least 44 x 44 CSS pixels (WCAG 2.5.5).
+    for box in page.locator("label.choice").evaluate_all(
+            "els => els.map(e => e.getBoundingClientRect()).map(r => [r.width, r.height])"):
+        assert box[0] >= 44 and box[1] >= 44, box
+    assert page.evaluate("document.documentElement.scrollWidth") <= 768  # no sideways scroll
+
+    # Half the answers, a reload, and they are still there.
+    answers = [4, 1, 5, 2, 5, 1, 4, 2, 3, 1]
+    for i, value in enumerate(answers[:5], start=1):
+        page.locator(f"fieldset[data-item='q{i}'] label.choice").nth(value - 1).click()
+    page.reload()
+    page.wait_for_selector("form[data-form='0']")
+    for i, value in enumerate(answers[:5], start=1):
+        assert page.is_checked(f"input[name='q{i}'][value='{value}']")
+    for i, value in enumerate(answers[5:], start=6):
+        page.locator(f"fieldset[data-item='q{i}'] label.choice").nth(value - 1).click()
+    page.click("form[data-form='0'] button[type=submit]")
+    page.wait_for_selector("#preference")
+    assert page.inner_text("#form-progress") == "Form 2 of 2"
+    page.locator("#preference label.choice", has_text="setting B").click()
+    page.click("#preference button[type=submit]")
+    page.wait_for_selector("text=this link is closed")
+    responses = api.get(f"/api/participants/{pid}/responses").json()
+    assert [r["score"] for r in responses] == [_sus(answers)] == [85.0]
+    assert [p["choice"] for p in api.get(f"/api/participants/{pid}/preferences").json()] == ["B"]

@@ -9,7 +9,7 @@ import pytest
 from controller.device.base import GroundTruth, Sample, Status
 from controller.encoders import DEFAULT_LAYOUT
 from controller.passthrough import PassThroughController
-from controller.tick import Action, TickFlag
+from controller.tick import Action, Plausibility, TickFlag
 
 
 def test_angles_and_deflection_from_counts() -> None:
@@ -40,3 +40,18 @@ def test_device_fault_is_flagged() -> None:
         Sample(seq=1, t=0.0, counts=(3100, 3100, 12900, 12900), status=Status.ENCODER_FAULT)
     )
     assert rec.flags & TickFlag.DEVICE_FAULT
+
+
+def test_recording_mode_flags_implausible_samples_too() -> None:
+    ctl = PassThroughController()
+    still = DEFAULT_LAYOUT.encode(0.1, 0.1, 0.1, 0.1)
+    jump = DEFAULT_LAYOUT.encode(1.0, 1.0, 0.1, 0.1)  # 90 rad/s for 10 ms
+    out = [ctl.step(Sample(seq=k, t=0.01 * k, counts=still)) for k in range(5)]
+    out.append(ctl.step(Sample(seq=5, t=0.05, counts=jump)))
+    out.append(ctl.step(Sample(seq=6, t=0.06, counts=still)))
+    out.append(ctl.step(Sample(seq=6, t=0.06, counts=still)))  # the same sample again
+    assert [r.plausibility for r in out] == [0] * 5 + [int(Plausibility.JUMP), 0,
+                                                       int(Plausibility.REPEATED)]
+    assert out[5].flags == TickFlag.IMPLAUSIBLE
+    assert out[5].q_raw_left == pytest.approx(1.0, abs=1e-3)  # kept: nothing decides on it
+    assert not any(r.lock_left or r.lock_right for r in out)

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 from sqlalchemy import select
 
-from backend.api.deps import CurrentUser, SessionDep
+from backend.api.deps import CurrentUser, SessionDep, access
 from backend.api.errors import AUTH_RESPONSES, INVALID
 from backend.db.models import AuditEntry
 from backend.schemas.audit import AuditOut
@@ -15,7 +15,7 @@ from backend.schemas.audit import AuditOut
 router = APIRouter(prefix="/api/audit", tags=["audit"], responses={**AUTH_RESPONSES, **INVALID})
 
 
-@router.get("", response_model=list[AuditOut])
+@router.get("", response_model=list[AuditOut], openapi_extra=access("admin"))
 def list_audit(
     user: CurrentUser,
     db: SessionDep,

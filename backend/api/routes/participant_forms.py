@@ -13,9 +13,10 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Request
 from fastapi.responses import FileResponse
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
 from backend import audit
-from backend.api.deps import SessionDep
+from backend.api.deps import SessionDep, access
 from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
 from backend.blinding import labels_of
 from backend.core.security import token_digest
@@ -89,6 +90,16 @@ def _instrument(db: SessionDep, key: str, version: str) -> QuestionnaireInstrume
     return row
 
 
+def _flush_or_conflict(db: SessionDep, field: str, problem: str) -> None:
+    """Write now: a parallel submission that got there first makes the database refuse
+    this one (unique link and form), which is a 409, not a second stored answer."""
+    try:
+        db.flush()
+    except IntegrityError as exc:
+        db.rollback()
+        raise HTTPException(409, f"{field}: {problem}") from exc
+
+
 def _receipt(db: SessionDep, link: ParticipantLink) -> SubmissionOut:
     """Close the link when everything due is in; the caller commits."""
     done, pref_done = _submitted(db, link)
@@ -100,7 +111,8 @@ def _receipt(db: SessionDep, link: ParticipantLink) -> SubmissionOut:
                          link_closed=link.used_at is not None)
 
 
-@router.get("/{token}", response_model=ParticipantFormsOut)
+@router.get("/{token}", response_model=ParticipantFormsOut,
+            openapi_extra=access("participant"))
 def get_forms(token: Token, db: SessionDep) -> ParticipantFormsOut:
     """The forms due on this link, with blinded condition labels only."""
     link = open_link(db, token)
@@ -120,7 +132,7 @@ def get_forms(token: Token, db: SessionDep) -> ParticipantFormsOut:
 
 
 @router.post("/{token}/responses", response_model=SubmissionOut, status_code=201,
-             responses=CONFLICT)
+             responses=CONFLICT, openapi_extra=access("participant"))
 def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionOut:
     """Answer one form. The answers are validated against the instrument (every bad
     item is named), scored, and stored with the instrument version; 409 if this form
@@ -143,9 +155,10 @@ def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionO
     resp = QuestionnaireResponse(
         participant_id=link.participant_id, link_id=link.id, instrument_id=inst.id,
         instrument_key=key, instrument_version=version, condition_label=label,
-        answers=stored, score=result.score, subscale_scores=result.subscales)
+        answers=stored, score=result.score, subscale_scores=result.subscales,
+        link_form=body.form)
     db.add(resp)
-    db.flush()
+    _flush_or_conflict(db, "form", "this form was already answered")
     audit.record(db, f"participant link {link.id}", "submit", "questionnaire_response",
                  resp.id, {"participant_id": link.participant_id, "instrument": key,
                            "version": version, "condition_label": label,
@@ -156,7 +169,7 @@ def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionO
 
 
 @router.post("/{token}/preference", response_model=SubmissionOut, status_code=201,
-             responses=CONFLICT)
+             responses=CONFLICT, openapi_extra=access("participant"))
 def submit_preference(token: Token, body: PreferenceIn, db: SessionDep) -> SubmissionOut:
     """Say which condition was preferred: a label as shown, or "none"."""
     link = open_link(db, token)
@@ -170,7 +183,7 @@ def submit_preference(token: Token, body: PreferenceIn, db: SessionDep) -> Submi
         invalid(["body", "choice"], f"choose one of {choices}")
     pref = Preference(participant_id=link.participant_id, link_id=link.id, choice=body.choice)
     db.add(pref)
-    db.flush()
+    _flush_or_conflict(db, "preference", "the preference was already given")
     audit.record(db, f"participant link {link.id}", "submit", "preference", pref.id,
                  {"participant_id": link.participant_id, "choice": body.choice})
     receipt = _receipt(db, link)

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from sqlalchemy import select
 
+from backend.access import may_unblind
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, INVALID, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId
@@ -17,11 +18,12 @@ router = APIRouter(tags=["preferences"], responses={**AUTH_RESPONSES, **NOT_FOUN
 
 @router.get("/api/participants/{participant_id}/preferences",
             response_model=list[PreferenceOut])
-def list_preferences(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
-                     ) -> list[PreferenceOut]:
-    """The participant's preferences with the controller each label stands for."""
+def list_preferences(participant_id: ParticipantId, request: Request, user: CurrentUser,
+                     db: SessionDep) -> list[PreferenceOut]:
+    """The participant's preferences with the controller each label stands for (for
+    the study's owners; null for other roles)."""
     one_or_404(db, Participant, participant_id, "participant")
-    labels = labels_of(db, participant_id)
+    labels = labels_of(db, participant_id) if may_unblind(request.state) else {}
     rows = db.scalars(select(Preference).where(Preference.participant_id == participant_id)
                       .order_by(Preference.id))
     return [PreferenceOut(id=p.id, participant_id=p.participant_id, choice=p.choice,

@@ -14,7 +14,8 @@ from fastapi import APIRouter, Path, Request
 from sqlalchemy import select
 
 from backend import audit
-from backend.api.deps import CurrentUser, SessionDep
+from backend.access import may_unblind
+from backend.api.deps import CurrentUser, SessionDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -89,7 +90,7 @@ def list_instruments(user: CurrentUser, db: SessionDep) -> list[InstrumentSummar
 
 
 @router.post("/api/instruments", response_model=InstrumentOut, status_code=201,
-             responses={**BODY, **CONFLICT})
+             responses={**BODY, **CONFLICT}, openapi_extra=access("experimenter"))
 def import_instrument(definition: InstrumentDefinition, user: CurrentUser, db: SessionDep
                       ) -> InstrumentOut:
     """Import a study's own definition file (the JSON body). It is validated like the
@@ -186,11 +187,12 @@ def list_links(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
 
 @router.get("/api/participants/{participant_id}/responses",
             response_model=list[ResponseOut], responses={**NOT_FOUND, **INVALID})
-def list_responses(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
-                   ) -> list[ResponseOut]:
-    """The participant's scored responses, unblinded (`controller`)."""
+def list_responses(participant_id: ParticipantId, request: Request, user: CurrentUser,
+                   db: SessionDep) -> list[ResponseOut]:
+    """The participant's scored responses, unblinded (`controller`) for the study's
+    owners; `controller` is null for other roles."""
     one_or_404(db, Participant, participant_id, "participant")
-    labels = labels_of(db, participant_id)
+    labels = labels_of(db, participant_id) if may_unblind(request.state) else {}
     rows = db.scalars(select(QuestionnaireResponse).where(
         QuestionnaireResponse.participant_id == participant_id)
         .order_by(QuestionnaireResponse.id))

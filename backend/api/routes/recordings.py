@@ -8,9 +8,10 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Path, Request
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
 from backend import audit, tick_queries
-from backend.activity import ensure_idle
+from backend.activity import close_recording, ensure_idle
 from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
 from backend.api.params import MAX_ID, SessionId
@@ -37,7 +38,20 @@ SegmentId = Annotated[int, Path(ge=1, le=MAX_ID, description="segment id")]
              status_code=201, responses=CONFLICT)
 async def start_recording(session_id: SessionId, body: RecordingIn, user: CurrentUser,
                           db: SessionDep, runtime: RuntimeDep) -> Recording:
-    """Put the worker in recording mode (no locks) and start a recording."""
+    """Put the worker in recording mode (no locks) and start a recording. 409 while a
+    trial or another recording runs (under the runtime's activity lock; the database's
+    unique index refuses a second running recording in any case)."""
+    async with runtime.activity:
+        try:
+            return await _start_recording(session_id, body, user, db, runtime)
+        except IntegrityError:
+            db.rollback()
+            conflict("recording", "another recording is running: the database refused a "
+                     "second")
+
+
+async def _start_recording(session_id: int, body: RecordingIn, user: CurrentUser,
+                           db: SessionDep, runtime: RuntimeDep) -> Recording:
     one_or_404(db, StudySession, session_id, "session")
     ensure_idle(db)
     try:
@@ -58,6 +72,12 @@ async def start_recording(session_id: SessionId, body: RecordingIn, user: Curren
 async def stop_recording(recording_id: RecordingId, user: CurrentUser, db: SessionDep,
                          runtime: RuntimeDep) -> Recording:
     """End the recording: the worker starts a new idle run and the ticks are stored."""
+    async with runtime.activity:
+        return await _stop_recording(recording_id, user, db, runtime)
+
+
+async def _stop_recording(recording_id: int, user: CurrentUser, db: SessionDep,
+                          runtime: RuntimeDep) -> Recording:
     rec = one_or_404(db, Recording, recording_id, "recording")
     if rec.status != "recording":
         conflict("status", f"recording {rec.id} is already {rec.status}")
@@ -67,11 +87,10 @@ async def stop_recording(recording_id: RecordingId, user: CurrentUser, db: Sessi
         except RuntimeError:
             pass  # the worker died: what it recorded is stored, the run closed with it
     runtime.recorder.flush()
-    if rec.run_id is not None:
-        rec.first_tick_id, rec.last_tick_id = tick_queries.tick_id_range(
-            runtime.recorder.engine, rec.run_id)
-    rec.status = "stopped"
-    rec.ended_at = datetime.now(UTC)
+    if not close_recording(db, runtime.recorder.engine, rec.id, "stopped"):
+        db.refresh(rec)  # closed meanwhile: its worker stopped
+        conflict("status", f"recording {rec.id} is already {rec.status}")
+    db.refresh(rec)
     audit.record(db, user, "stop", "recording", rec.id,
                  {"first_tick_id": rec.first_tick_id, "last_tick_id": rec.last_tick_id})
     db.commit()
@@ -95,7 +114,9 @@ def get_recording(recording_id: RecordingId, user: CurrentUser, db: SessionDep) 
 
 def _stopped(db: SessionDep, recording_id: int) -> Recording:
     rec = one_or_404(db, Recording, recording_id, "recording")
-    if rec.status != "stopped" or rec.run_id is None or rec.first_tick_id is None:
+    # An interrupted recording (its worker stopped) keeps the ticks it stored.
+    if rec.status not in ("stopped", "interrupted") or rec.run_id is None \
+            or rec.first_tick_id is None:
         conflict("status", f"recording {rec.id} has no stored ticks yet (status {rec.status})")
     return rec
 

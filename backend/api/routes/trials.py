@@ -9,10 +9,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Path, Request
 from fastapi.responses import Response
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
-from backend import audit, lock_events, tick_queries
+from backend import activity, audit, tick_queries
 from backend.activity import ensure_idle
-from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
+from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, access
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
 from backend.api.params import MAX_ID, SessionId, StudyId
 from backend.counterbalance import blinded_labels, controller_order
@@ -25,6 +26,7 @@ from backend.schemas.evidence import (
     TrialStartIn,
     TrialStopIn,
 )
+from controller.config import SettingError
 from controller.factory import NEEDS_MODELS
 
 router = APIRouter(tags=["trials"], responses={**AUTH_RESPONSES, **NOT_FOUND})
@@ -102,7 +104,25 @@ def get_trial(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> Trial:
 async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
                       db: SessionDep, runtime: RuntimeDep) -> Trial:
     """Run the trial's controller with its model and utility sets, at the session's
-    precompression; the exact configuration is stored with the trial."""
+    precompression; the exact configuration is stored with the trial. 409 while another
+    trial or recording runs (checked and started under the runtime's activity lock; the
+    database's unique index refuses a second running trial in any case)."""
+    async with runtime.activity:
+        try:
+            return await _start_trial(trial_id, body, user, db, runtime)
+        except IntegrityError:
+            db.rollback()
+            # The worker may already run the refused trial's controller: back to none.
+            if runtime.supervisor.state.alive:
+                try:
+                    await runtime.switch_controller("none", runtime.controller_config("none"))
+                except RuntimeError:
+                    pass
+            conflict("trial", "another trial is running: the database refused a second")
+
+
+async def _start_trial(trial_id: int, body: TrialStartIn, user: CurrentUser,
+                       db: SessionDep, runtime: RuntimeDep) -> Trial:
     trial = one_or_404(db, Trial, trial_id, "trial")
     if trial.status != "planned":
         conflict("status", f"trial {trial.id} is {trial.status}; plan a new one to repeat it")
@@ -112,7 +132,11 @@ async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
     if body.rate_hz is not None:
         overrides.update(umc_rate_hz=body.rate_hz, eumc_triggered_rate_hz=body.rate_hz,
                          pec_rate_hz=body.rate_hz)
-    config = runtime.controller_config(trial.controller, overrides)
+    try:
+        config = runtime.controller_config(trial.controller, overrides)
+    except SettingError as exc:
+        invalid(["body", "rate_hz" if exc.field.endswith("rate_hz") else exc.field],
+                exc.problem)
     snapshot: dict[str, Any] = {"controller": trial.controller, "task": trial.task,
                                 "device": {"kind": runtime.settings.device_kind,
                                            "seed": runtime.settings.device_seed,
@@ -148,6 +172,9 @@ async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
             trial.controller, config,
             max_ticks=None if body.duration_s is None else round(body.duration_s * 100))
     except RuntimeError as exc:
+        # No trial without its controller, and no controller without its trial: a
+        # switch that may still take effect later is countermanded.
+        runtime.supervisor.set_controller("none", runtime.controller_config("none"))
         conflict("worker", str(exc))
     trial.run_id = run_id
     trial.status = "running"
@@ -155,6 +182,7 @@ async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
     trial.config_snapshot = snapshot
     audit.record(db, user, "start", "trial", trial.id, {"run_id": run_id})
     db.commit()
+    await runtime.lab.trial_marker(db, trial, "trial_start")  # LSL marker, stored
     return trial
 
 
@@ -162,7 +190,15 @@ async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
 async def stop_trial(trial_id: TrialId, body: TrialStopIn, request: Request,
                      user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> Trial:
     """End the trial as completed or aborted; the worker returns to recording mode
-    (no locks) and the trial's lock events are derived from its stored ticks."""
+    (no locks); the trial's tick count, quality flags (device time gaps, time going
+    backwards) and lock events are derived from its stored ticks. 409 if it is no
+    longer running (e.g. `interrupted` because its worker stopped)."""
+    async with runtime.activity:
+        return await _stop_trial(trial_id, body, request, user, db, runtime)
+
+
+async def _stop_trial(trial_id: int, body: TrialStopIn, request: Request,
+                      user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> Trial:
     trial = one_or_404(db, Trial, trial_id, "trial")
     if trial.status != "running":
         conflict("status", f"trial {trial.id} is {trial.status}, not running")
@@ -172,17 +208,14 @@ async def stop_trial(trial_id: TrialId, body: TrialStopIn, request: Request,
         except RuntimeError:
             pass  # the worker died during the trial: its ticks up to then are stored
     runtime.recorder.flush()
-    if trial.run_id is not None:
-        cols = tick_queries.columns(request.app.state.engine, trial.run_id)
-        if cols["t"].size:
-            for ev in lock_events.derive(cols):
-                db.add(LockEvent(trial_id=trial.id, t=ev.t, side=ev.side, kind=ev.kind,
-                                 torque_peak=ev.torque_peak))
-    trial.status = body.outcome
-    trial.ended_at = datetime.now(UTC)
-    trial.end_reason = body.reason
+    if not activity.close_trial(db, request.app.state.engine, trial.id, body.outcome,
+                                body.reason):
+        db.refresh(trial)  # closed meanwhile: its worker stopped
+        conflict("status", f"trial {trial.id} is {trial.status}, not running")
+    db.refresh(trial)
     audit.record(db, user, "stop", "trial", trial.id, body.model_dump())
     db.commit()
+    await runtime.lab.trial_marker(db, trial, "trial_stop")  # LSL marker, stored
     return trial
 
 
@@ -226,7 +259,8 @@ def trial_ticks_json(trial_id: TrialId, request: Request, user: CurrentUser,
                     media_type="application/json")
 
 
-@router.get("/api/studies/{study_id}/export.zip", response_class=Response, responses={
+@router.get("/api/studies/{study_id}/export.zip", response_class=Response,
+            openapi_extra=access("owner"), responses={
     200: {"content": {"application/zip": {}},
           "description": "tables as CSV, documents as JSON, ticks, data dictionary"}})
 def export_study(study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep

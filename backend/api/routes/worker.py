@@ -7,9 +7,12 @@ import asyncio
 from fastapi import APIRouter, Depends, HTTPException
 from pydantic import BaseModel, Field
 
-from backend.api.deps import RuntimeDep, current_user
-from backend.api.errors import AUTH_RESPONSES, BODY, MALFORMED
+from backend import activity
+from backend.api.deps import RuntimeDep, SessionDep, access, current_user
+from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, MALFORMED, conflict, invalid
+from backend.device_process import DeviceStartError
 from backend.schemas.live import Health
+from controller.config import SettingError
 from controller.factory import controller_names
 
 # Every worker route needs a logged-in experimenter: they move a person's exoskeleton.
@@ -24,14 +27,14 @@ class ControllerChoice(BaseModel):
     config: dict[str, object] = Field(default_factory=dict)
 
 
-@router.post("/restart", response_model=Health)
+@router.post("/restart", response_model=Health, openapi_extra=access("worker"))
 async def restart(runtime: RuntimeDep) -> Health:
     """Start the worker again (stopping it first if it still runs)."""
     await asyncio.to_thread(runtime.supervisor.restart)
     return runtime.health()
 
 
-@router.post("/stop", response_model=Health)
+@router.post("/stop", response_model=Health, openapi_extra=access("worker"))
 async def stop(runtime: RuntimeDep) -> Health:
     """Release the device and stop the worker."""
     await asyncio.to_thread(runtime.supervisor.stop, "stopped by the experimenter")
@@ -44,16 +47,34 @@ def controllers() -> list[str]:
     return list(controller_names())
 
 
-@router.post("/controller", response_model=Health, responses=BODY)
-def set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
+def _ensure_no_activity(db: SessionDep, what: str) -> None:
+    """409 while a trial or recording runs: `what` would replace its run silently."""
+    busy = activity.running(db)
+    if busy is not None:
+        conflict("worker", f"{busy} is running: stop it before {what}")
+
+
+@router.post("/controller", response_model=Health, responses={**BODY, **CONFLICT},
+             openapi_extra=access("worker"))
+async def set_controller(choice: ControllerChoice, runtime: RuntimeDep,
+                         db: SessionDep) -> Health:
     """Switch controller; a new run starts in the database. `config` overrides controller
-    settings (rates, thresholds, priors: see `controller.config.ControllerConfig`)."""
+    settings (rates, thresholds, priors: see `controller.config.ControllerConfig`).
+    409 while a trial or recording runs: its controller is the one it was started with."""
+    async with runtime.activity:
+        _ensure_no_activity(db, "changing the controller")
+        return _set_controller(choice, runtime)
+
+
+def _set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
     if choice.name not in controller_names():
         raise HTTPException(
             422, f"name: unknown controller {choice.name!r}; choose one of {controller_names()}"
         )
     try:
         runtime.set_controller(choice.name, dict(choice.config))
+    except SettingError as exc:
+        invalid(["body", "config", exc.field], exc.problem)
     except (ValueError, TypeError) as exc:
         raise HTTPException(422, f"config: {exc}") from exc
     return runtime.health()
@@ -78,21 +99,28 @@ class CalibrationOutcome(BaseModel):
     samples: int
 
 
-@router.post("/calibrate", response_model=CalibrationOutcome,
+@router.post("/calibrate", response_model=CalibrationOutcome, openapi_extra=access("worker"),
              responses={**MALFORMED, 409: {"description": "no worker running"},
                         422: {"description": "the wearer moved, or too few samples"}})
-async def calibrate(req: CalibrationRequest, runtime: RuntimeDep) -> CalibrationOutcome:
+async def calibrate(req: CalibrationRequest, runtime: RuntimeDep,
+                    db: SessionDep) -> CalibrationOutcome:
     """E-UMC calibration: record the next seconds of standing still and compute the
     offsets that map the rest posture onto the models' start. A running E-UMC takes
-    them at once; an E-UMC chosen later gets them too."""
+    them at once; an E-UMC chosen later gets them too. 409 during a trial (a running
+    E-UMC taking new offsets would change the trial's controller)."""
     import math
 
-    try:
-        r = await runtime.calibrate(req.seconds, req.max_std_deg)
-    except RuntimeError as exc:
-        raise HTTPException(409, str(exc)) from exc
-    except TimeoutError as exc:
-        raise HTTPException(409, "the worker did not answer the calibration request") from exc
+    async with runtime.activity:
+        busy = activity.running(db)
+        if busy is not None and busy.startswith("trial"):
+            conflict("worker", f"{busy} is running: calibrate before starting it")
+        try:
+            r = await runtime.calibrate(req.seconds, req.max_std_deg)
+        except RuntimeError as exc:
+            raise HTTPException(409, str(exc)) from exc
+        except TimeoutError as exc:
+            raise HTTPException(409, "the worker did not answer the calibration "
+                                "request") from exc
     out = CalibrationOutcome(
         ok=r.ok, message=r.message,
         offset_left_deg=math.degrees(r.offset_left), offset_right_deg=math.degrees(r.offset_right),
@@ -116,14 +144,26 @@ class SimulationChoice(BaseModel):
         "default: as before"))
 
 
-@router.post("/simulation", response_model=Health,
-             responses={**MALFORMED,
+@router.post("/simulation", response_model=Health, openapi_extra=access("worker"),
+             responses={**MALFORMED, **CONFLICT,
                         422: {"description": "unknown script, a speed for a device that is not "
-                                         "the in-process simulator, or hardware"}})
-async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
-    """Change the simulated wearer (seed) or script; a new run starts on the new one."""
+                                         "the in-process simulator, or hardware"},
+                        503: {"description": "the simulated device process could not start "
+                                         "(the reason is given)"}})
+async def set_simulation(choice: SimulationChoice, runtime: RuntimeDep,
+                         db: SessionDep) -> Health:
+    """Change the simulated wearer (seed) or script; a new run starts on the new one.
+    409 while a trial or recording runs; 503 if the device process cannot start."""
+    async with runtime.activity:
+        _ensure_no_activity(db, "changing the simulation")
+        return await _set_simulation(choice, runtime)
+
+
+async def _set_simulation(choice: SimulationChoice, runtime: RuntimeDep) -> Health:
     try:
         await runtime.set_simulation(choice.seed, choice.script, choice.speed)
+    except DeviceStartError as exc:
+        raise HTTPException(503, f"device: {exc}") from exc
     except ValueError as exc:
         raise HTTPException(422, str(exc)) from exc
     except RuntimeError as exc:

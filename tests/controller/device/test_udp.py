@@ -1,5 +1,6 @@
 """UdpDevice against a hand-driven fake device socket on loopback: exact packets in, exact
-behaviour out (ordering, wrap, foreign and malformed datagrams, commands, release)."""
+behaviour out (ordering, wrap, foreign, forged, replayed and malformed datagrams, device
+restarts as new sessions, commands, release)."""
 
 from __future__ import annotations
 
@@ -16,11 +17,13 @@ from controller.device.base import NO_LOCK, DeviceError, LockCommand, Sample, St
 from controller.device.protocol import (
     CommandPacket,
     HelloPacket,
-    decode,
+    decode_frame,
     encode_sample,
     seq_diff,
 )
-from controller.device.udp import RESTART_AFTER, UdpDevice
+from controller.device.udp import UdpDevice
+
+KEY = bytes(range(32))
 
 
 class FakeDevice:
@@ -32,18 +35,25 @@ class FakeDevice:
         self.sock.settimeout(1.0)
         self.port = int(self.sock.getsockname()[1])
         self.host: tuple[str, int] | None = None
+        self.session = 0x5EED
+        self.host_session = 0
+        self.last_receiver = -1
 
     def receive(self) -> CommandPacket | HelloPacket:
         data, addr = self.sock.recvfrom(2048)
         self.host = (str(addr[0]), int(addr[1]))
-        packet = decode(data)
-        assert isinstance(packet, CommandPacket | HelloPacket)
-        return packet
+        frame = decode_frame(data, KEY)
+        self.host_session, self.last_receiver = frame.sender, frame.receiver
+        assert isinstance(frame.packet, CommandPacket | HelloPacket)
+        return frame.packet
+
+    def sample_bytes(self, seq: int, status: Status = Status.NONE, key: bytes = KEY) -> bytes:
+        sample = Sample(seq=seq, t=seq * 0.01, counts=(seq % 16384, 1, 2, 3), status=status)
+        return encode_sample(sample, key, self.session, self.host_session)
 
     def send_sample(self, seq: int, status: Status = Status.NONE) -> None:
         assert self.host is not None
-        sample = Sample(seq=seq, t=seq * 0.01, counts=(seq % 16384, 1, 2, 3), status=status)
-        self.sock.sendto(encode_sample(sample), self.host)
+        self.sock.sendto(self.sample_bytes(seq, status), self.host)
 
     def send_raw(self, data: bytes) -> None:
         assert self.host is not None
@@ -53,7 +63,7 @@ class FakeDevice:
 @pytest.fixture
 def link() -> Iterator[tuple[UdpDevice, FakeDevice]]:
     fake = FakeDevice()
-    dev = UdpDevice(device_host="127.0.0.1", device_port=fake.port)
+    dev = UdpDevice(device_host="127.0.0.1", device_port=fake.port, key=KEY)
     dev.open()
     hello = fake.receive()
     assert isinstance(hello, HelloPacket)
@@ -91,9 +101,9 @@ def test_samples_in_order_and_decoded(link: tuple[UdpDevice, FakeDevice]) -> Non
 
 def test_duplicates_and_out_of_order_are_dropped(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
-    for seq in (1, 2, 2, 1, 3):
+    for seq in (1, 3, 3, 2, 4):  # 3 again: seen; 2: new, but 3 was already used
         fake.send_sample(seq)
-    assert _seqs(dev, 3) == [1, 2, 3]
+    assert _seqs(dev, 3) == [1, 3, 4]
     assert (dev.stats.duplicates, dev.stats.stale) == (1, 1)
     faults = dev.faults()
     assert "1 duplicate sample(s) dropped" in faults
@@ -118,34 +128,68 @@ def test_wrap_keeps_host_sequence_increasing(link: tuple[UdpDevice, FakeDevice])
     assert dev.stats.gaps == 0
 
 
-def test_device_restart_is_detected(link: tuple[UdpDevice, FakeDevice]) -> None:
+def test_device_restart_is_a_new_session_and_old_sessions_stay_dead(
+    link: tuple[UdpDevice, FakeDevice],
+) -> None:
     dev, fake = link
     fake.send_sample(5000)
+    old = fake.sample_bytes(5001)
     assert _seqs(dev, 1) == [5000]
-    for seq in range(RESTART_AFTER + 2):
+    fake.session = 0xB007  # the device rebooted: a new session, counting from 0
+    for seq in range(3):
         fake.send_sample(seq)
-    # The first RESTART_AFTER - 1 look stale; then the host resynchronises.
     assert _seqs(dev, 3) == [5001, 5002, 5003]
     assert dev.stats.restarts == 1
     assert any("restarted" in f for f in dev.faults())
+    fake.send_raw(old)  # authentic, but from the session the device left behind
+    fake.send_raw(fake.sample_bytes(1))  # and one already seen
+    assert dev.read(0.05) is None
+    assert (dev.stats.replayed, dev.stats.duplicates) == (1, 1)
+    assert dev.link_counters()["replay"] == 2
+
+
+def test_forged_and_misaddressed_samples_are_dropped(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_raw(fake.sample_bytes(1, key=bytes(32)))  # the wrong key
+    host = fake.host_session
+    fake.host_session = host ^ 1  # to another session of the host (an earlier one)
+    fake.send_sample(2)
+    fake.host_session = host
+    fake.send_sample(3)
+    assert _seqs(dev, 1) == [3]
+    assert dev.stats.malformed["auth"] == 1
+    assert dev.stats.replayed == 1
+    assert dev.link_counters()["auth"] == 1
+
+
+def test_commands_name_the_device_session_once_known(
+    link: tuple[UdpDevice, FakeDevice],
+) -> None:
+    dev, fake = link
+    assert fake.last_receiver == 0  # the HELLO: device unknown
+    fake.send_sample(1)
+    _seqs(dev, 1)
+    dev.send(NO_LOCK)
+    fake.receive()
+    assert (fake.host_session, fake.last_receiver) == (dev.session, fake.session)
 
 
 def test_malformed_packets_are_counted_by_reason(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
-    good = bytearray(encode_sample(Sample(seq=1, t=0.01, counts=(1, 2, 3, 4))))
-    bad_crc = bytes(good[:-1]) + bytes([good[-1] ^ 0xFF])
+    good = bytearray(fake.sample_bytes(1))
+    bad_tag = bytes(good[:-1]) + bytes([good[-1] ^ 0xFF])
     fake.send_raw(b"EX")
-    fake.send_raw(bad_crc)
+    fake.send_raw(bad_tag)
     fake.send_raw(b"ZZ" + bytes(good[2:]))
     fake.send_sample(1)
     assert _seqs(dev, 1) == [1]
-    assert dict(dev.stats.malformed) == {"short": 1, "crc": 1, "magic": 1}
-    assert "3 malformed packet(s) dropped (crc: 1, magic: 1, short: 1)" in dev.faults()
+    assert dict(dev.stats.malformed) == {"short": 1, "auth": 1, "magic": 1}
+    assert "3 malformed packet(s) dropped (auth: 1, magic: 1, short: 1)" in dev.faults()
 
 
 def test_foreign_senders_are_ignored(link: tuple[UdpDevice, FakeDevice]) -> None:
-    dev, _ = link
-    packet = encode_sample(Sample(seq=1, t=0.01, counts=(1, 2, 3, 4), status=Status.LOCKED_LEFT))
+    dev, fake = link
+    packet = fake.sample_bytes(1, Status.LOCKED_LEFT)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other_ip:
         other_ip.bind(("127.0.0.2", 0))  # another loopback address
         other_ip.sendto(packet, dev.address)
@@ -225,7 +269,7 @@ def test_hello_repeats_while_no_command_is_sent(link: tuple[UdpDevice, FakeDevic
 
 
 def test_unopened_device_refuses() -> None:
-    dev = UdpDevice(device_port=9)
+    dev = UdpDevice(device_port=9, key=KEY)
     with pytest.raises(DeviceError):
         dev.send(NO_LOCK)
     dev.release()  # never raises, even unopened
@@ -239,12 +283,13 @@ def test_unopened_device_refuses() -> None:
 def test_host_sequence_never_goes_backwards(start: int, steps: list[int]) -> None:
     """Any mix of jumps, repeats and reordering, across the wrap: the worker only ever
     sees increasing sequence numbers, spaced exactly as the wire's serial distance."""
-    dev = UdpDevice(device_host="127.0.0.1", device_port=9)  # never opened: no socket needed
+    dev = UdpDevice(device_host="127.0.0.1", device_port=9, key=KEY)  # never opened
     wire = start
     seen: list[tuple[int, int]] = []
     for step in [0, *steps]:
         wire = (wire + step) % 2**32
-        packet = encode_sample(Sample(seq=wire, t=0.0, counts=(0, 0, 0, 0)))
+        packet = encode_sample(Sample(seq=wire, t=0.0, counts=(0, 0, 0, 0)), KEY, 7,
+                               dev.session)
         out = dev._accept(packet, ("127.0.0.1", 9))
         if out is not None:
             seen.append((out.seq, wire))

@@ -142,3 +142,19 @@ def test_confidence_ellipse_axes() -> None:
     assert angle == pytest.approx(0.0) or angle == pytest.approx(180.0)
     with pytest.raises(ValueError):
         confidence_ellipse(np.zeros(2), np.zeros((2, 2)))
+
+
+def test_controller_output_figure_draws_markers_inside_the_stretch() -> None:
+    cols = recording_with_angles(with_posteriors=False)
+    t = cols["t"]
+    inside, outside = float(t[300]), float(t[20])
+    fig = controller_output_figure(cols, 50, 750,
+                                   markers=[(inside, "box dropped"), (outside, "too early")])
+    ax_b = fig.axes[1]
+    labels = [a.get_text() for a in ax_b.texts]
+    assert "box dropped" in labels and "too early" not in labels
+    # A line on each time panel at the marker, on the stretch's own time axis.
+    want = inside - float(t[50])
+    for ax in fig.axes[1:5]:
+        xs = [ln.get_xdata()[0] for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+        assert xs == [pytest.approx(want)]

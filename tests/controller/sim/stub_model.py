@@ -52,9 +52,14 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
         return int(s.getsockname()[1])
 
 
+#: The link key the device-server tests share between host and device.
+KEY = bytes(range(32))
+
+
 def serve_stub(port: int, duration: float, queue: object) -> None:
     """Process target for spawn tests: serve the stub and report the summary on `queue`."""
     from controller.sim.device_server import serve
 
-    stats = serve(port=port, seed=0, script="stub", duration=duration, model=StubExoskeleton())
+    stats = serve(port=port, seed=0, script="stub", duration=duration, model=StubExoskeleton(),
+                  key=KEY)
     queue.put(stats.summary())  # type: ignore[attr-defined]

@@ -1,4 +1,4 @@
-"""Kinematics of the activities against shared/spec/biomechanics.md."""
+"""Kinematics of the activities against the published ranges in docs/simulated-wearer.md."""
 
 from __future__ import annotations
 
@@ -113,7 +113,8 @@ def test_walking_range_antiphase_and_stride() -> None:
         x = th[:, 0] - th[:, 0].mean()
         ac = np.correlate(x, x, "full")[x.size - 1 :]
         lag = int(np.argmax(ac[50:200])) + 50
-        assert 1.0 <= lag * DT <= 1.2 + 1e-9
+        # The autocorrelation's peak resolves the stride to a sample or two.
+        assert 1.0 - 0.02 <= lag * DT <= 1.2 + 0.02
         assert lag * DT == pytest.approx(p.stride_s, abs=0.02)
 
 

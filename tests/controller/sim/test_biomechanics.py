@@ -1,4 +1,5 @@
-"""Hip moments against the magnitudes in shared/spec/biomechanics.md."""
+"""Hip moments: the planar model in closed form, the per-leg split from the stance
+geometry, and published magnitudes."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from controller.sim.activities import LiftShape, lift
 from controller.sim.biomechanics import (
@@ -15,6 +18,7 @@ from controller.sim.biomechanics import (
     gait_moment,
     lift_hip_moment,
     split_moment,
+    stoop_leg_moments,
 )
 from controller.sim.participant import VirtualParticipant
 
@@ -23,7 +27,7 @@ def reference_wearer() -> VirtualParticipant:
     """The spec's 75 kg, 1.75 m wearer with typical habits."""
     p = VirtualParticipant.from_seed(0)
     return replace(
-        p, mass_kg=75.0, height_m=1.75, squat_trunk_ratio=0.42, box_side_share=0.6,
+        p, mass_kg=75.0, height_m=1.75, squat_trunk_ratio=0.42,
         asymmetry=0.0, stand_flexion_deg=(3.0, 3.0), torque_scale=1.0,
     )
 
@@ -62,27 +66,94 @@ def test_accelerating_the_trunk_upwards_needs_extension() -> None:
     assert np.all(m[5:-5] > static[5:-5])
 
 
-def test_lifting_moments_match_the_spec() -> None:
+def test_lifting_moments_match_published_magnitudes() -> None:
     squat10 = peak_both_hips("squat", 10.0, (100.0, 100.0))
     squat5 = peak_both_hips("squat", 5.0, (100.0, 100.0))
     stoop10 = peak_both_hips("stoop_left", 10.0, (85.0, 60.0))
-    assert squat10 == pytest.approx(2.2, abs=0.3)
-    assert squat5 == pytest.approx(1.95, abs=0.3)
-    assert stoop10 == pytest.approx(3.1, abs=0.4)
-    assert stoop10 > squat10 > squat5  # straight knees cost more (Nemeth 1984)
-    # Nemeth et al.: about 124 Nm (straight knee) vs 82 Nm (flexed knee), 12.8 kg box;
-    # our stoop/squat ratio should be of the same order.
-    assert 1.2 < stoop10 / squat10 < 1.8
+    # Nemeth et al. 1984: about 82 Nm (bent knees) and 124 Nm (straight knees) about
+    # both hips with a 12.8 kg box, static; the dynamic peak per supporting hip is
+    # taken as 1.5-2 Nm/kg in the squat and the stoop's supporting hip carries the
+    # whole moment, so the ranges below are wide on purpose.
+    assert 1.7 < squat10 < 2.9
+    assert 1.5 < squat5 < squat10
+    assert 2.6 < stoop10 < 3.8
+    # No assertion on squat against stoop: Van der Have et al. 2019 (the paper's data
+    # source) report the squat higher, Nemeth 1984 and Hwang 2007 the stoop; this
+    # planar model gives the stoop higher (README, virtual study discussion).
 
 
-def test_box_side_leg_carries_its_share() -> None:
-    p = reference_wearer()
-    seg = lift(p, LiftShape("stoop_right", (60.0, 85.0), 1.2, 0.4, 1.3), 10.0, True)
-    k = int(seg.torque.sum(axis=1).argmax())
-    assert seg.torque[k, 1] / seg.torque[k].sum() == pytest.approx(0.6)
+def test_squat_box_clears_the_knees() -> None:
+    body = Anthropometrics.from_body(75.0, 1.75)
+    trunk = np.radians(np.array([0.0, 40.0]))
+    hip = np.radians(np.array([0.0, 100.0]))
+    d = body.squat_box_distance(trunk, hip)
+    # Upright the box is held at the belly (0.114 H = 0.1995 m), already clear of
+    # straight knees (0.20 m): the larger wins.
+    assert d[0] == pytest.approx(max(0.114 * 1.75, 0.20))
+    knee_ahead = 0.245 * 1.75 * math.sin(math.radians(60.0))
+    assert d[1] == pytest.approx(knee_ahead + 0.20)
+
+
+def _stoop(box_kg: float, peak_deg: float = 80.0, n: int = 301):
+    body = Anthropometrics.from_body(75.0, 1.75)
+    u = np.linspace(0.0, 1.0, n)
+    trunk = np.radians(peak_deg) * u * u * u * (10 - 15 * u + 6 * u * u)
+    reach = float(body.box_distance(np.radians(peak_deg)))
+    return body, trunk, reach, stoop_leg_moments(body, trunk, np.full(n, box_kg), 0.01, 0, reach)
+
+
+def test_stoop_legs_add_up_to_the_planar_total() -> None:
+    body, trunk, _, legs = _stoop(10.0)
+    total = lift_hip_moment(body, trunk, np.full(trunk.size, 10.0), 0.01)
+    assert legs.sum(axis=1) == pytest.approx(total)
+    mirrored = stoop_leg_moments(body, trunk, np.full(trunk.size, 10.0), 0.01, 1,
+                                 float(body.box_distance(np.radians(80.0))))
+    assert mirrored[:, ::-1] == pytest.approx(legs)
+
+
+def test_non_box_leg_by_hand_at_a_static_posture() -> None:
+    # One static posture worked by hand from the stance geometry (no box).
+    body = Anthropometrics.from_body(75.0, 1.75)
+    trunk = np.full(5, math.radians(20.0))
+    reach = 0.5
+    legs = stoop_leg_moments(body, trunk, np.zeros(5), 0.01, 0, reach)
+    w = G * 0.678 * 75.0
+    x_u = 0.626 * 0.288 * 1.75 * math.sin(math.radians(20.0))
+    y_u = x_u * 0.5 * 0.259 * 1.75 / reach
+    load = w * max(0.0, 0.5 - y_u / (0.10 * 1.75))
+    legs_back = (0.8 * 0.2 + 0.3 * 0.093) * 75.0 * G
+    back = w * x_u / (w + legs_back)
+    lever = max(0.0, back - 0.5 * 0.055 * 1.75)
+    assert legs[2, 1] == pytest.approx(load * lever, rel=1e-9)
+    assert legs[2, 0] == pytest.approx(w * x_u - load * lever, rel=1e-9)
+
+
+def test_non_box_leg_is_unloaded_once_the_load_passes_the_box_side_hip() -> None:
+    body, trunk, reach, legs = _stoop(10.0)
+    static = G * (body.m_hat * body.r_com * np.sin(trunk) + 10.0 * body.box_distance(trunk))
+    x_u = static / (G * (body.m_hat + 10.0))
+    beyond = x_u * 0.5 * body.stance_width / reach >= 0.5 * body.hip_spacing
+    assert beyond[-1] and np.all(legs[beyond, 1] == 0.0)
+    assert np.all(legs[:, 1] >= 0.0)
+    # Never more than a small remainder of the supporting leg's moment (about 5 %
+    # of the total or less, as the paper's utilities imply; biomechanics docstring).
+    assert legs[:, 1].max() / 75.0 < 0.15
+    assert legs[:, 1].max() < 0.05 * legs[:, 0].max()
+
+
+def test_stoop_leg_moments_refuse_bad_geometry() -> None:
+    body = Anthropometrics.from_body(75.0, 1.75)
+    with pytest.raises(ValueError, match="box_side"):
+        stoop_leg_moments(body, np.zeros(3), np.zeros(3), 0.01, 2, 0.4)
+    with pytest.raises(ValueError, match="reach"):
+        stoop_leg_moments(body, np.zeros(3), np.zeros(3), 0.01, 0, 0.0)
+
+
+def test_split_moment_shares() -> None:
     total = np.linspace(0, 100, 11)
     parts = split_moment(total, 0.3)
     assert parts.sum(axis=1) == pytest.approx(total)
+    assert parts[:, 0] == pytest.approx(0.3 * total)
 
 
 def test_gait_moments_match_the_literature() -> None:
@@ -98,3 +169,29 @@ def test_gait_moments_match_the_literature() -> None:
     assert gait_moment("walk", phase + 3.0, 70.0) == pytest.approx(70.0 * walk)
     with pytest.raises(ValueError):
         gait_moment("run", phase, 1.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    peak=st.floats(0.2, 1.7), box=st.floats(0.0, 15.0), mass=st.floats(45.0, 120.0),
+    height=st.floats(1.5, 2.0), side=st.sampled_from([0, 1]),
+)
+def test_stoop_split_is_statics_for_any_body(
+    peak: float, box: float, mass: float, height: float, side: int
+) -> None:
+    """For any body and depth: the legs add up to the planar total, the non-box leg
+    never needs a flexion moment, and it stays below half the upper body's weight at
+    the HAT's centre-of-mass distance (it never carries more than half the load, at a
+    lever arm shorter than the hips' backward travel)."""
+    body = Anthropometrics.from_body(mass, height)
+    u = np.linspace(0.0, 1.0, 151)
+    trunk = peak * u * u * u * (10 - 15 * u + 6 * u * u)
+    load = np.full(u.size, box)
+    reach = float(body.box_distance(np.array([peak]))[0])
+    legs = stoop_leg_moments(body, trunk, load, 0.01, side, reach)
+    total = lift_hip_moment(body, trunk, load, 0.01)
+    assert legs.sum(axis=1) == pytest.approx(total, abs=1e-9)
+    other = legs[:, 1 - side]
+    assert (other >= 0.0).all()
+    upper = G * (body.m_hat + box)
+    assert (other <= 0.5 * upper * body.r_com).all()

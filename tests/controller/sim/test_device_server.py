@@ -13,7 +13,6 @@ import subprocess
 import sys
 import threading
 import time
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,17 +20,19 @@ from typing import Any
 
 import pytest
 
+from controller.device.auth import create_key, tag
 from controller.device.base import Device, LockCommand, Sample, Status
 from controller.device.protocol import (
     CommandPacket,
     HelloPacket,
+    decode_frame,
     decode_sample,
     encode_command,
     encode_hello,
 )
 from controller.device.udp import UdpDevice
 from controller.sim.device_server import ServerStats, serve
-from tests.controller.sim.stub_model import StubExoskeleton, free_udp_port, serve_stub
+from tests.controller.sim.stub_model import KEY, StubExoskeleton, free_udp_port, serve_stub
 
 ROOT = Path(__file__).resolve().parents[3]
 LOCK_BOTH = LockCommand(seq=0, lock_left=True, lock_right=True)
@@ -78,7 +79,8 @@ def _start(model: StubExoskeleton | None = None, **kwargs: object) -> Running:
 
     def target() -> None:
         run.result.append(
-            serve(port, 0, "stub", stop_event=run.stop, model=run.model, **kwargs)  # type: ignore[arg-type]
+            serve(port, 0, "stub", stop_event=run.stop, model=run.model, key=KEY,
+                  **kwargs)  # type: ignore[arg-type]
         )
 
     run.thread = threading.Thread(target=target, daemon=True)
@@ -97,7 +99,7 @@ def server() -> Iterator[Running]:
 
 @pytest.fixture
 def host(server: Running) -> Iterator[UdpDevice]:
-    dev = UdpDevice(device_host="127.0.0.1", device_port=server.port)
+    dev = UdpDevice(device_host="127.0.0.1", device_port=server.port, key=KEY)
     dev.open()
     yield dev
     dev.close()
@@ -161,55 +163,74 @@ def _raw_host(ip: str = "127.0.0.1") -> socket.socket:
     return sock
 
 
-def test_foreign_and_malformed_commands_are_ignored(server: Running, host: UdpDevice) -> None:
+def test_foreign_forged_and_malformed_commands_are_ignored(
+    server: Running, host: UdpDevice,
+) -> None:
     intruder = _raw_host("127.0.0.2")  # another loopback address
-    lock = encode_command(CommandPacket(host_seq=10**6, lock_left=True, lock_right=True))
-    bad_crc = lock[:-1] + bytes([lock[-1] ^ 0xFF])
-    v2 = bytearray(lock[:-4])
-    v2[2] = 2
-    v2_packet = bytes(v2) + zlib.crc32(bytes(v2)).to_bytes(4, "little")  # valid CRC
     with intruder:
         statuses = []
-        for _ in range(20):
+        for i in range(20):
             statuses.append(_read(host).status)
-            intruder.sendto(lock, ("127.0.0.1", server.port))
-            host._sendto(bad_crc)  # from the host's own address, but damaged
-            host._sendto(v2_packet)  # from the host, but a version this device lacks
+            device = host.device_sessions.current
+            assert device is not None
+            lock = encode_command(CommandPacket(10**6 + i, True, True), KEY, host.session,
+                                  device)
+            intruder.sendto(lock, ("127.0.0.1", server.port))  # right key, wrong address
+            forged = encode_command(CommandPacket(10**6 + i, True, True), bytes(32),
+                                    host.session, device)
+            host._sendto(forged)  # from the host's own address, without the key
+            old = bytearray(lock[:-32])
+            old[2] = 1
+            host._sendto(bytes(old) + tag(KEY, bytes(old)))  # authentic, another version
     assert all(st & Status.WATCHDOG_RELEASED for st in statuses)
     assert not any(st & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for st in statuses)
-    time.sleep(0.03)  # let the server take in the last datagrams before it stops
+    # The device reports its drops in its samples: wait until the last forged one shows.
+    deadline = time.monotonic() + 5.0
+    while host.link_counters()["device_auth"] < 20 and time.monotonic() < deadline:
+        _read(host)
+    assert host.link_counters()["device_auth"] == 20
     stats = server.finish()
     assert stats.foreign == 20
-    assert stats.malformed["crc"] == 20 and stats.summary()["unknown_version"] == 20
+    assert stats.malformed["auth"] == 20 and stats.summary()["unknown_version"] == 20
+    assert stats.summary()["auth_failures"] == 20
     assert stats.commands == 0 and stats.host_changes == 0
 
 
 def test_host_port_is_learned_and_stale_commands_dropped(server: Running) -> None:
     a, b = _raw_host(), _raw_host()
     b_port = b.getsockname()[1]
+    dev = ("127.0.0.1", server.port)
     with a, b:
-        a.sendto(encode_hello(HelloPacket(100)), ("127.0.0.1", server.port))
-        assert decode_sample(a.recv(2048)).seq == 0
-        a.sendto(encode_command(CommandPacket(101, True, False)), ("127.0.0.1", server.port))
-        a.sendto(encode_command(CommandPacket(99, False, False)), ("127.0.0.1", server.port))
+        a.sendto(encode_hello(HelloPacket(100), KEY, 0xA), dev)
+        first = decode_frame(a.recv(2048), KEY)
+        assert isinstance(first.packet, Sample) and first.packet.seq == 0
+        assert first.receiver == 0xA
+        d = first.sender
+        a.sendto(encode_command(CommandPacket(101, True, False), KEY, 0xA, d), dev)
+        a.sendto(encode_command(CommandPacket(99, False, False), KEY, 0xA, d), dev)
+        a.sendto(encode_command(CommandPacket(101, True, True), KEY, 0xA, d), dev)  # replay
+        a.sendto(encode_command(CommandPacket(102, True, True), KEY, 0xA, d ^ 1), dev)
         time.sleep(0.05)
-        b.sendto(encode_hello(HelloPacket(1)), ("127.0.0.1", server.port))
+        b.sendto(encode_hello(HelloPacket(1), KEY, 0xB), dev)  # a restarted host
         time.sleep(0.03)
-        b_sample = decode_sample(b.recv(2048))
+        b_sample = decode_sample(b.recv(2048), KEY)
         assert b_sample.seq > 0  # the stream moved to the new port, same device clock
+        a.sendto(encode_command(CommandPacket(103, True, True), KEY, 0xA, d), dev)  # retired
+    time.sleep(0.03)
     stats = server.finish()
     assert stats.commands == 1 and stats.stale_commands == 1
+    assert stats.replayed == 3  # seen, addressed to another boot, from a retired host
     assert stats.hellos == 2 and stats.host_changes == 1
     assert stats.host == f"127.0.0.1:{b_port}"
 
 
 def test_duration_and_script_end_stop_the_server() -> None:
     t0 = time.monotonic()
-    alone = serve(free_udp_port(), 0, "stub", duration=0.2, model=StubExoskeleton())
+    alone = serve(free_udp_port(), 0, "stub", duration=0.2, model=StubExoskeleton(), key=KEY)
     assert alone.samples_sent == 0
     assert 0.18 < time.monotonic() - t0 < 0.5  # nobody said hello: no samples, still stops
     run = _start(StubExoskeleton(steps=10), loop=False)
-    dev = UdpDevice(device_port=run.port)
+    dev = UdpDevice(device_port=run.port, key=KEY)
     dev.open()
     seqs = []
     while (s := dev.read(0.3)) is not None:
@@ -233,7 +254,7 @@ class _GlitchyModel(StubExoskeleton):
 
 def test_an_unencodable_sample_becomes_a_gap_not_a_crash() -> None:
     run = _start(_GlitchyModel())
-    dev = UdpDevice(device_port=run.port)
+    dev = UdpDevice(device_port=run.port, key=KEY)
     dev.open()
     seqs = [_read(dev).seq for _ in range(6)]
     dev.close()
@@ -277,7 +298,7 @@ def _stub_process_run() -> tuple[list[float], list[Sample], dict[str, Any]]:
     proc.start()
     try:
         _wait_bound(port, timeout=20.0)
-        with UdpDevice(device_port=port) as dev:
+        with UdpDevice(device_port=port, key=KEY) as dev:
             assert dev.kind == "udp"
             arrivals, got = _drive(dev, 2.5)
         summary: dict[str, Any] = queue.get(timeout=10.0)
@@ -299,8 +320,10 @@ def test_server_in_a_separate_process_with_stub_model() -> None:
     importlib.util.find_spec("controller.sim.exoskeleton") is None,
     reason="SimulatedExoskeleton not written yet",
 )
-def test_real_device_sim_process_over_loopback() -> None:
+def test_real_device_sim_process_over_loopback(tmp_path: Path) -> None:
     port = free_udp_port()
+    key_file = tmp_path / "device.key"
+    key = create_key(key_file)
     proc = subprocess.Popen(
         [
             sys.executable,
@@ -312,6 +335,8 @@ def test_real_device_sim_process_over_loopback() -> None:
             "3",
             "--script",
             "paper-evaluation",
+            "--key-file",
+            str(key_file),
         ],
         cwd=ROOT,
         stdout=subprocess.PIPE,
@@ -321,7 +346,7 @@ def test_real_device_sim_process_over_loopback() -> None:
     )
     try:
         _wait_bound(port, timeout=30.0)
-        with UdpDevice(device_port=port) as dev:
+        with UdpDevice(device_port=port, key=key) as dev:
             arrivals, got = _drive(dev, 2.0)
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=10.0)

@@ -29,7 +29,7 @@ def test_deterministic_and_versioned(data: HumanMotionData) -> None:
 
 def test_version_changes_with_the_generator(monkeypatch: pytest.MonkeyPatch) -> None:
     before = human_dataset.generator_version(seed=0)
-    monkeypatch.setattr(human_dataset, "GENERATOR_VERSION", "2")
+    monkeypatch.setattr(human_dataset, "GENERATOR_VERSION", "changed")
     assert human_dataset.generator_version(seed=0) != before
     monkeypatch.setattr(human_dataset.inspect, "getsource", lambda obj: "changed")
     assert human_dataset.generator_version(seed=0) != before
@@ -43,13 +43,19 @@ def test_lifts_look_like_the_papers_mean_trajectories(data: HumanMotionData) -> 
         data.angle("stoop_left", "right")
     )
     assert left.max() - right.max() > 15  # off the diagonal, box side deeper
+    mass = data.meta["mean_mass_kg"]
     for motion, box, other in (("stoop_left", "left", "right"), ("stoop_right", "right", "left")):
-        assert data.torque(motion, box).max() > 1.3 * data.torque(motion, other).max()
+        # The non-box leg is a prop: about 5 % of the box-side leg's moment or less
+        # and at most about 0.1 Nm/kg (what the paper's utilities imply, see
+        # controller.sim.biomechanics), never a flexion moment.
+        prop = data.torque(motion, other)
+        assert prop.max() < 0.05 * data.torque(motion, box).max()
+        assert prop.max() / mass < 0.1 and prop.min() >= 0.0
+        assert np.all(prop[:11] == 0.0)  # the first tenth: the hips have not moved back
     for m in range(3):
         start, end = data.theta[m, :, 0], data.theta[m, :, -1]
         assert np.allclose(start, end, atol=1e-6)  # standing to standing
         assert 35 <= int(np.argmax(data.theta[m].sum(axis=0))) <= 60
-    mass = data.meta["mean_mass_kg"]
     assert 1.7 < data.tau[0].sum(axis=0).max() / mass < 2.8  # squat, 10 kg
     assert 2.6 < data.tau[1].sum(axis=0).max() / mass < 3.8  # stoop, 10 kg
 

@@ -26,7 +26,6 @@ def test_cohort_is_plausible_and_varied() -> None:
     assert height.min() > 1.5 and height.max() < 2.0
     assert 60 < mass.mean() < 85 and mass.std() > 5
     assert {p.sex for p in people} == {"male", "female"}
-    assert all(0.55 <= p.box_side_share <= 0.65 for p in people)
     assert all(1.0 <= p.stride_s <= 1.2 for p in people)
     assert np.std([p.speed for p in people]) > 0.05
     assert np.std([p.asymmetry for p in people]) > 0.01
@@ -69,8 +68,6 @@ def test_validation_refuses_implausible_values() -> None:
         replace(p, sex="other")
     with pytest.raises(ValueError):
         replace(p, mass_kg=20.0)
-    with pytest.raises(ValueError):
-        replace(p, box_side_share=0.9)
     with pytest.raises(ValueError, match="non-negative"):
         VirtualParticipant.from_seed(-1)
     assert math.isfinite(p.stand_flexion.sum())

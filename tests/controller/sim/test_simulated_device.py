@@ -32,17 +32,18 @@ def test_free_running_reads_and_commands() -> None:
 
 
 def test_realtime_paces_at_100_hz_without_drift() -> None:
+    """Samples are never early, and a late reader gets the waiting ones at once.
+
+    Only the lower bound is a property of the device; how late a loaded machine reads
+    is not, so no upper bound on wall-clock time is asserted (bench/ measures it).
+    """
     dev = SimulatedDevice(seed=2, script="stairs", realtime=True)
     dev.open()
     start = time.monotonic()
     for _ in range(30):
         assert dev.read(1.0) is not None
-    elapsed = time.monotonic() - start
-    assert 0.28 <= elapsed < 0.45  # sample 29 is due at 0.29 s
-    assert dev.read(0.001) is None  # the next one is not due yet
-    time.sleep(0.05)  # a late reader gets the waiting samples at once
-    t0 = time.monotonic()
+    assert time.monotonic() - start >= 0.28  # sample 29 is due at 0.29 s
+    time.sleep(0.05)  # a late reader gets the waiting samples without waiting
     for _ in range(4):
         assert dev.read(0.0) is not None
-    assert time.monotonic() - t0 < 0.02
     dev.close()

@@ -1,0 +1,270 @@
+"""The lab: event markers, LSL marker streams of other software, XDF attachments, and the
+study's BIDS-motion export. Every route sits under the study, session or trial it
+concerns, so a study's access rules apply to it."""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import io
+import zipfile
+from datetime import UTC, datetime
+from typing import Annotated, Any
+
+from fastapi import APIRouter, File, Path, Request, UploadFile
+from fastapi.responses import Response
+from sqlalchemy import select
+
+from backend import audit
+from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
+from backend.api.errors import (
+    AUTH_RESPONSES,
+    BODY,
+    CONFLICT,
+    NOT_FOUND,
+    conflict,
+    invalid,
+    not_found,
+    one_or_404,
+)
+from backend.api.params import MAX_ID, SessionId, StudyId
+from backend.db.evidence import Trial
+from backend.db.lab import Marker, MarkerStream, StudyMarkerLabels, XdfAttachment
+from backend.db.models import Study, StudySession
+from backend.lab import bids_export, markers, xdf_import
+from backend.schemas.lab import (
+    LslStreamOut,
+    MarkerIn,
+    MarkerLabels,
+    MarkerOut,
+    MarkerStreamIn,
+    MarkerStreamOut,
+    XdfAttachmentOut,
+)
+
+router = APIRouter(tags=["lab"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
+
+TrialId = Annotated[int, Path(ge=1, le=MAX_ID, description="trial id")]
+SubscriptionId = Annotated[int, Path(ge=1, le=MAX_ID, description="subscription id")]
+AttachmentId = Annotated[int, Path(ge=1, le=MAX_ID, description="XDF attachment id")]
+
+
+# Marker labels of a study ------------------------------------------------------------------
+@router.get("/api/studies/{study_id}/marker-labels", response_model=MarkerLabels)
+def get_marker_labels(study_id: StudyId, user: CurrentUser, db: SessionDep) -> MarkerLabels:
+    """The study's marker buttons, in hotkey order (1-9)."""
+    one_or_404(db, Study, study_id, "study")
+    return MarkerLabels(labels=markers.labels(db, study_id))
+
+
+@router.put("/api/studies/{study_id}/marker-labels", response_model=MarkerLabels)
+def put_marker_labels(study_id: StudyId, body: MarkerLabels, user: CurrentUser,
+                      db: SessionDep) -> MarkerLabels:
+    """Replace the study's marker buttons."""
+    one_or_404(db, Study, study_id, "study")
+    row = db.get(StudyMarkerLabels, study_id)
+    if row is None:
+        db.add(StudyMarkerLabels(study_id=study_id, labels=body.labels))
+    else:
+        row.labels = body.labels
+        row.updated_at = datetime.now(UTC)
+    audit.record(db, user, "update", "marker_labels", study_id, {"labels": body.labels})
+    db.commit()
+    return body
+
+
+@router.get("/api/sessions/{session_id}/marker-labels", response_model=MarkerLabels)
+def session_marker_labels(session_id: SessionId, user: CurrentUser, db: SessionDep
+                          ) -> MarkerLabels:
+    """The marker buttons of the study the session belongs to."""
+    one_or_404(db, StudySession, session_id, "session")
+    study_id = markers.study_of_session(db, session_id)
+    return MarkerLabels(labels=markers.labels(db, study_id) if study_id is not None else [])
+
+
+# Markers ------------------------------------------------------------------------------------
+@router.post("/api/sessions/{session_id}/markers", response_model=MarkerOut, status_code=201)
+def add_marker(session_id: SessionId, body: MarkerIn, user: CurrentUser, db: SessionDep,
+               runtime: RuntimeDep) -> Marker:
+    """An event marker now: stamped with the newest tick, stored with the session's
+    running trial (if that tick is the trial's), drawn on the consoles and sent on the
+    LSL marker stream."""
+    one_or_404(db, StudySession, session_id, "session")
+    return runtime.lab.console_marker(db, session_id, body.label, body.note, user.id)
+
+
+@router.get("/api/sessions/{session_id}/markers", response_model=list[MarkerOut])
+def session_markers(session_id: SessionId, user: CurrentUser, db: SessionDep
+                    ) -> list[Marker]:
+    """The session's markers in the order they were stored."""
+    one_or_404(db, StudySession, session_id, "session")
+    return list(db.scalars(select(Marker).where(Marker.session_id == session_id)
+                           .order_by(Marker.id)))
+
+
+@router.get("/api/trials/{trial_id}/markers", response_model=list[MarkerOut])
+def trial_markers(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> list[Marker]:
+    """A trial's markers in tick-time order (`t` is on the trial's tick time axis)."""
+    one_or_404(db, Trial, trial_id, "trial")
+    return markers.trial_markers(db, trial_id)
+
+
+# LSL marker streams of other software -----------------------------------------------------
+def _lsl_on(runtime: Any) -> None:
+    if not runtime.lab.enabled:
+        conflict("lsl", "the Lab Streaming Layer is switched off (EXOSTUDY_LSL_ENABLED)")
+
+
+@router.get("/api/sessions/{session_id}/lsl-streams", response_model=list[LslStreamOut],
+            responses=CONFLICT)
+async def visible_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
+                          runtime: RuntimeDep) -> list[LslStreamOut]:
+    """The LSL streams visible on the network now (marker streams first)."""
+    from backend.lab.marker_inlet import visible_streams as resolve
+
+    one_or_404(db, StudySession, session_id, "session")
+    _lsl_on(runtime)
+    found = await asyncio.to_thread(resolve, 1.0)
+    own = f"exostudy-{runtime.lab.outlets.name}-"
+    return [LslStreamOut(name=s.name, type=s.type, source_id=s.source_id,
+                         hostname=s.hostname, channel_count=s.channel_count,
+                         nominal_srate=s.nominal_srate, own=s.source_id.startswith(own))
+            for s in found]
+
+
+def _sub_out(runtime: Any, sub: MarkerStream) -> MarkerStreamOut:
+    out = MarkerStreamOut.model_validate(sub)
+    inlet = runtime.lab.inlets.get(sub.id)
+    out.connected = bool(inlet is not None and inlet.connected)
+    return out
+
+
+@router.get("/api/sessions/{session_id}/marker-streams",
+            response_model=list[MarkerStreamOut])
+def list_marker_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
+                        runtime: RuntimeDep) -> list[MarkerStreamOut]:
+    """The session's subscriptions to other software's marker streams."""
+    one_or_404(db, StudySession, session_id, "session")
+    subs = db.scalars(select(MarkerStream).where(MarkerStream.session_id == session_id)
+                      .order_by(MarkerStream.id))
+    return [_sub_out(runtime, s) for s in subs]
+
+
+@router.post("/api/sessions/{session_id}/marker-streams", response_model=MarkerStreamOut,
+             status_code=201, responses=CONFLICT)
+def subscribe(session_id: SessionId, body: MarkerStreamIn, user: CurrentUser,
+              db: SessionDep, runtime: RuntimeDep) -> MarkerStreamOut:
+    """Store this marker stream's markers with the session (and its running trial) from
+    now on. One session at a time listens to a given stream."""
+    one_or_404(db, StudySession, session_id, "session")
+    _lsl_on(runtime)
+    key = body.source_id or body.name
+    for other in db.scalars(select(MarkerStream).where(MarkerStream.active)):
+        if (other.source_id or other.name) == key:
+            conflict("source_id", f"session {other.session_id} already listens to {key}; "
+                     "unsubscribe it there first")
+    sub = MarkerStream(session_id=session_id, name=body.name, source_id=body.source_id,
+                       stream_type="Markers", hostname="", active=True)
+    db.add(sub)
+    db.flush()
+    audit.record(db, user, "create", "marker_stream", sub.id, body.model_dump())
+    db.commit()
+    runtime.lab.subscribe(sub.id, sub.name, sub.source_id)
+    return _sub_out(runtime, sub)
+
+
+@router.delete("/api/sessions/{session_id}/marker-streams/{subscription_id}",
+               response_model=MarkerStreamOut)
+def unsubscribe(session_id: SessionId, subscription_id: SubscriptionId, user: CurrentUser,
+                db: SessionDep, runtime: RuntimeDep) -> MarkerStreamOut:
+    """Stop storing the stream's markers (those stored stay)."""
+    sub = db.get(MarkerStream, subscription_id)
+    if sub is None or sub.session_id != session_id:
+        not_found("marker stream subscription", subscription_id)
+    runtime.lab.unsubscribe(sub.id)
+    sub.active = False
+    audit.record(db, user, "delete", "marker_stream", sub.id, {})
+    db.commit()
+    return _sub_out(runtime, sub)
+
+
+# XDF attachments -----------------------------------------------------------------------------
+@router.post("/api/sessions/{session_id}/xdf", response_model=XdfAttachmentOut,
+             status_code=201, responses={413: {"description": "the file is too large"}})
+async def attach_xdf(session_id: SessionId, request: Request, user: CurrentUser,
+                     db: SessionDep,
+                     file: Annotated[UploadFile, File(description="a LabRecorder .xdf file")],
+                     ) -> XdfAttachment:
+    """Attach a LabRecorder XDF file: kept whole, its streams aligned with the session's
+    ticks on the LSL clock, and for each the trials it covers."""
+    one_or_404(db, StudySession, session_id, "session")
+    data = await file.read(xdf_import.MAX_XDF_BYTES + 1)
+    if len(data) > xdf_import.MAX_XDF_BYTES:
+        invalid(["body", "file"], f"larger than {xdf_import.MAX_XDF_BYTES} bytes")
+    try:
+        streams = await asyncio.to_thread(xdf_import.read, data)
+    except ValueError as exc:
+        invalid(["body", "file"], str(exc))
+    # Reads the session's ticks: off the event loop (the session is used by this
+    # request only, one step at a time).
+    summary = await asyncio.to_thread(xdf_import.align, request.app.state.engine, db,
+                                      session_id, streams)
+    att = XdfAttachment(session_id=session_id, filename=(file.filename or "recording.xdf")[:255],
+                        size_bytes=len(data), sha256=hashlib.sha256(data).hexdigest(),
+                        content=data, streams=[s.model_dump() for s in summary],
+                        created_by=user.id)
+    db.add(att)
+    db.flush()
+    audit.record(db, user, "create", "xdf_attachment", att.id,
+                 {"filename": att.filename, "sha256": att.sha256, "streams": len(summary)})
+    db.commit()
+    return att
+
+
+@router.get("/api/sessions/{session_id}/xdf", response_model=list[XdfAttachmentOut])
+def list_xdf(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[XdfAttachment]:
+    """The session's XDF files with their aligned streams."""
+    one_or_404(db, StudySession, session_id, "session")
+    return list(db.scalars(select(XdfAttachment).where(XdfAttachment.session_id == session_id)
+                           .order_by(XdfAttachment.id)))
+
+
+@router.get("/api/sessions/{session_id}/xdf/{attachment_id}/file", response_class=Response,
+            responses={200: {"content": {"application/octet-stream": {}},
+                             "description": "the XDF file as attached"}})
+def download_xdf(session_id: SessionId, attachment_id: AttachmentId, user: CurrentUser,
+                 db: SessionDep) -> Response:
+    """The attached file, byte for byte."""
+    att = db.get(XdfAttachment, attachment_id)
+    if att is None or att.session_id != session_id:
+        not_found("XDF attachment", attachment_id)
+    return Response(att.content, media_type="application/octet-stream", headers={
+        "Content-Disposition": f'attachment; filename="{att.id}.xdf"'})
+
+
+# BIDS ----------------------------------------------------------------------------------------
+def bids_zip(request: Request, db: SessionDep, study_id: int) -> bytes:
+    """The study's BIDS dataset as a zip whose top folder is the dataset."""
+    buf = io.BytesIO()
+    root = f"study-{study_id}-bids/"
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path, data in bids_export.dataset_files(request.app.state.engine, db, study_id):
+            zf.writestr(root + path, data)
+    return buf.getvalue()
+
+
+@router.get("/api/studies/{study_id}/export.bids.zip", response_class=Response, responses={
+    200: {"content": {"application/zip": {}},
+          "description": "a BIDS dataset (motion modality) of the study"}})
+def export_bids(study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep,
+                runtime: RuntimeDep) -> Response:
+    """The study as a BIDS-motion dataset: participants, one motion file per trial with
+    channels and events (lifts, locks, markers), questionnaires as phenotype files,
+    attached XDF files as source data. De-identified fields only."""
+    one_or_404(db, Study, study_id, "study")
+    runtime.recorder.flush()
+    data = bids_zip(request, db, study_id)
+    audit.record(db, user, "export", "study", study_id, {"format": "bids", "bytes": len(data)})
+    db.commit()
+    return Response(data, media_type="application/zip", headers={
+        "Content-Disposition": f'attachment; filename="study-{study_id}-bids.zip"'})

@@ -1,0 +1,59 @@
+// Accounts: one's own password and logins; for an admin, every account (create,
+// role, disable or enable, new password).
+import { get, patch, post } from "/static/api.js";
+import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
+
+async function loadUsers(me) {
+  const users = await get("/api/users");
+  $("#users tbody").replaceChildren(...users.map((u) => h("tr", { "data-user": u.username },
+    h("td", {}, u.username),
+    h("td", {}, u.role),
+    h("td", {}, u.active ? "active" : "disabled"),
+    h("td", {}, fmtDate(u.created_at)),
+    h("td", {}, u.id === me.id ? "(you)" : h("button", {
+      type: "button",
+      class: "toggle-active",
+      onclick: (ev) => act(ev.target, $("#users-msg"), async () => {
+        await patch(`/api/users/${u.id}`, { active: !u.active });
+        await loadUsers(me);
+        return `${u.username} ${u.active ? "disabled" : "enabled"}`;
+      }),
+    }, u.active ? "Disable" : "Enable")))));
+}
+
+async function main() {
+  const me = await get("/api/auth/me");
+  $("#who").textContent = `${me.username} (${me.role})`;
+  if (me.role === "admin") {
+    $("#admin-only").hidden = false;
+    await loadUsers(me);
+    $("#user-form").addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      act($("#user-create"), $("#user-msg"), async () => {
+        const u = await post("/api/users", formData(ev.target));
+        ev.target.reset();
+        await loadUsers(me);
+        return `created ${u.username}`;
+      });
+    });
+  } else {
+    $("#not-admin").hidden = false;
+  }
+  document.body.dataset.ready = "true";
+}
+
+$("#password-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  act($("#password-change"), $("#password-msg"), async () => {
+    await post("/api/auth/password", formData(ev.target));
+    ev.target.reset();
+    return "password changed; your other logins ended";
+  });
+});
+
+$("#revoke-all").addEventListener("click", async () => {
+  await post("/api/auth/revoke-all");
+  location.assign("/login");
+});
+
+main().catch(showFatal);

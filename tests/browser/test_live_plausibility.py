@@ -1,0 +1,50 @@
+"""The live page shows implausible samples: a device process with faulty encoders, the
+real server and worker, the page in Chromium."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from backend.core.config import Settings
+from controller.device.auth import create_key
+from tests.faults.device_rig import free_udp_port, model_device_process, wait_for
+from tests.faults.test_sample_faults import serve_glitchy
+from tests.live_server import running_server
+
+pytestmark = pytest.mark.slow
+
+
+def test_the_strip_names_implausible_samples(
+    settings: Settings, experimenter: dict[str, str], page: Any, tmp_path: Path
+) -> None:
+    key_file = tmp_path / "device.key"
+    create_key(key_file)
+    port = free_udp_port()
+    live = settings.model_copy(update={
+        "start_worker": True, "device_kind": "udp", "device_spawn_simulator": False,
+        "device_address": f"127.0.0.1:{port}", "device_key_file": key_file,
+        "run_dir": tmp_path})
+    with model_device_process(serve_glitchy, port, str(key_file), 1, "squat-sequence"), \
+            running_server(live) as url:
+        page.goto(f"{url}/live")
+        page.wait_for_url("**/login?next=/live")
+        page.fill("#username", experimenter["username"])
+        page.fill("#password", experimenter["password"])
+        page.click("#submit")
+        page.wait_for_url(f"{url}/live")
+        # About one sample in twenty is a glitch: the strip counts them and, while one
+        # is the latest tick, names why.
+        wait_for(lambda: page.evaluate("() => window.exostudyLive?.strip?.implausible ?? 0")
+                 >= 20, 90, "the strip to count 20 implausible ticks")
+        page.wait_for_selector("#strip-implausible:not([hidden])", timeout=30000)
+        text = page.inner_text("#strip-implausible")
+        health = httpx.get(f"{url}/api/health").json()
+    assert text.startswith("implausible sample: ")
+    reasons = {"angle jump", "acceleration", "out of range", "hip velocity"}
+    assert any(r in text for r in reasons), text
+    assert health["device"]["implausible_samples"] > 0
+    assert health["device"]["link_drops"]["auth"] == 0

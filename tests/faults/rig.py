@@ -1,0 +1,175 @@
+"""A rig for faults between the worker and the device: the simulated exoskeleton served
+over UDP in a thread, a real worker process, and a relay between them that can go
+silent in one direction. The device's model records the solenoid command it applies at
+every sample, so the moment the watchdog releases is read off the device itself.
+
+Used by tests/faults/test_watchdog_faults.py and bench/bench_faults.py.
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from backend.worker.messages import WorkerConfig
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller.config import ControllerConfig
+from controller.device.auth import load_or_create_key
+from controller.device.base import LockCommand, Sample
+from controller.sim.device_server import serve
+from controller.sim.exoskeleton import SimulatedExoskeleton
+from controller.spec import ControllerSpec
+
+
+class RecordingModel:
+    """The simulated exoskeleton, recording (monotonic time, left, right) of the
+    command the device applied at each sample."""
+
+    def __init__(self, inner: SimulatedExoskeleton) -> None:
+        self.inner = inner
+        self.dt = inner.dt
+        self.applied: list[tuple[float, bool, bool]] = []
+
+    @property
+    def finished(self) -> bool:
+        return bool(self.inner.finished)
+
+    def warm_up(self) -> None:
+        hook = getattr(self.inner, "warm_up", None)
+        if callable(hook):
+            hook()
+
+    def tick(self, command: LockCommand | None) -> Sample:
+        locks = (bool(command.lock_left), bool(command.lock_right)) if command else (False, False)
+        self.applied.append((time.monotonic(), *locks))
+        return self.inner.tick(command)
+
+
+class Relay:
+    """UDP between the worker (which sends to `port`) and the device; `mute_device`
+    drops the device's samples (the device goes silent for the host), `mute_host` the
+    host's commands. Forward times are kept: `last_sample_at`, `last_command_at`."""
+
+    def __init__(self, device_port: int) -> None:
+        self.front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.front.bind(("127.0.0.1", 0))
+        self.port = int(self.front.getsockname()[1])
+        self.back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.back.bind(("127.0.0.1", 0))
+        self.device = ("127.0.0.1", device_port)
+        self.host: tuple[str, int] | None = None
+        self.mute_device = threading.Event()
+        self.mute_host = threading.Event()
+        self.last_sample_at = 0.0
+        self.last_command_at = 0.0
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, name="relay", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while not self.stop.is_set():
+            ready, _, _ = select.select([self.front, self.back], [], [], 0.05)
+            for sock in ready:
+                data, addr = sock.recvfrom(65536)
+                now = time.monotonic()
+                if sock is self.front:
+                    self.host = addr
+                    if not self.mute_host.is_set():
+                        self.back.sendto(data, self.device)
+                        self.last_command_at = now
+                elif self.host is not None and not self.mute_device.is_set():
+                    self.front.sendto(data, self.host)
+                    self.last_sample_at = now
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(2.0)
+        self.front.close()
+        self.back.close()
+
+
+@dataclass
+class Rig:
+    """Device thread, relay and worker; `close()` stops all three."""
+
+    model: RecordingModel
+    relay: Relay
+    supervisor: WorkerSupervisor
+    device_stop: threading.Event
+    device_thread: threading.Thread
+    stats: list[Any] = field(default_factory=list)
+
+    def locked_since(self, n: int) -> bool:
+        """The device applied a lock on each of its last `n` samples."""
+        last = self.model.applied[-n:]
+        return len(last) == n and all(left or right for _, left, right in last)
+
+    def first_release_after(self, t: float) -> float | None:
+        """Monotonic time of the first sample after `t` applied without any lock."""
+        for at, left, right in list(self.model.applied):
+            if at > t and not (left or right):
+                return at
+        return None
+
+    def close(self) -> None:
+        self.supervisor.stop("rig closed")
+        self.device_stop.set()
+        self.device_thread.join(5.0)
+        self.relay.close()
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def start_rig(folder: Path, script: str = "squat-sequence", seed: int = 1,
+              controller: str = "pec") -> Rig:
+    """A worker running `controller` on the simulated wearer, through the relay."""
+    key_file = folder / "device.key"
+    key = load_or_create_key(key_file)
+    model = RecordingModel(SimulatedExoskeleton(seed=seed, script=script, loop=True))
+    device_port = _free_udp_port()
+    stop = threading.Event()
+    stats: list[Any] = []
+
+    def run_device() -> None:
+        stats.append(serve(device_port, seed, script, "127.0.0.1", stop_event=stop,
+                           model=model, key=key))
+
+    device = threading.Thread(target=run_device, name="device", daemon=True)
+    device.start()
+    relay = Relay(device_port)
+    spec = ControllerSpec(controller, ControllerConfig())
+    sup = WorkerSupervisor(WorkerConfig(device_kind="udp", device_port=relay.port,
+                                        device_key_file=str(key_file), controller=controller,
+                                        controller_config=spec.to_config()),
+                           WorkerCallbacks())
+    sup.start()
+    return Rig(model, relay, sup, stop, device, stats)
+
+
+def wait_for_lock(rig: Rig, timeout: float = 60.0) -> None:
+    """Until the device has held a lock for 5 samples (mid-lift: PEC on a squat)."""
+    deadline = time.monotonic() + timeout
+    while not rig.locked_since(5):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no lock within {timeout} s; worker errors: "
+                                 f"{rig.supervisor.state.errors}")
+        time.sleep(0.005)
+
+
+def wait_release(rig: Rig, after: float, timeout: float = 5.0) -> float:
+    """The first released sample after `after` (monotonic), waiting for it."""
+    deadline = time.monotonic() + timeout
+    while (released := rig.first_release_after(after)) is None:
+        if time.monotonic() > deadline:
+            raise AssertionError("the device never released")
+        time.sleep(0.005)
+    return released

@@ -1,0 +1,151 @@
+"""Implausible samples on the real processes (a device process over UDP, the worker):
+encoder glitches, 228 rad/s hip velocities, and a device sending ten times too fast.
+Before the plausibility checks, 5 % glitches in a squat stream nearly doubled the PEC's
+locks, and a one-sample spike on both hips read as a 228 rad/s hip and locked."""
+
+from __future__ import annotations
+
+import random
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from controller.device.auth import create_key, load_key
+from controller.device.base import ENCODER_COUNTS, LockCommand, Sample
+from controller.encoders import RAD_PER_COUNT
+from controller.plausibility import HIP_VELOCITY_MAX
+from controller.tick import Plausibility, TickFlag, TickRecord
+from tests.faults.device_rig import (
+    Worker,
+    device_process,
+    free_udp_port,
+    lock_onsets,
+    model_device_process,
+    wait_for,
+)
+
+pytestmark = pytest.mark.slow
+
+GLITCH_RATE = 0.05
+SPIKE_EVERY = 97  # samples between two 228 rad/s spikes
+SPIKE_RAD = 2.28  # in one 10 ms sample: 228 rad/s
+
+
+class GlitchyEncoders:
+    """The simulated exoskeleton with faulty encoders: on 5 % of samples one encoder
+    (at random) reads a random count, and every 97th sample both hips read 2.28 rad
+    further on (both links of a side, so the spring deflection stays plausible)."""
+
+    def __init__(self, seed: int, script: str) -> None:
+        from controller.sim.exoskeleton import SimulatedExoskeleton
+
+        self.inner = SimulatedExoskeleton(seed=seed, script=script, loop=True)
+        self.dt = self.inner.dt
+        self.rng = random.Random(seed)
+        self.k = 0
+
+    @property
+    def finished(self) -> bool:
+        return self.inner.finished
+
+    def warm_up(self) -> None:
+        hook = getattr(self.inner, "warm_up", None)
+        if callable(hook):
+            hook()
+
+    def tick(self, command: LockCommand | None) -> Sample:
+        s = self.inner.tick(command)
+        self.k += 1
+        c = list(s.counts)
+        if self.k % SPIKE_EVERY == 0:
+            step = round(SPIKE_RAD / RAD_PER_COUNT)
+            c = [(c[0] + step) % ENCODER_COUNTS, (c[1] + step) % ENCODER_COUNTS,
+                 (c[2] - step) % ENCODER_COUNTS, (c[3] - step) % ENCODER_COUNTS]  # mirrored
+        elif self.rng.random() < GLITCH_RATE:
+            c[self.rng.randrange(4)] = self.rng.randrange(ENCODER_COUNTS)
+        return replace(s, counts=(c[0], c[1], c[2], c[3]))
+
+
+def serve_glitchy(port: int, key_file: str, seed: int, script: str) -> None:
+    """Device process target: the protocol's reference device with faulty encoders."""
+    from controller.sim.device_server import serve
+
+    serve(port, seed, script, model=GlitchyEncoders(seed, script),
+          key=load_key(Path(key_file)))
+
+
+@pytest.fixture
+def key_file(tmp_path: Path) -> Iterator[Path]:
+    path = tmp_path / "device.key"
+    create_key(path)
+    yield path
+
+
+def _locks_per_lift(records: list[TickRecord]) -> tuple[Counter[int], int]:
+    """Lock onsets per lift of the wearer (ground truth), and onsets outside lifts."""
+    per_lift: Counter[int] = Counter()
+    outside = 0
+    for i in lock_onsets(records):
+        if records[i].truth_lift >= 0:
+            per_lift[records[i].truth_lift] += 1
+        else:
+            outside += 1
+    return per_lift, outside
+
+
+def test_glitches_and_228_rad_per_s_spikes_add_no_lock(key_file: Path) -> None:
+    port = free_udp_port()
+    with model_device_process(serve_glitchy, port, str(key_file), 1, "squat-sequence"), \
+            Worker(port, key_file, "pec") as worker:
+        wait_for(lambda: len({r.truth_lift for r in worker.ticks() if r.truth_lift >= 0}) >= 3,
+                 120, "three squats")
+        records = worker.ticks()
+        status = worker.sup.state.status
+
+    assert len(records) > 800
+    flagged = [r for r in records if r.flags & (TickFlag.IMPLAUSIBLE | TickFlag.BAD_SAMPLE)]
+    # About 5 % glitches plus one spike in 97, each flagged (a glitch small enough to
+    # look like motion is not; one landing on a sample already off course counts once).
+    share = len(flagged) / len(records)
+    assert 0.03 < share < 0.09, share
+    spikes = [r for r in records if r.plausibility & (Plausibility.JUMP | Plausibility.RANGE)]
+    assert len(spikes) >= len(records) // SPIKE_EVERY - 1
+    # No hip velocity the filter reports is beyond a hip's: the spikes never reached it.
+    assert max(max(abs(r.omega_left), abs(r.omega_right)) for r in records
+               if r.omega_left == r.omega_left) < HIP_VELOCITY_MAX
+    # One lock per squat, as without glitches, and none while standing.
+    per_lift, outside = _locks_per_lift(records)
+    assert outside == 0
+    assert len(per_lift) >= 2 and set(per_lift.values()) == {1}, per_lift
+    assert status is not None and status.implausible > 0
+    print(f"glitches + spikes: {len(records)} ticks, {len(flagged)} flagged "
+          f"({100 * share:.1f} %), {len(spikes)} of them angle jumps or out of range, "
+          f"lock onsets per squat "
+          f"{dict(per_lift)}, {outside} while standing")
+
+
+def test_a_device_sending_ten_times_too_fast_gets_no_extra_lock(key_file: Path) -> None:
+    port = free_udp_port()
+    with device_process(port, key_file, "squat-sequence", extra=("--rate-factor", "10")), \
+            Worker(port, key_file, "pec") as worker:
+        wait_for(lambda: len({r.truth_lift for r in worker.ticks() if r.truth_lift >= 0}) >= 2,
+                 120, "two squats at ten times the sample rate")
+        records = worker.ticks()
+
+    assert len(records) > 3000  # the worker kept up with 1 kHz
+    early = sum(bool(r.plausibility & Plausibility.TOO_EARLY) for r in records)
+    # Samples 1 ms apart: four of five come less than 5 ms after the last one used.
+    assert 0.75 < early / len(records) < 0.85
+    per_lift, outside = _locks_per_lift(records)
+    assert outside == 0
+    assert set(per_lift.values()) <= {1}
+    # Velocities stay those of a squat, whatever the rate.
+    top = max(max(abs(r.omega_left), abs(r.omega_right)) for r in records
+              if r.omega_left == r.omega_left)
+    assert top < 5.0
+    print(f"10x rate: {len(records)} ticks, {100 * early / len(records):.1f} % too early, "
+          f"lock onsets per squat {dict(per_lift)}, {outside} while standing, "
+          f"top velocity {top:.2f} rad/s")

@@ -1,0 +1,234 @@
+"""One state machine for the worker and the study: stale state may never lock.
+
+Each test does what a user could do with the API on a real worker process (simulated
+wearer in the worker) and checks the outcome in the database: no controller survives
+its trial, one trial at a time, no silent controller change, trials closed with their
+real tick counts.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from backend.core.config import Settings
+from backend.db.engine import make_engine
+from backend.db.evidence import Recording, Trial
+from backend.db.models import Run
+from backend.main import create_app
+from tests.faults.served import make_trials, stored_ticks, wait_for
+from tests.live_server import running_server
+from tests.login import USERNAME, bearer
+
+pytestmark = pytest.mark.slow
+
+
+def _trial(db_url: str, trial_id: int) -> Trial:
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        trial = db.get(Trial, trial_id)
+        assert trial is not None
+        db.expunge(trial)
+    engine.dispose()
+    return trial
+
+
+def _run(db_url: str, run_id: int) -> Run:
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        run = db.get(Run, run_id)
+        assert run is not None
+        db.expunge(run)
+    engine.dispose()
+    return run
+
+
+@pytest.fixture
+def live(settings: Settings, experimenter: dict[str, str]) -> Iterator[TestClient]:
+    """A server with its worker (in-process simulated squats), logged in by token."""
+    settings = settings.model_copy(update={"start_worker": True,
+                                           "device_script": "squat-sequence"})
+    with TestClient(create_app(settings)) as client:
+        client.headers.update(bearer(client, experimenter))
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 20, 90,
+                 "the worker's first ticks")
+        yield client
+
+
+def _start_pec_until_it_locks(client: TestClient, db_url: str, trial_id: int) -> int:
+    r = client.post(f"/api/trials/{trial_id}/start", json={})
+    assert r.status_code == 200, r.text
+    run_id = int(r.json()["run_id"])
+    # The PEC locks on the first squat (a few seconds into the script).
+    wait_for(lambda: any(stored_ticks(db_url, run_id, "lock_left")), 60,
+             "a lock command in the trial")
+    return run_id
+
+
+def _locks_in_new_run(client: TestClient, db_url: str, old_run: int, ticks: int) -> int:
+    """Lock commands in the first `ticks` ticks of the run after `old_run`."""
+    def new_run() -> int | None:
+        run_id = client.get("/api/health").json()["database"]["current_run_id"]
+        return run_id if run_id not in (None, old_run) else None
+
+    run_id = wait_for(new_run, 60, "the restarted worker's run")
+    assert _run(db_url, run_id).controller == "none"
+    wait_for(lambda: len(stored_ticks(db_url, run_id)) >= ticks, 60, f"{ticks} new ticks")
+    locks = stored_ticks(db_url, run_id, "lock_left") + stored_ticks(db_url, run_id,
+                                                                      "lock_right")
+    return sum(bool(x) for x in locks)
+
+
+@pytest.mark.parametrize("how", ["stop", "sigkill"])
+def test_a_restarted_worker_never_resumes_a_dead_trials_controller(
+        live: TestClient, db_url: str, how: str) -> None:
+    trial_id, = make_trials(db_url, USERNAME, ("pec",))
+    run_id = _start_pec_until_it_locks(live, db_url, trial_id)
+    if how == "stop":
+        assert live.post("/api/worker/stop").status_code == 200
+    else:
+        os.kill(live.get("/api/health").json()["worker"]["pid"], signal.SIGKILL)
+
+    # Closed as interrupted when noticed, with the real tick count and the reason.
+    trial = wait_for(lambda: (t := _trial(db_url, trial_id)).status == "interrupted" and t,
+                     10, "the trial to be interrupted")
+    stored = len(stored_ticks(db_url, run_id))
+    assert trial.tick_count == stored > 0
+    expected = "stopped by the experimenter" if how == "stop" else "SIGKILL"
+    assert expected in trial.end_reason
+    run = _run(db_url, run_id)
+    assert run.ended_at is not None and run.tick_count == stored
+    # The experimenter's abort comes too late: nothing is running any more.
+    r = live.post(f"/api/trials/{trial_id}/stop", json={"outcome": "aborted"})
+    assert r.status_code == 409 and "interrupted" in r.text
+
+    assert live.post("/api/worker/restart").status_code == 200
+    assert live.get("/api/health").json()["worker"]["controller"] == "none"
+    # 3 s of squats with nothing that locks: not one lock command.
+    assert _locks_in_new_run(live, db_url, run_id, 300) == 0
+
+
+def test_no_controller_change_while_a_trial_runs_and_counts_close_it(
+        live: TestClient, db_url: str) -> None:
+    trial_id, = make_trials(db_url, USERNAME, ("pec",))
+    run_id = _start_pec_until_it_locks(live, db_url, trial_id)
+    r = live.post("/api/worker/controller", json={"name": "none"})
+    assert r.status_code == 409 and f"trial {trial_id}" in r.text
+    r = live.post("/api/worker/simulation", json={"seed": 2, "script": "walking"})
+    assert r.status_code == 409
+    assert live.get("/api/health").json()["database"]["current_run_id"] == run_id
+
+    r = live.post(f"/api/trials/{trial_id}/stop", json={"outcome": "completed"})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    stored = len(stored_ticks(db_url, run_id))
+    assert body["status"] == "completed" and body["tick_count"] == stored > 0
+    assert body["quality_flags"] == {}  # an unbroken device clock
+    run = _run(db_url, run_id)
+    assert run.controller == "pec" and run.tick_count == stored
+    # Once the trial is over the controller may change again.
+    assert live.post("/api/worker/controller", json={"name": "none"}).status_code == 200
+
+
+def test_parallel_trial_starts_one_wins(settings: Settings, experimenter: dict[str, str],
+                                        db_url: str, busy_cores: int) -> None:
+    settings = settings.model_copy(update={"start_worker": True,
+                                           "device_script": "walking"})
+    ids = make_trials(db_url, USERNAME, ("pec", "pec", "pec", "pec"))
+    with running_server(settings) as base, httpx.Client(base_url=base, timeout=60) as c:
+        token = c.post("/api/auth/token", json=experimenter).json()["access_token"]
+        c.headers["Authorization"] = f"Bearer {token}"
+        wait_for(lambda: c.get("/api/health").json()["worker"]["ticks"] > 20, 90, "ticks")
+        codes: dict[int, int] = {}
+        barrier = threading.Barrier(len(ids))
+
+        def start(tid: int) -> None:
+            with httpx.Client(base_url=base, timeout=60, headers=c.headers) as own:
+                barrier.wait()
+                codes[tid] = own.post(f"/api/trials/{tid}/start", json={}).status_code
+
+        threads = [threading.Thread(target=start, args=(tid,)) for tid in ids]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(120)
+        assert sorted(codes.values()) == [200, 409, 409, 409], codes
+        winner = next(tid for tid, code in codes.items() if code == 200)
+        statuses = {tid: _trial(db_url, tid).status for tid in ids}
+        assert statuses == {tid: "running" if tid == winner else "planned" for tid in ids}
+        # A recording cannot start beside it either.
+        sess = _session_of(db_url, winner)
+        r = c.post(f"/api/sessions/{sess}/recordings", json={"label": "x"})
+        assert r.status_code == 409
+
+
+def _session_of(db_url: str, trial_id: int) -> int:
+    return _trial(db_url, trial_id).session_id
+
+
+def test_the_database_refuses_a_second_running_trial_or_recording(db_url: str,
+                                                                 experimenter: Any) -> None:
+    a, b = make_trials(db_url, USERNAME, ("pec", "umc"))
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        db.execute(update(Trial).where(Trial.id == a).values(status="running"))
+        db.commit()
+        with pytest.raises(IntegrityError):
+            db.execute(update(Trial).where(Trial.id == b).values(status="running"))
+            db.commit()
+        db.rollback()
+        sess = db.scalar(select(Trial.session_id).where(Trial.id == a))
+        db.add(Recording(session_id=sess, status="recording"))
+        db.commit()
+        db.add(Recording(session_id=sess, status="recording"))
+        with pytest.raises(IntegrityError):
+            db.commit()
+        db.rollback()
+        # Ended ones are not limited.
+        db.add_all([Recording(session_id=sess, status="stopped") for _ in range(2)])
+        db.commit()
+    engine.dispose()
+
+
+def test_server_start_closes_what_a_dead_server_left(settings: Settings, db_url: str,
+                                                    experimenter: Any, tmp_path: Path) -> None:
+    """The state a SIGKILLed server leaves (trial running, run open, ticks stored) is
+    closed at the next start; the end-to-end kill is in test_process_faults."""
+    from datetime import UTC, datetime
+
+    from backend.db import migrate
+    from backend.recorder import TickRecorder
+    from backend.worker.messages import RunStarted, TickBatch
+    from controller.tick import TickRecord
+
+    trial_id, = make_trials(db_url, USERNAME, ("pec",))
+    migrate.upgrade(db_url)
+    engine = make_engine(db_url)
+    rec = TickRecorder(engine)
+    run_id = rec.run_started(RunStarted(1, "pec", {}, "sim", 1), "sim")
+    rec.add(TickBatch(1, tuple(TickRecord(seq=i, t=i * 0.01) for i in range(137))))
+    assert rec.flush() == 137
+    with Session(engine) as db:
+        db.execute(update(Trial).where(Trial.id == trial_id).values(
+            status="running", run_id=run_id, started_at=datetime.now(UTC)))
+        db.commit()
+    engine.dispose()
+
+    with TestClient(create_app(settings)):
+        pass
+    trial = _trial(db_url, trial_id)
+    assert (trial.status, trial.tick_count) == ("interrupted", 137)
+    assert "server stopped" in trial.end_reason
+    run = _run(db_url, run_id)
+    assert run.tick_count == 137 and run.ended_at is not None
