@@ -90,16 +90,19 @@ def _shift(v: Any, days: int) -> Any:
     return v
 
 
-def study_zip(engine: Engine, study_id: int, deidentified: bool = False) -> bytes:
+def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
+              site: str | None = None) -> bytes:
     """The export archive of one study (withdrawn-and-excluded participants are left
     out). `deidentified`: without direct identifiers and free text, participants
-    re-coded, dates shifted per participant (see `DEID_NOTE`)."""
+    re-coded, dates shifted per participant (see `DEID_NOTE`). `site`: only that site's
+    participants, for a member limited to it."""
     rng = secrets.SystemRandom()
     buf = io.BytesIO()
     with engine.connect() as conn, zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         pt = _table("participants")
         participants = [r[0] for r in conn.execute(
-            select(pt.c.id).where(pt.c.study_id == study_id, pt.c.withdrawn_at.is_(None))
+            select(pt.c.id).where(pt.c.study_id == study_id, pt.c.withdrawn_at.is_(None),
+                                  *([pt.c.site == site] if site is not None else []))
             .order_by(pt.c.id))]
         sessions = _ids(conn, "study_sessions", "participant_id", participants)
         recordings = _ids(conn, "recordings", "session_id", sessions)

@@ -314,13 +314,22 @@ def _questionnaires(db: Session, participants: Sequence[Participant]
     return scores, prefs
 
 
-def study_results(engine: Engine, db: Session, study_id: int) -> StudyResults:
+def _counted(study_id: int, site: str | None) -> Any:
+    """The participants whose data results may use: not withdrawn (an "exclude" protocol
+    keeps their rows but out of every result), and of `site` for a site-limited member."""
+    cond = (Participant.study_id == study_id) & Participant.withdrawn_at.is_(None)
+    return cond if site is None else cond & (Participant.site == site)
+
+
+def study_results(engine: Engine, db: Session, study_id: int,
+                  site: str | None = None) -> StudyResults:
     """Evaluate every completed trial of the study, in participant and planned order.
 
     Aborted, planned and running trials are listed in `skipped` with the reason.
+    Withdrawn participants are left out, and with `site` everyone of another site.
     """
     out = StudyResults(study_id)
-    participants = list(db.scalars(select(Participant).where(Participant.study_id == study_id)
+    participants = list(db.scalars(select(Participant).where(_counted(study_id, site))
                                    .order_by(Participant.id)))
     for p in participants:
         trials = db.scalars(select(Trial).join(StudySession, Trial.session_id == StudySession.id)
@@ -336,7 +345,7 @@ def study_results(engine: Engine, db: Session, study_id: int) -> StudyResults:
     return out
 
 
-def fingerprint(db: Session, study_id: int) -> tuple[Any, ...]:
+def fingerprint(db: Session, study_id: int, site: str | None = None) -> tuple[Any, ...]:
     """What the study's results depend on, cheaply: its trials' states and runs and its
     questionnaire answers. Equal fingerprints give equal results, so a caller may reuse
     an evaluation (reading every tick of a study takes seconds)."""
@@ -344,8 +353,8 @@ def fingerprint(db: Session, study_id: int) -> tuple[Any, ...]:
         select(Trial.id, Trial.status, Trial.run_id, Trial.ended_at)
         .join(StudySession, Trial.session_id == StudySession.id)
         .join(Participant, StudySession.participant_id == Participant.id)
-        .where(Participant.study_id == study_id).order_by(Trial.id)).all())
-    people = select(Participant.id).where(Participant.study_id == study_id)
+        .where(_counted(study_id, site)).order_by(Trial.id)).all())
+    people = select(Participant.id).where(_counted(study_id, site))
     answers = tuple(db.scalars(select(QuestionnaireResponse.id).where(
         QuestionnaireResponse.participant_id.in_(people)).order_by(
         QuestionnaireResponse.id)))
@@ -359,7 +368,7 @@ def fingerprint(db: Session, study_id: int) -> tuple[Any, ...]:
     labels = tuple(db.execute(select(ConditionLabel.participant_id, ConditionLabel.label,
                                      ConditionLabel.controller).where(
         ConditionLabel.participant_id.in_(people)).order_by(ConditionLabel.id)).all())
-    return (study_id, trials, answers, prefs, labels, segs)
+    return (study_id, site, trials, answers, prefs, labels, segs)
 
 
 def _table_json(table: Table) -> dict[str, Any]:

@@ -127,8 +127,12 @@ def _json(doc: dict[str, Any]) -> str:
     return json.dumps(doc, indent=2) + "\n"
 
 
-def dataset_files(engine: Engine, db: Session, study_id: int) -> Iterator[tuple[str, bytes]]:
-    """Every file of the study's BIDS dataset as (relative path, content)."""
+def dataset_files(engine: Engine, db: Session, study_id: int,
+                  site: str | None = None) -> Iterator[tuple[str, bytes]]:
+    """Every file of the study's BIDS dataset as (relative path, content).
+
+    Withdrawn participants are left out, and with `site` everyone of another site (a
+    member limited to one site exports only that site)."""
     study = db.get(Study, study_id)
     if study is None:
         raise ValueError(f"study {study_id} does not exist")
@@ -142,8 +146,10 @@ def dataset_files(engine: Engine, db: Session, study_id: int) -> Iterator[tuple[
                      "its torque model, lock commands and states, and the intent "
                      "estimator's posteriors at 100 Hz), with events (lifts, lock edges, "
                      "markers) and questionnaires as phenotype files.\n").encode()
-    participants = list(db.scalars(select(Participant).where(Participant.study_id == study_id)
-                                   .order_by(Participant.id)))
+    chosen = (Participant.study_id == study_id) & Participant.withdrawn_at.is_(None)
+    if site is not None:
+        chosen = chosen & (Participant.site == site)
+    participants = list(db.scalars(select(Participant).where(chosen).order_by(Participant.id)))
     subs = {p.id: label(p.code) for p in participants}
     if len(set(subs.values())) != len(subs):
         subs = {p.id: f"{label(p.code)}{p.id}" for p in participants}

@@ -5,7 +5,10 @@ checked against the same schema."""
 
 from __future__ import annotations
 
+import csv
+import io
 import re
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -209,3 +212,45 @@ def test_only_owners_see_which_controller_a_label_stands_for(
     assert seen["owner"] == seen["admin"] and seen["owner"][0]["controller"] == "umc"
     for role in ("viewer", "experimenter"):
         assert [(c["label"], c["controller"]) for c in seen[role]] == [("A", None)]
+
+
+def test_results_leave_out_other_sites_and_withdrawn_participants(
+        client: TestClient, db_url: str) -> None:
+    """The study's results use only what the caller may see, and never a participant
+    who withdrew under an "exclude" protocol."""
+    create_experimenter(db_url, "leuven", PASSWORD)
+    assert client.post("/api/studies", json={
+        "name": "two sites", "withdrawal_policy": "exclude"}).status_code == 201
+    for code, site in (("L01", "Leuven"), ("G01", "Ghent"), ("L02", "Leuven")):
+        r = client.post("/api/studies/1/participants", json={"code": code, "site": site})
+        assert r.status_code == 201, r.text
+        s = client.post(f"/api/participants/{r.json()['id']}/sessions",
+                        json={"kind": "evaluation", "precompression_pct": 25})
+        assert s.status_code == 201, s.text
+    engine = make_engine(db_url)
+    with make_session_factory(engine)() as db:
+        for session_id in (1, 2, 3):  # one planned trial each, trial id = session id
+            db.add(Trial(session_id=session_id, controller="pec", task="squat",
+                         planned_order=1, status="planned"))
+        db.commit()
+    engine.dispose()
+
+    def skipped(c: TestClient, headers: dict[str, str] | None = None) -> list[int]:
+        r = c.get("/api/studies/1/results", headers=headers)
+        assert r.status_code == 200, r.text
+        return sorted(s["trial_id"] for s in r.json()["skipped"])
+
+    assert skipped(client) == [1, 2, 3]
+    assert client.put("/api/studies/1/members", json={
+        "username": "leuven", "role": "experimenter", "site": "Leuven"}).status_code == 200
+    h = bearer(TestClient(client.app), {"username": "leuven", "password": PASSWORD})
+    assert skipped(TestClient(client.app), h) == [1, 3]
+    assert client.post("/api/participants/3/withdraw").json()["outcome"] == "excluded"
+    assert skipped(client) == [1, 2]
+    assert skipped(TestClient(client.app), h) == [1]
+    # The de-identified export follows the same rule (re-coded: count the rows).
+    z = zipfile.ZipFile(io.BytesIO(TestClient(client.app).get(
+        "/api/studies/1/export-deidentified.zip", headers=h).content))
+    assert len(list(csv.DictReader(io.StringIO(z.read("participants.csv").decode())))) == 1
+    z = zipfile.ZipFile(io.BytesIO(client.get("/api/studies/1/export-deidentified.zip").content))
+    assert len(list(csv.DictReader(io.StringIO(z.read("participants.csv").decode())))) == 2

@@ -40,8 +40,20 @@ def test_the_strip_names_implausible_samples(
         # is the latest tick, names why.
         wait_for(lambda: page.evaluate("() => window.exostudyLive?.strip?.implausible ?? 0")
                  >= 20, 90, "the strip to count 20 implausible ticks")
-        page.wait_for_selector("#strip-implausible:not([hidden])", timeout=30000)
-        text = page.inner_text("#strip-implausible")
+        # The reason is shown only while an implausible tick is the latest one, so read
+        # the text in the same evaluation that finds it shown.
+        shown: list[str] = []
+
+        def reason_shown() -> bool:
+            t = page.evaluate("""() => {
+                const e = document.querySelector('#strip-implausible');
+                return e && !e.hidden ? e.textContent : ''; }""")
+            if t:
+                shown.append(t)
+            return bool(t)
+
+        wait_for(reason_shown, 60, "the strip to name an implausible sample")
+        text = shown[-1]
         health = httpx.get(f"{url}/api/health").json()
     assert text.startswith("implausible sample: ")
     reasons = {"angle jump", "acceleration", "out of range", "hip velocity"}

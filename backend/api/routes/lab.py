@@ -16,7 +16,7 @@ from fastapi.responses import Response
 from sqlalchemy import select
 
 from backend import audit
-from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
+from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -248,14 +248,17 @@ def bids_zip(request: Request, db: SessionDep, study_id: int) -> bytes:
     buf = io.BytesIO()
     root = f"study-{study_id}-bids/"
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path, data in bids_export.dataset_files(request.app.state.engine, db, study_id):
+        site = getattr(getattr(request.state, "grant", None), "site", None)
+        for path, data in bids_export.dataset_files(request.app.state.engine, db, study_id,
+                                                    site):
             zf.writestr(root + path, data)
     return buf.getvalue()
 
 
 @router.get("/api/studies/{study_id}/export.bids.zip", response_class=Response, responses={
     200: {"content": {"application/zip": {}},
-          "description": "a BIDS dataset (motion modality) of the study"}})
+          "description": "a BIDS dataset (motion modality) of the study"}},
+    openapi_extra=access("experimenter"))
 def export_bids(study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep,
                 runtime: RuntimeDep) -> Response:
     """The study as a BIDS-motion dataset: participants, one motion file per trial with

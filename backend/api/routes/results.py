@@ -65,10 +65,13 @@ def _study_results(request: Request, db: SessionDep, study_id: int) -> results.S
     cache: dict[tuple[Any, ...], results.StudyResults] = getattr(
         request.app.state, "results_cache", None) or {}
     request.app.state.results_cache = cache
-    key = results.fingerprint(db, study_id)
+    # A member limited to one site sees only that site's participants in the results.
+    grant = getattr(request.state, "grant", None)
+    site: str | None = getattr(grant, "site", None)
+    key = results.fingerprint(db, study_id, site)
     hit = cache.get(key)
     if hit is None:
-        hit = results.study_results(request.app.state.engine, db, study_id)
+        hit = results.study_results(request.app.state.engine, db, study_id, site)
         if len(cache) >= 4:
             cache.pop(next(iter(cache)))
         cache[key] = hit

@@ -188,7 +188,8 @@ def export_deidentified(study_id: StudyId, request: Request, user: CurrentUser,
     from backend.export import study_zip
 
     request.app.state.runtime.recorder.flush()
-    data = study_zip(request.app.state.engine, study_id, deidentified=True)
+    site = getattr(getattr(request.state, "grant", None), "site", None)
+    data = study_zip(request.app.state.engine, study_id, deidentified=True, site=site)
     audit.record(db, user, "export_deidentified", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

@@ -272,7 +272,8 @@ def export_study(study_id: StudyId, request: Request, user: CurrentUser, db: Ses
     one_or_404(db, Study, study_id, "study")
     runtime: Any = request.app.state.runtime
     runtime.recorder.flush()
-    data = study_zip(request.app.state.engine, study_id)
+    site = getattr(getattr(request.state, "grant", None), "site", None)
+    data = study_zip(request.app.state.engine, study_id, site=site)
     audit.record(db, user, "export", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={
