@@ -1,7 +1,7 @@
 """MACCEPA 2.0 actuator with a circular profile disk: torque from spring deflection.
 
-Equations and parameters from `shared/spec/hardware.md` (the paper's "Hardware"
-section written out). Lengths in millimetres inside, torque returned in Nm.
+Equations and parameters of the paper's "Hardware" section, written out. Lengths in
+millimetres inside, torque returned in Nm.
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
 """The paper's evaluation metrics (section "Evaluation"), per lift and per trial.
 
-Rules, as `shared/spec/controller.md` fixes them, and the choices this module makes
-where the paper leaves room:
+The paper's rules, and the choices this module makes where the paper leaves room:
 
 - **First half** of a lift: ticks `start .. start + (end - start) // 2` (see
   `Lift.first_half_end`): half in time, because the paper's manual segments record
