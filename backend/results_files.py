@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 from backend import results
 from backend.db.evidence import Trial
 from backend.db.models import Study
+from controller.evaluation.output_folder import OutputFolder
 
 
 def write_study_results(engine: Engine, db: Session, study_id: int, folder: Path,
@@ -27,16 +28,8 @@ def write_study_results(engine: Engine, db: Session, study_id: int, folder: Path
         raise results.ResultsError("study", f"no study {study_id} in this database "
                                    f"(studies: {known or 'none'})")
     res = results.study_results(engine, db, study_id)
-    folder.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-
-    def put(name: str, data: str | bytes) -> None:
-        path = folder / name
-        if isinstance(data, str):
-            path.write_text(data)
-        else:
-            path.write_bytes(data)
-        written.append(path)
+    files = OutputFolder(folder)
+    put = files.put
 
     put("results.json", json.dumps(results.results_document(res), indent=1))
     for table in results.TABLE_NAMES:
@@ -57,4 +50,4 @@ def write_study_results(engine: Engine, db: Session, study_id: int, folder: Path
                 continue  # e.g. no ticks to draw; the tables still count the trial
             put(f"timeline-trial-{trial.id}.png", fig.png)
             put(f"timeline-trial-{trial.id}.svg", fig.svg)
-    return written
+    return files.written

@@ -26,6 +26,7 @@ from controller.evaluation.cohort_stats import (
     compare,
     summarise,
 )
+from controller.evaluation.output_folder import OutputFolder
 from controller.evaluation.rendering import (
     controller_colour,
     new_figure,
@@ -245,16 +246,8 @@ def readme(cohort: Cohort, analysis: CohortAnalysis) -> str:
 
 def write_outputs(cohort: Cohort, analysis: CohortAnalysis, out: Path) -> list[Path]:
     """Write every output into `out`; returns the paths written."""
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-
-    def put(name: str, data: str | bytes) -> None:
-        path = out / name
-        if isinstance(data, str):
-            path.write_text(data)
-        else:
-            path.write_bytes(data)
-        written.append(path)
+    files = OutputFolder(out)
+    put = files.put
 
     put("participants.csv", participants_table(cohort).to_csv())
     for stem, table in (("metrics", summary_table(analysis)),
@@ -267,7 +260,7 @@ def write_outputs(cohort: Cohort, analysis: CohortAnalysis, out: Path) -> list[P
         put(f"{stem}.svg", svg)
     put("cohort.json", json.dumps(analysis_json(cohort, analysis), indent=1))
     put("README.md", readme(cohort, analysis))
-    return written
+    return files.written
 
 
 def from_json(doc: dict[str, Any]) -> tuple[Cohort, CohortAnalysis]:
