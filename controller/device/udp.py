@@ -56,6 +56,7 @@ class LinkStats:
     unexpected: int = 0  # valid packets of a type a device never sends
     outages: int = 0
     commands_sent: int = 0
+    commands_unaddressed: int = 0  # not sent: no device session known yet
     hellos_sent: int = 0
     send_errors: int = 0
 
@@ -163,8 +164,15 @@ class UdpDevice(Device):
                 return None
 
     def send(self, command: LockCommand) -> None:
-        """Send a COMMAND carrying the echo of the last sample; drops rather than blocks."""
+        """Send a COMMAND carrying the echo of the last sample; drops rather than blocks.
+
+        Before the first authentic sample the device's session is unknown, and a COMMAND
+        it cannot be addressed to would only be dropped by the device as stale; the
+        device starts unlocked, so nothing is sent and the skip is counted."""
         self._require_open()
+        if self.device_sessions.current is None:
+            self.stats.commands_unaddressed += 1
+            return
         packet = CommandPacket(
             host_seq=self._next_host_seq(),
             lock_left=command.lock_left,

@@ -204,10 +204,12 @@ def test_foreign_senders_are_ignored(link: tuple[UdpDevice, FakeDevice]) -> None
 
 def test_commands_echo_the_last_sample(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
+    fake.send_sample(40)
+    _seqs(dev, 1)
     dev.send(LockCommand(seq=0, lock_left=True, lock_right=False))
     first = fake.receive()
     assert isinstance(first, CommandPacket)
-    assert first.echo_seq is None  # no sample yet
+    assert first.echo_seq == 40
     fake.send_sample(41)
     fake.send_sample(42)
     _seqs(dev, 2)
@@ -219,8 +221,25 @@ def test_commands_echo_the_last_sample(link: tuple[UdpDevice, FakeDevice]) -> No
     assert dev.stats.commands_sent == 2
 
 
+def test_no_command_before_the_device_session_is_known(
+    link: tuple[UdpDevice, FakeDevice],
+) -> None:
+    """A COMMAND before the first sample could only name session 0, which the device
+    drops as stale (two such drops, from the worker's first release, once failed a
+    fault test); the device starts unlocked, so nothing is sent and the skip counted."""
+    dev, fake = link
+    dev.release()
+    dev.send(LockCommand(seq=0, lock_left=True, lock_right=True))
+    assert (dev.stats.commands_sent, dev.stats.commands_unaddressed) == (0, 3)
+    fake.sock.settimeout(0.1)
+    with pytest.raises(TimeoutError):
+        fake.receive()
+
+
 def test_send_does_not_block(link: tuple[UdpDevice, FakeDevice]) -> None:
-    dev, _ = link
+    dev, fake = link
+    fake.send_sample(1)
+    _seqs(dev, 1)
     t0 = time.perf_counter()
     for _ in range(2000):  # far more than the fake reads; the kernel drops, we do not wait
         dev.send(NO_LOCK)
@@ -229,6 +248,8 @@ def test_send_does_not_block(link: tuple[UdpDevice, FakeDevice]) -> None:
 
 def test_release_sends_unlock_and_never_raises(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
+    fake.send_sample(1)
+    _seqs(dev, 1)
     dev.release()
     packet = fake.receive()
     assert isinstance(packet, CommandPacket)
