@@ -11,7 +11,7 @@ NODE_STAMP := frontend/node_modules/.package-lock.json
 # The official BIDS validator (npm), used by the tests of the BIDS-motion export.
 BIDS_STAMP := tools/bids/node_modules/.package-lock.json
 
-.PHONY: run test install lint bench clean-db system-npm system-chromium system-postgresql
+.PHONY: run test test-js install lint bench clean-db system-npm system-chromium system-postgresql
 
 run: install
 	$(BIN)/exostudy db upgrade
@@ -56,6 +56,12 @@ system-chromium:
 lint: install
 	$(BIN)/ruff check controller backend tests bench migrations
 	$(BIN)/mypy
+	frontend/node_modules/.bin/eslint --max-warnings 0 -c frontend/eslint.config.mjs frontend tests/frontend
+
+# The console's JavaScript alone: its `node --test` unit tests and ESLint (pytest runs
+# both in `make test` too: tests/frontend/test_javascript.py).
+test-js: install
+	$(BIN)/python -m pytest tests/frontend -q
 
 bench: install
 	$(BIN)/python bench/run_all.py

@@ -90,11 +90,11 @@ def _read_password(prompt_twice: bool) -> str:
 def _user(args: argparse.Namespace) -> int:
     from sqlalchemy import select
 
-    from backend import accounts, audit
     from backend.core.config import Settings
     from backend.db import migrate
     from backend.db.engine import make_engine, make_session_factory
     from backend.db.models import User
+    from backend.study import accounts, audit
 
     url = Settings().database_url
     migrate.upgrade(url)
@@ -141,7 +141,12 @@ def _user(args: argparse.Namespace) -> int:
 
 
 def _virtual_study(args: argparse.Namespace) -> int:
-    from backend.virtual_study import COLLECTION_SPEED, DEFAULT_SPEED, VirtualStudyConfig, run
+    from backend.analysis.virtual_study import (
+        COLLECTION_SPEED,
+        DEFAULT_SPEED,
+        VirtualStudyConfig,
+        run,
+    )
 
     cfg = VirtualStudyConfig(
         out=Path(args.out), participants=args.participants,
@@ -161,15 +166,15 @@ def _cohort(args: argparse.Namespace) -> int:
 
     from controller.evaluation.cohort import CohortConfig, simulate_cohort
     from controller.evaluation.cohort_report import analyse, write_outputs
-    from controller.factory import load_models, load_utilities
+    from controller.motion_model import ModelSet
+    from controller.utilities import UtilitySet
 
     cfg = CohortConfig(participants=args.participants, seed=args.seed,
                        controllers=tuple(c.strip() for c in args.controllers.split(",")
                                          if c.strip()),
                        rate_hz=args.rate)
-    models = load_models({"models_path": args.models}) if args.models else None
-    utilities = (load_utilities({"utilities_path": args.utilities}) if args.utilities
-                 else None)
+    models = ModelSet.load(Path(args.models)) if args.models else None
+    utilities = UtilitySet.load(Path(args.utilities)) if args.utilities else None
     t0 = time.monotonic()
     if args.processes < 1:
         raise ValueError("--processes: at least 1")
@@ -183,10 +188,10 @@ def _cohort(args: argparse.Namespace) -> int:
 
 
 def _results(args: argparse.Namespace) -> int:
+    from backend.analysis.results_files import write_study_results
     from backend.core.config import Settings
     from backend.db import migrate
     from backend.db.engine import make_engine, make_session_factory
-    from backend.results_files import write_study_results
 
     url = args.db or Settings().database_url
     if "://" not in url:
@@ -291,10 +296,10 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--seed", type=int, default=1)
     v.add_argument("--speed", type=float, default=None,
                    help="simulator speed-up in the trials (default: "
-                   "backend.virtual_study.DEFAULT_SPEED)")
+                   "backend.analysis.virtual_study.DEFAULT_SPEED)")
     v.add_argument("--collection-speed", type=float, default=None,
                    help="simulator speed-up while demonstrations are recorded (default: "
-                   "backend.virtual_study.COLLECTION_SPEED)")
+                   "backend.analysis.virtual_study.COLLECTION_SPEED)")
     v.add_argument("--rates", default="paper-rates,100hz",
                    help="comma-separated rate settings: paper-rates, 100hz")
     v.add_argument("--no-model-evaluation", action="store_true",
@@ -352,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         import importlib
 
         if argv[0] == "device-sim":
-            from backend.device_process import die_with_parent
+            from backend.live.device_process import die_with_parent
 
             die_with_parent()  # a server-spawned simulator never outlives its server
         module = importlib.import_module(passthrough[argv[0]])

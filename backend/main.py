@@ -7,14 +7,15 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import Depends, FastAPI, Request
-from fastapi.responses import FileResponse, RedirectResponse, Response
+from fastapi import Depends, FastAPI
+from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
-from backend import accounts, activity, console_pages, viewer
+from backend import console_pages
+from backend.analysis.jobs import JobRunner
 from backend.api import docs_assets, web_surface
-from backend.api.deps import SESSION_COOKIE, authorize, document_access, login_from_token
+from backend.api.deps import authorize, document_access
 from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors
 from backend.api.routes import (
@@ -35,14 +36,16 @@ from backend.api.routes import (
     studies,
     trial_segments,
     trials,
+    vocabulary,
     worker,
 )
 from backend.core.config import Settings, get_settings
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
-from backend.jobs import JobRunner
+from backend.live import viewer
+from backend.live.runtime import Runtime
 from backend.questionnaires.catalog import ensure_built_ins
-from backend.runtime import Runtime
+from backend.study import accounts, activity
 
 log = logging.getLogger(__name__)
 
@@ -135,6 +138,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(lab.router)
     app.include_router(results.router)
     app.include_router(cohorts.router)
+    app.include_router(vocabulary.router)
     app.include_router(console_pages.router)
     app.include_router(viewer.router)
     document_framework_errors(app)
@@ -151,16 +155,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:
         return RedirectResponse("/live")
-
-    @app.get("/live", include_in_schema=False)
-    def live_page(request: Request) -> Response:
-        # Pages need a login like the API; without one, the login page brings you back.
-        if login_from_token(app.state.sessions, request.cookies.get(SESSION_COOKIE)) is None:
-            return RedirectResponse("/login?next=/live", status_code=303)
-        return FileResponse(static / "live.html")
-
-    @app.get("/login", include_in_schema=False)
-    def login_page() -> FileResponse:
-        return FileResponse(static / "login.html")
 
     return app

@@ -22,32 +22,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import statistics
 import sys
-import tempfile
-import threading
-import time
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import httpx  # noqa: E402
-import uvicorn  # noqa: E402
-
-from backend.core.config import Settings  # noqa: E402
-from backend.main import create_app  # noqa: E402
-from tests.login import PASSWORD, USERNAME, create_experimenter  # noqa: E402
+from bench.server_rig import launch_chromium, running_server
 
 NAV = "JSON.stringify(performance.getEntriesByType('navigation')[0])"
-
-
-def _free(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _open(browser: Any, base: str, cookies: dict[str, str], path: str,
@@ -59,7 +43,9 @@ def _open(browser: Any, base: str, cookies: dict[str, str], path: str,
     """
     import json
 
-    ctx = browser.new_context()
+    # bypass_csp: polling `ready` evaluates a string in the page, which the app's CSP
+    # forbids (as it should); the pages' own code runs the same either way.
+    ctx = browser.new_context(bypass_csp=True)
     ctx.add_cookies([{"name": k, "value": v, "url": base} for k, v in cookies.items()])
     page = ctx.new_page()
     page.goto(f"{base}{path}", wait_until="commit")
@@ -89,48 +75,25 @@ def main() -> None:
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
-    with tempfile.TemporaryDirectory() as d:
-        url = f"sqlite:///{d}/bench.db"
-        create_experimenter(url)
-        port = _free(socket.SOCK_STREAM)
-        settings = Settings(database_url=url, port=port, device_kind="udp",  # type: ignore[call-arg]
-                            device_spawn_simulator=True,
-                            device_address=f"127.0.0.1:{_free(socket.SOCK_DGRAM)}",
-                            models_path=Path(d) / "models.json", utilities_dir=Path(d),
-                            demo=True, _env_file=None)
-        server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1", port=port,
-                                               log_level="warning", ws="websockets-sansio"))
-        threading.Thread(target=server.run, daemon=True).start()
-        while not server.started:
-            time.sleep(0.1)
-        base = f"http://127.0.0.1:{port}"
-        cookies = dict(httpx.post(f"{base}/api/auth/login",
-                                  json={"username": USERNAME, "password": PASSWORD}).cookies)
-        while httpx.get(f"{base}/api/health", cookies=cookies).json()["worker"]["ticks"] < 300:
-            time.sleep(0.2)
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=[
-                "--headless=new", "--no-sandbox", "--disable-gpu",
-                "--disable-background-networking"])
-            cases: dict[str, tuple[str, str, str | None]] = {
-                "baseline (static file)": ("/static/style.css",
-                                           "document.readyState !== 'loading'", None),
-                "/console (studies)": ("/console", "document.body.dataset.ready === 'true'",
-                                       "exostudy-ready"),
-                "/live (first sample drawn)": ("/live", "window.exostudyLive && "
-                                               "exostudyLive.firstDrawMs != null",
-                                               "exostudy-first-draw"),
-            }
-            for path, ready, mark in cases.values():  # warm-up: server and browser, not pages
-                _open(browser, base, cookies, path, ready, mark)
-            load0 = os.getloadavg()[0]
-            results = {name: [_open(browser, base, cookies, path, ready, mark)
-                              for _ in range(args.runs)]
-                       for name, (path, ready, mark) in cases.items()}
-            load1 = os.getloadavg()[0]
-            browser.close()
-        server.should_exit = True
-        time.sleep(2)
+    cases: dict[str, tuple[str, str, str | None]] = {
+        "baseline (static file)": ("/static/style.css",
+                                   "document.readyState !== 'loading'", None),
+        "/console (studies)": ("/console", "document.body?.dataset.ready === 'true'",
+                               "exostudy-ready"),
+        "/live (first sample drawn)": ("/live", "window.exostudyLive && "
+                                       "exostudyLive.firstDrawMs != null",
+                                       "exostudy-first-draw"),
+    }
+    with running_server(demo=True) as srv, sync_playwright() as pw:
+        browser = launch_chromium(pw)
+        for path, ready, mark in cases.values():  # warm-up: server and browser, not pages
+            _open(browser, srv.base, srv.cookies, path, ready, mark)
+        load0 = os.getloadavg()[0]
+        results = {name: [_open(browser, srv.base, srv.cookies, path, ready, mark)
+                          for _ in range(args.runs)]
+                   for name, (path, ready, mark) in cases.items()}
+        load1 = os.getloadavg()[0]
+        browser.close()
     print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after; {args.runs} cold "
           "openings each (new browser context, empty cache); ms from navigation start")
     print(f"{'page':<28} {'usable med/max':>15}   {'DOMContentLoaded':>15}   {'load':>15}")

@@ -18,11 +18,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sqlalchemy import select
 
-from backend import tick_queries
+from backend.analysis import tick_queries
 from backend.db import migrate
 from backend.db.engine import make_engine
 from backend.db.models import ticks_table
-from backend.recorder import TickRecorder
+from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
 from controller.tick import TickRecord
 
@@ -38,7 +38,7 @@ def main() -> None:
         run_id = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
         t0 = time.perf_counter()
         for start in range(0, N, 100):  # one second of ticks per batch, as live
-            rec.add(TickBatch(1, tuple(
+            rec.add(TickBatch.from_records(1, tuple(
                 TickRecord(seq=k, t=k / 100, q_left=0.5, q_right=0.4, omega_left=1.0,
                            post_squat=0.7, post_other=0.3, action=2, lock_left=k % 7 == 0,
                            torque_left=3.2, d_squat=12.5, l_squat=31)

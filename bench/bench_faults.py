@@ -4,6 +4,8 @@
   moment of its flush cycle; the data lost is the time between the kill and the last
   stored tick's host time (`t_host`, Unix seconds, stamped by the worker);
 - worker SIGKILL: time from the signal to the supervisor's exit callback;
+- device SIGKILL: the UDP simulator the server spawned is killed; time until
+  `/api/health` says the device is lost;
 - watchdog: the device goes silent mid-lift while locked (its samples stop reaching the
   worker), or the worker is frozen (SIGSTOP) while a lock is held: time from the last
   sample (or the last command) to the first sample the device applies unlocked.
@@ -11,7 +13,7 @@
 `--busy N` runs N busy-looping processes meanwhile (the machine's cores taken).
 
     .venv/bin/python bench/bench_faults.py [--kills 6] [--repeats 10] [--busy 2]
-        [--only worker,watchdog,server]
+        [--only worker,device,watchdog,server]
 """
 
 from __future__ import annotations
@@ -47,18 +49,25 @@ def _summary(name: str, values_ms: list[float]) -> None:
           f"max {v[-1]:.0f} ms", flush=True)
 
 
+def _default_sets(folder: Path) -> Path:
+    """The model set (returned) and utility set `exostudy serve` starts with."""
+    from backend import bootstrap
+    models = folder / "models.json"
+    bootstrap.ensure_models(models)
+    bootstrap.ensure_utilities(bootstrap.utilities_path(folder, 25.0), 25.0)
+    return models
+
+
 def server_kills(n: int, folder: Path) -> list[float]:
     """Seconds of ticks lost per server SIGKILL."""
     from sqlalchemy import func, select
 
-    from backend import bootstrap
     from backend.db.engine import make_engine
     from backend.db.models import ticks_table
-    from tests.faults.served import free_udp_port, serve, wait_for
+    from tests.faults.served import serve
+    from tests.polling import free_udp_port, wait_for
 
-    models = folder / "models.json"
-    bootstrap.ensure_models(models)
-    bootstrap.ensure_utilities(bootstrap.utilities_path(folder, 25.0), 25.0)
+    models = _default_sets(folder)
     lost: list[float] = []
     for i in range(n):
         db_url = f"sqlite:///{folder / f'kill{i}.db'}"
@@ -110,30 +119,45 @@ def worker_kills(n: int) -> list[float]:
     return out
 
 
+def device_losses(n: int, folder: Path) -> list[float]:
+    """Seconds from SIGKILL of the device process `exostudy serve` spawned to health
+    reporting the device lost (one server per repeat)."""
+    from tests.faults.served import children, serve
+    from tests.polling import free_udp_port, wait_for
+
+    models = _default_sets(folder)
+    out: list[float] = []
+    for i in range(n):
+        db_url = f"sqlite:///{folder / f'device{i}.db'}"
+        with serve(folder, db_url, (models, folder), free_udp_port()) as s:
+            wait_for(lambda: (h := s.health())["status"] == "ok" and h["worker"]["ticks"] > 100,
+                     120, "ticks")
+            sims = [p for p in children(s.proc.pid)
+                    if b"device-sim" in Path(f"/proc/{p}/cmdline").read_bytes()]
+            if len(sims) != 1:
+                raise RuntimeError(f"expected one device simulator, found {sims}")
+            t0 = time.monotonic()
+            os.kill(sims[0], signal.SIGKILL)
+            wait_for(lambda: not s.health()["device"]["alive"], 30, "the device loss",
+                     poll=0.01)
+            out.append(time.monotonic() - t0)
+    return out
+
+
 def watchdog(n: int, folder: Path) -> tuple[list[float], list[float]]:
     """Silence-to-release seconds: device silent mid-lift; worker frozen."""
-    from tests.faults.rig import start_rig, wait_for_lock, wait_release
+    from tests.faults.rig import device_goes_silent, start_rig, worker_freezes
 
     rig = start_rig(folder)
     silent: list[float] = []
     frozen: list[float] = []
     try:
         for _ in range(n):
-            wait_for_lock(rig)
-            rig.relay.mute_device.set()
-            since = rig.relay.last_sample_at
-            silent.append(wait_release(rig, since) - since)
+            since, released = device_goes_silent(rig)
+            silent.append(released - since)
             rig.relay.mute_device.clear()
-            wait_for_lock(rig)
-            pid = rig.supervisor.state.pid
-            assert pid is not None
-            os.kill(pid, signal.SIGSTOP)
-            try:
-                stopped = time.monotonic()
-                released = wait_release(rig, stopped)
-                frozen.append(released - rig.relay.last_command_at)
-            finally:
-                os.kill(pid, signal.SIGCONT)
+            _, last_command, released = worker_freezes(rig)
+            frozen.append(released - last_command)
     finally:
         rig.close()
     return silent, frozen
@@ -144,8 +168,8 @@ def main() -> int:
     p.add_argument("--kills", type=int, default=5, help="server SIGKILLs")
     p.add_argument("--repeats", type=int, default=10, help="worker kills and watchdog trips")
     p.add_argument("--busy", type=int, default=0, help="busy-looping processes meanwhile")
-    p.add_argument("--only", default="worker,watchdog,server",
-                   help="comma-separated sections: worker, watchdog, server")
+    p.add_argument("--only", default="worker,device,watchdog,server",
+                   help="comma-separated sections: worker, device, watchdog, server")
     args = p.parse_args()
     spinners = [mp.Process(target=_spin, daemon=True) for _ in range(args.busy)]
     for sp in spinners:
@@ -158,6 +182,9 @@ def main() -> int:
             if "worker" in only:
                 _summary("worker SIGKILL noticed after",
                          [1e3 * x for x in worker_kills(args.repeats)])
+            if "device" in only:
+                _summary("device process SIGKILL: health says device lost after",
+                         [1e3 * x for x in device_losses(args.repeats, folder)])
             silent, frozen = watchdog(args.repeats, folder) if "watchdog" in only else ([], [])
             _summary("device silent mid-lift: last sample -> released", [1e3 * x for x in silent])
             _summary("worker frozen (SIGSTOP): last command -> released",

@@ -17,7 +17,6 @@ import argparse
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -35,12 +34,7 @@ import httpx  # noqa: E402
 import pylsl  # noqa: E402
 
 from tests.login import PASSWORD, USERNAME, create_experimenter  # noqa: E402
-
-
-def _free(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from tests.polling import free_tcp_port, free_udp_port, wait_for  # noqa: E402
 
 
 def _pct(values: list[float], q: float) -> float:
@@ -54,35 +48,35 @@ def phase(lsl: bool, seconds: float, markers: int, folder: Path) -> dict[str, An
     url = f"sqlite:///{db}"
     create_experimenter(url)
     name = f"ExoStudyBench-{uuid.uuid4().hex[:6]}"
-    port = _free(socket.SOCK_STREAM)
+    port = free_tcp_port()
     # The server is its own process (`exostudy serve`), as for a lab: the console's
     # requests and this process's inlets do not share its interpreter. The default
     # model and utility sets (var/, built if missing) are used.
     env = {**os.environ, "EXOSTUDY_DATABASE_URL": url, "EXOSTUDY_DEMO": "false",
            "EXOSTUDY_LSL_ENABLED": str(lsl).lower(), "EXOSTUDY_LSL_NAME": name,
            "EXOSTUDY_DEVICE_KIND": "udp",
-           "EXOSTUDY_DEVICE_ADDRESS": f"127.0.0.1:{_free(socket.SOCK_DGRAM)}"}
+           "EXOSTUDY_DEVICE_ADDRESS": f"127.0.0.1:{free_udp_port()}"}
     server = subprocess.Popen([sys.executable, "-m", "backend.cli", "serve", "--port",
                                str(port), "--log-level", "warning"], cwd=ROOT, env=env)
     base = f"http://127.0.0.1:{port}"
     out: dict[str, Any] = {"lsl": lsl}
     try:
-        deadline = time.monotonic() + 120
-        while True:
+
+        def answers() -> bool:
+            if server.poll() is not None:
+                raise SystemExit("the server exited")
             try:
-                httpx.get(f"{base}/api/health", timeout=1.0)
-                break
+                return httpx.get(f"{base}/api/health", timeout=1.0).is_success
             except httpx.TransportError:
-                assert time.monotonic() < deadline and server.poll() is None, "no server"
-                time.sleep(0.2)
+                return False
+
+        wait_for(answers, 120, "the server", poll=0.2)
         api = httpx.Client(base_url=base, timeout=30)
         token = api.post("/api/auth/token", json={"username": USERNAME, "password": PASSWORD}
                          ).json()["access_token"]
         api.headers["Authorization"] = f"Bearer {token}"
-        deadline = time.monotonic() + 120
-        while api.get("/api/health").json()["worker"]["ticks"] < 100:
-            assert time.monotonic() < deadline, "the worker did not start"
-            time.sleep(0.2)
+        wait_for(lambda: api.get("/api/health").json()["worker"]["ticks"] >= 100, 120,
+                 "the worker's first ticks", poll=0.2)
         study = api.post("/api/studies", json={"name": "bench"}).json()["id"]
         pid = api.post(f"/api/studies/{study}/participants", json={"code": "B01"}).json()["id"]
         sid = api.post(f"/api/participants/{pid}/sessions",

@@ -18,7 +18,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from controller.device.auth import PeerSessions, new_session, verify
-from controller.device.base import Sample, Status
+from controller.device.base import SAMPLE_PERIOD_S, Sample, Status
 from controller.device.protocol import (
     CommandPacket,
     decode_frame,
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     peers = PeerSessions()
 
     def v2_sample(k: int) -> object:
-        s = Sample(seq=k, t=k * 0.01, counts=(3100, 3105, 12900, 12890),
+        s = Sample(seq=k, t=k * SAMPLE_PERIOD_S, counts=(3100, 3105, 12900, 12890),
                    status=Status.LOCKED_LEFT)
         frame = decode_frame(encode_sample(s, KEY, dev, host), KEY)
         return peers.check(frame.sender, k)
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
         return decode_frame(encode_command(CommandPacket(k, True, False, k), KEY, host, dev),
                             KEY)
 
-    packet = encode_sample(Sample(seq=1, t=0.01, counts=(3100, 3105, 12900, 12890)),
+    packet = encode_sample(Sample(seq=1, t=SAMPLE_PERIOD_S, counts=(3100, 3105, 12900, 12890)),
                            KEY, dev, host)
     signed_part = packet[:-32]
 

@@ -27,30 +27,17 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import socket
 import statistics
 import sys
-import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import httpx  # noqa: E402
-import uvicorn  # noqa: E402
+import httpx
 
-from backend.core.config import Settings  # noqa: E402
-from backend.main import create_app  # noqa: E402
-from tests.login import PASSWORD, USERNAME, create_experimenter  # noqa: E402
-
-
-def _free(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from bench.server_rig import launch_chromium, running_server
 
 
 def _health(base: str, cookies: dict[str, str]) -> dict[str, Any]:
@@ -133,37 +120,12 @@ def main() -> None:
     viewport = {"width": width, "height": height}
     from playwright.sync_api import sync_playwright
 
-    with tempfile.TemporaryDirectory() as d:
-        url = f"sqlite:///{d}/bench.db"
-        create_experimenter(url)
-        port = _free(socket.SOCK_STREAM)
-        settings = Settings(database_url=url, port=port, device_kind="udp",  # type: ignore[call-arg]
-                            device_spawn_simulator=True,
-                            device_address=f"127.0.0.1:{_free(socket.SOCK_DGRAM)}",
-                            models_path=Path(d) / "models.json", utilities_dir=Path(d),
-                            demo=False, _env_file=None)
-        if args.stream_rate is not None:
-            settings = settings.model_copy(update={"stream_rate": args.stream_rate})
-        server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1", port=port,
-                                               log_level="warning", ws="websockets-sansio"))
-        threading.Thread(target=server.run, daemon=True).start()
-        while not server.started:
-            time.sleep(0.1)
-        base = f"http://127.0.0.1:{port}"
-        r = httpx.post(f"{base}/api/auth/login", json={"username": USERNAME, "password": PASSWORD})
-        cookies = dict(r.cookies)
-        while _health(base, cookies)["worker"]["ticks"] < 300:
-            time.sleep(0.2)
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=[
-                "--headless=new", "--no-sandbox", "--disable-gpu",
-                "--disable-background-networking", "--disable-renderer-backgrounding",
-                "--disable-background-timer-throttling"])
-            results = [_phase(base, cookies, browser, n, args.seconds, viewport)
-                       for n in (0, 3, 4)]
-            browser.close()
-        server.should_exit = True
-        time.sleep(2)
+    with running_server(stream_rate=args.stream_rate) as srv, sync_playwright() as pw:
+        settings = srv.settings
+        browser = launch_chromium(pw)
+        results = [_phase(srv.base, srv.cookies, browser, n, args.seconds, viewport)
+                   for n in (0, 3, 4)]
+        browser.close()
     print(f"viewport {args.viewport}, stream rate "
           f"{args.stream_rate if args.stream_rate is not None else settings.stream_rate:g}/s, "
           f"{args.seconds:g} s per phase; load average (1 min) at the start / end of each phase")

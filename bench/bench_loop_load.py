@@ -28,16 +28,17 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from backend import bootstrap  # noqa: E402
-from backend.worker.messages import WorkerConfig, WorkerStatus  # noqa: E402
+from backend.schemas.live import LoopReport  # noqa: E402
+from backend.worker.messages import WorkerConfig  # noqa: E402
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor  # noqa: E402
 
 HOG = "while True:\n    pass\n"
 
 
-def _status(sup: WorkerSupervisor) -> WorkerStatus:
+def _status(sup: WorkerSupervisor) -> LoopReport:
     st = sup.state.status
     assert st is not None, f"no status; errors: {sup.state.errors}"
-    return st
+    return st.loop
 
 
 def _phase(sup: WorkerSupervisor, seconds: float, label: str) -> None:
@@ -66,7 +67,7 @@ def main() -> int:
     sup.start()
     try:
         deadline = time.monotonic() + 60
-        while sup.state.status is None or sup.state.status.ticks < 300:
+        while sup.state.status is None or sup.state.status.loop.ticks < 300:
             if time.monotonic() > deadline:
                 raise RuntimeError(f"the worker did not start: {sup.state.errors}")
             time.sleep(0.1)

@@ -1,8 +1,11 @@
 """How fast the tick recorder stores ticks in SQLite (what bounds the virtual study's
 speed-up: it runs the simulated exoskeleton many times faster than real time).
 
-Baseline in the same run: the same rows, already built as tuples, inserted with the
-sqlite3 module's executemany alone (the floor any recorder pays).
+Baseline in the same run: the same rows, already built as tuples with the run id as
+their first value, inserted with the sqlite3 module's executemany alone. The recorder
+gets the ticks as the worker sends them, packed in one block (`TickBatch`; packing is
+the worker's cost, `bench/bench_tick_transport.py`), writes the run id into the
+statement and leaves NaN to SQLite (stored as NULL), so it can beat that baseline.
 
     .venv/bin/python bench/bench_recorder.py
 """
@@ -23,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 from backend.db import migrate  # noqa: E402
 from backend.db.engine import make_engine  # noqa: E402
 from backend.db.models import TICK_DATA_COLUMNS  # noqa: E402
-from backend.recorder import TickRecorder  # noqa: E402
+from backend.live.recorder import TickRecorder  # noqa: E402
 from backend.worker.messages import RunStarted, TickBatch  # noqa: E402
 from controller.tick import TickRecord  # noqa: E402
 
@@ -47,7 +50,7 @@ def main() -> None:
         run_id = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
         best_rec = math.inf
         for _ in range(REPEATS):
-            rec.add(TickBatch(1, recs))
+            rec.add(TickBatch.from_records(1, recs))
             t0 = time.perf_counter()
             assert rec.flush() == N
             best_rec = min(best_rec, time.perf_counter() - t0)
@@ -68,7 +71,7 @@ def main() -> None:
             best_raw = min(best_raw, time.perf_counter() - t0)
         con.close()
     print(f"load average {os.getloadavg()[0]:.2f}; {N} ticks per flush, best of {REPEATS}")
-    print(f"recorder (records -> rows -> SQLite): {N / best_rec:9.0f} ticks/s")
+    print(f"recorder (block -> rows -> SQLite):   {N / best_rec:9.0f} ticks/s")
     print(f"baseline (sqlite3 executemany only):  {N / best_raw:9.0f} ticks/s")
     print(f"recorder / baseline time: {best_rec / best_raw:.2f}x")
 

@@ -9,7 +9,7 @@ is warm; the first run compiles for a minute or so).
    the UMC at the paper's 10 Hz, and the same UMC at 100 Hz through
    `replay_per_tick` (`ControlLoop` + `ReplayDevice`, one Python call per tick, which
    is how replay ran before), with the ratio.
-2. `PipelineController.step` on the live path (UMC at 100 Hz): p50 and p99 per call,
+2. `KernelController.step` on the live path (UMC at 100 Hz): p50 and p99 per call,
    timed around `step` on the samples of a `ReplayDevice`, with the garbage collector
    frozen and disabled as the worker loop runs.
 
@@ -33,6 +33,7 @@ import numpy as np
 
 from controller.base import Controller
 from controller.calibration import calibrate
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.device.replay import ReplayDevice
 from controller.factory import load_models, make_controller
 from controller.replay import AngleRecording, replay_columns, replay_per_tick
@@ -52,7 +53,7 @@ def ten_minutes() -> AngleRecording:
     q = np.tile(run.q, (reps, 1))[:N_SAMPLES]
     activity = np.tile(run.truth.activity, reps)[:N_SAMPLES].tolist()
     lift = np.tile(run.truth.lift_index, reps)[:N_SAMPLES]
-    return AngleRecording(np.arange(N_SAMPLES) * 0.01, q, activity, lift)
+    return AngleRecording(np.arange(N_SAMPLES) * SAMPLE_PERIOD_S, q, activity, lift)
 
 
 def best_of(n: int, setup: Callable[[], Any], fn: Callable[[Any], Any]) -> float:
@@ -133,7 +134,7 @@ def main() -> int:
     print(f"  batch is {per_tick / times['UMC @ 100 Hz']:.1f}x faster than per-tick")
 
     us = step_times_us(build("UMC @ 100 Hz"), rec)
-    print(f"live PipelineController.step, UMC @ 100 Hz, {us.size} ticks: "
+    print(f"live KernelController.step, UMC @ 100 Hz, {us.size} ticks: "
           f"p50 {np.percentile(us, 50):.1f} us, p99 {np.percentile(us, 99):.1f} us, "
           f"max {us.max():.1f} us")
     ok = times["UMC @ 100 Hz"] < REQUIREMENT_S

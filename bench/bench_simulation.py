@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 import time
 
-from controller.device.base import LockCommand
+from controller.device.base import SAMPLE_PERIOD_S, LockCommand
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.sim.recording import simulate_angles
 
@@ -24,7 +24,7 @@ def bench_angles(seed: int) -> float:
     start = time.perf_counter()
     run = simulate_angles(seed, SCRIPT)
     elapsed = time.perf_counter() - start
-    return float(run.t.size) * 0.01 / elapsed
+    return float(run.t.size) * SAMPLE_PERIOD_S / elapsed
 
 
 def bench_ticks(seed: int) -> tuple[float, float]:

@@ -24,7 +24,6 @@ import math
 import multiprocessing
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -37,15 +36,16 @@ sys.path.insert(0, str(ROOT))
 import tempfile  # noqa: E402
 
 from controller.device.auth import load_or_create_key  # noqa: E402
-from controller.device.base import LockCommand, Sample, Status  # noqa: E402
+from controller.device.base import SAMPLE_PERIOD_S, LockCommand, Sample, Status  # noqa: E402
 from controller.device.udp import UdpDevice  # noqa: E402
 from controller.sim.device_server import request_realtime  # noqa: E402
+from tests.polling import free_udp_port  # noqa: E402
 
 
 class StillExoskeleton:
     """A wearer standing still: the link and the pacing without any simulation cost."""
 
-    dt = 0.01
+    dt = SAMPLE_PERIOD_S
     finished = False
 
     def __init__(self) -> None:
@@ -75,12 +75,6 @@ def _serve_still(port: int, duration: float, queue: Any, stop: Any) -> None:
     stats = serve(port, 0, "still", duration=duration, stop_event=stop, model=model,
                   key=load_or_create_key(KEY_FILE))
     queue.put(stats.summary())
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _pct(values: list[float], q: float) -> float:
@@ -136,7 +130,7 @@ def run(
     minutes: float, seed: int, script: str, model: str, realtime: bool = False
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Start the emulator process, drive it for `minutes`, stop it; (host, device) results."""
-    port = _free_port()
+    port = free_udp_port()
     seconds = 60.0 * minutes
     load_or_create_key(KEY_FILE)
     if model == "still":

@@ -141,7 +141,7 @@ _A_MAX, _PRE, _B, _C, _R, _K = range(6)
 def torque_at(alpha: float, k: FloatArray) -> float:
     """Torque (Nm) at deflection `alpha` (rad) for the constants `k` of a `TorqueModel`;
     0 for alpha <= 0 or NaN. The one scalar implementation, shared by `TorqueModel` and
-    the compiled control tick (`controller.tick_kernel`)."""
+    the compiled control tick (`controller.kernel.tick`)."""
     if not alpha > 0.0:
         return 0.0
     a_max = k[_A_MAX]

@@ -1,6 +1,6 @@
 """E-UMC calibration: map the wearer's rest posture onto the models' mean at `s = 0`.
 
-The wearer stands still for a few seconds (controller.md, "E-UMC and PEC"). The mean of
+The wearer stands still for a few seconds (docs/controller-design.md, "E-UMC and PEC"). The mean of
 each raw hip angle over that period, minus the models' mean at `s = 0`, becomes an
 offset, so `q = q_raw - offset = q_raw - rest_mean + model_mean_at_s0`. This removes
 offsets from the fit of the device on the waist and from donning and doffing.

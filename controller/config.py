@@ -11,10 +11,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from controller.device.base import SAMPLE_RATE_HZ
 from controller.encoders import EncoderLayout
 from controller.plausibility import HIP_VELOCITY_MAX
-
-SAMPLE_RATE_HZ = 100.0
 
 #: Largest hip velocity (rad/s) a velocity threshold may ask for: the plausibility bound
 #: (a threshold above it could never trigger).
@@ -76,7 +75,7 @@ def ticks_per_run(rate_hz: float, sample_rate_hz: float = SAMPLE_RATE_HZ) -> int
 @dataclass(frozen=True)
 class ControllerConfig:
     """Parameters of the paper's controllers; defaults are the paper's (and the project's
-    controller specification where the paper leaves a value open).
+    choices in docs/controller-design.md where the paper leaves a value open).
 
     Rates: the paper's UMC ran at 10 Hz, the PEC at 100 Hz, and the E-UMC checks its
     trigger at 100 Hz and evaluates the UMC at 10 Hz while triggered. `at_rate(100)`

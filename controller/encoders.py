@@ -23,7 +23,7 @@ _HALF_TURN = ENCODER_COUNTS // 2
 def count_to_angle(count: int, offset: int, direction: int) -> float:
     """Angle (rad, in [-pi, pi)) of a count; the arithmetic of `EncoderLayout.angle`.
 
-    Compiled so the control tick (`controller.tick_kernel`) decodes counts with the very
+    Compiled so the control tick (`controller.kernel.tick`) decodes counts with the very
     code the layout uses; the count must already be known to lie in range.
     """
     diff = (count - offset) % ENCODER_COUNTS

@@ -1,5 +1,8 @@
 """Controllers by name, so that configuration (a database row, a CLI flag) can pick one.
 
+Each controller registers its builder in `controller.registry`; this module loads the
+sets a specification references and builds through the registry.
+
 Every build goes through `controller.spec.ControllerSpec`, which validates the name, the
 settings and the set references first: a configuration that does not validate builds
 nothing. The mapping form is described there.
@@ -8,20 +11,18 @@ nothing. The mapping form is described there.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from controller import registry
 from controller.base import Controller
 from controller.motion_model import ModelSet
-from controller.passthrough import PassThroughController
-from controller.spec import CONTROLLER_NAMES, NEEDS_MODELS, ControllerSpec
+from controller.spec import NEEDS_MODELS, ControllerSpec
 from controller.utilities import UtilitySet
 
-Builder = Callable[[ControllerSpec], Controller]
-
 __all__ = ["NEEDS_MODELS", "ControllerSpec", "controller_names", "load_models",
-           "load_utilities", "make_controller", "make_from_spec"]
+           "load_utilities", "make_controller", "make_from_spec", "needs_models"]
 
 
 def _load(spec: ControllerSpec | Mapping[str, Any], key: str) -> dict[str, Any]:
@@ -55,40 +56,23 @@ def load_utilities(cfg: ControllerSpec | Mapping[str, Any]) -> UtilitySet:
     return UtilitySet.from_json(_load(cfg, "utilities"))
 
 
-def _umc(spec: ControllerSpec) -> Controller:
-    from controller.umc import UMC
-
-    return UMC(load_models(spec), load_utilities(spec), spec.settings)
-
-
-def _eumc(spec: ControllerSpec) -> Controller:
-    from controller.umc import EUMC
-
-    return EUMC(load_models(spec), load_utilities(spec), spec.settings)
-
-
-def _pec(spec: ControllerSpec) -> Controller:
-    from controller.pec import PEC
-
-    return PEC(spec.settings)
-
-
-def _none(spec: ControllerSpec) -> Controller:
-    return PassThroughController(spec.settings.layout)
-
-
-_REGISTRY: dict[str, Builder] = {"none": _none, "umc": _umc, "eumc": _eumc, "pec": _pec}
-assert set(_REGISTRY) == set(CONTROLLER_NAMES)
-
-
 def controller_names() -> tuple[str, ...]:
-    """Names accepted by `make_controller`."""
-    return tuple(sorted(_REGISTRY))
+    """Names accepted by `make_controller`: every registered controller."""
+    return registry.names()
+
+
+def needs_models(name: str) -> bool:
+    """Whether the controller `name` needs a model and a utility set."""
+    reg = registry.lookup(name)
+    return reg is not None and reg.needs_models
 
 
 def make_from_spec(spec: ControllerSpec) -> Controller:
-    """Build the controller a validated specification names."""
-    return _REGISTRY[spec.name](spec)
+    """Build the controller a validated specification names, with its registered
+    builder (`controller.registry`): the one place a controller is built."""
+    reg = registry.lookup(spec.name)
+    assert reg is not None  # the specification validated the name
+    return reg.build(spec)
 
 
 def make_controller(name: str, config: Mapping[str, Any] | None = None) -> Controller:

@@ -1,6 +1,6 @@
 """Intent estimation: DTW matches to model likelihoods and posterior category probabilities.
 
-Implements controller.md, "Probabilities" (paper, "Estimating model probabilities"):
+Implements docs/controller-design.md, "Probabilities" (paper, "Estimating model probabilities"):
 
 - accepted match: `P(obs | model_j) = chi2.sf(D_j, df = 2 L_j)`, rejected: 0;
 - `P(obs | other) = prod_j (1 - P(obs | model_j))`;

@@ -1,6 +1,6 @@
 """Hip velocities for the E-UMC and PEC: a constant-velocity Kalman filter per hip.
 
-Model (controller.md, "E-UMC and PEC"), per hip, state `x = [q, omega]`:
+Model (docs/controller-design.md, "E-UMC and PEC"), per hip, state `x = [q, omega]`:
 
 - `x_k = F x_{k-1} + G a_k` with `F = [[1, dt], [0, 1]]`, `G = [dt^2/2, dt]` and a white
   acceleration `a_k ~ N(0, sigma_a^2)` held over each sample (the discrete white-noise
@@ -24,13 +24,14 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from controller.device.base import SAMPLE_PERIOD_S
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Encoder-derived measurement noise of a hip angle, rad.
 MEAS_STD = 1.05e-3
-#: Default white-acceleration noise, rad/s^2 (controller.md: 10 to 20).
+#: Default white-acceleration noise, rad/s^2 (docs/controller-design.md: 10 to 20).
 ACCEL_STD = 15.0
-DT = 0.01
 
 
 # Filter state, a float64 array so the compiled tick can own it: initialised flag, both
@@ -50,7 +51,7 @@ def kalman_step(
     """Filter one sample of both hips in place; (omega_left, omega_right) in rad/s.
 
     The one implementation of the filter: `HipVelocityFilter` and the compiled control
-    tick (`controller.tick_kernel`) both call it. Plain scalar arithmetic, in the
+    tick (`controller.kernel.tick`) both call it. Plain scalar arithmetic, in the
     order of the equations in the module docstring.
     """
     usable = not (math.isnan(q_left) or math.isnan(q_right))
@@ -108,7 +109,7 @@ class HipVelocityFilter:
         self,
         accel_std: float = ACCEL_STD,
         meas_std: float = MEAS_STD,
-        dt: float = DT,
+        dt: float = SAMPLE_PERIOD_S,
         init_omega_std: float = 1.0,
     ) -> None:
         """Args: accel_std rad/s^2, meas_std rad, dt s, init_omega_std rad/s (all > 0)."""
@@ -161,16 +162,3 @@ class HipVelocityFilter:
         """
         return kalman_step(self.state, self.constants, float(q_left), float(q_right))
 
-
-class VelocityTrigger:
-    """The paper's trigger: both hips flexing at or above `threshold` rad/s (eq. 14)."""
-
-    def __init__(self, threshold: float = 1.0) -> None:
-        """Args: threshold in rad/s, finite."""
-        if not math.isfinite(threshold):
-            raise ValueError(f"threshold must be finite, got {threshold!r}")
-        self.threshold = threshold
-
-    def __call__(self, omega_left: float, omega_right: float) -> bool:
-        """True iff `omega_left >= threshold` and `omega_right >= threshold` (NaN: False)."""
-        return omega_left >= self.threshold and omega_right >= self.threshold

@@ -15,10 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.base import Controller
-from controller.device.base import Device, LockCommand
+from controller.device.base import SAMPLE_PERIOD_S, Device, LockCommand
 from controller.tick import TickFlag, TickRecord
-
-PERIOD_S = 0.01
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,7 +44,7 @@ class LoopTiming:
     longer than the nominal period, so the next sample was already waiting.
     """
 
-    def __init__(self, period_s: float = PERIOD_S, window: int = 2000) -> None:
+    def __init__(self, period_s: float = SAMPLE_PERIOD_S, window: int = 2000) -> None:
         self.period_s = period_s
         self._periods = np.full(window, np.nan)
         self._compute = np.full(window, np.nan)
@@ -104,7 +102,7 @@ class ControlLoop:
         self,
         device: Device,
         controller: Controller,
-        period_s: float = PERIOD_S,
+        period_s: float = SAMPLE_PERIOD_S,
         clock: Callable[[], float] = time.perf_counter,
     ) -> None:
         self.device = device

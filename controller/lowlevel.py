@@ -14,6 +14,8 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from controller.device.base import SAMPLE_PERIOD_S
+
 IntArray = npt.NDArray[np.int64]
 
 
@@ -24,7 +26,7 @@ def hold_update(
     """Advance the two countdowns `left_right` one tick; return the (left, right) commands.
 
     The one implementation of the hold: `LockHold` and the compiled control tick
-    (`controller.tick_kernel`) both call it.
+    (`controller.kernel.tick`) both call it.
     """
     if request_left:
         left_right[0] = hold_ticks
@@ -42,7 +44,7 @@ def hold_update(
 class LockHold:
     """Holds each side's lock request for a fixed number of ticks."""
 
-    def __init__(self, hold_s: float = 0.3, dt: float = 0.01) -> None:
+    def __init__(self, hold_s: float = 0.3, dt: float = SAMPLE_PERIOD_S) -> None:
         """Args: hold_s hold duration, dt tick period, both in seconds (> 0)."""
         if not (math.isfinite(hold_s) and hold_s > 0 and math.isfinite(dt) and dt > 0):
             raise ValueError(f"hold_s and dt must be positive, got {hold_s!r}, {dt!r}")

@@ -1,6 +1,6 @@
 """Onset detection: Mahalanobis subsequence DTW between the observation window and a model.
 
-Implements controller.md, "Onset detection". Rows `i = 0..M-1` of the DTW matrix are
+Implements docs/controller-design.md, "Onset detection". Rows `i = 0..M-1` of the DTW matrix are
 observations (row `M-1` is the newest), columns `n = 0..N'-1` are model samples.
 
 - Local cost: squared Mahalanobis distance with the model's per-sample 2x2 covariance.
@@ -35,14 +35,12 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-#: Samples in a full, time-normalised motion model (controller.md).
+from controller.device.base import SAMPLE_PERIOD_S
+
+#: Samples in a full, time-normalised motion model (docs/controller-design.md).
 N_FULL = 101
-#: Samples of the online (hip-flexion) half of a model, `n = 0..50`.
-N_ONLINE = 51
 #: Observation window length: 0.3 s at 100 Hz.
 WINDOW = 30
-#: Sample period in seconds.
-DT = 0.01
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -75,7 +73,7 @@ class Match:
 class OnsetCriteria:
     """The paper's three acceptance criteria for a match (all configuration).
 
-    Defaults from controller.md: `d_max = 30 * 2^2`, every one of 30 observations two
+    Defaults from docs/controller-design.md: `d_max = 30 * 2^2`, every one of 30 observations two
     standard deviations from the mean.
     """
 
@@ -89,7 +87,7 @@ class OnsetCriteria:
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"OnsetCriteria.{name} must be a finite number >= 0, got {v!r}")
 
-    def accepts(self, m: Match, n_full: int = N_FULL, dt: float = DT) -> bool:
+    def accepts(self, m: Match, n_full: int = N_FULL, dt: float = SAMPLE_PERIOD_S) -> bool:
         """True iff `s_curr - s_start > s_req`, `t_curr - t_start > t_req` and `D < d_max`.
 
         Args:
@@ -436,7 +434,7 @@ class ModelBank:
         band: int | None = None,
         criteria: OnsetCriteria | None = None,
         n_full: int = N_FULL,
-        dt: float = DT,
+        dt: float = SAMPLE_PERIOD_S,
         max_window: int = WINDOW,
     ) -> None:
         """Validate the models and precompute their inverse covariances.
@@ -445,7 +443,7 @@ class ModelBank:
             means: (K, N, 2) online part of every model's mean.
             covs: (K, N, 2, 2) matching 2x2 covariance blocks.
             band: Sakoe-Chiba radius in cells, None for the full matrix.
-            criteria: Acceptance criteria (defaults from controller.md).
+            criteria: Acceptance criteria (defaults in docs/controller-design.md).
             n_full: Samples of the full model, for progress values.
             dt: Observation sample period in seconds.
             max_window: Largest observation window `evaluate` will be given.
@@ -610,7 +608,7 @@ def window_push(buf: FloatArray, pos_count: IntArray, q_left: float, q_right: fl
     """Append one sample to the doubled ring `buf` (2M, 2); `pos_count` = (next slot, count).
 
     The one implementation of the window: `ObservationWindow` and the compiled control
-    tick (`controller.tick_kernel`) both call it, and read it with `window_start`.
+    tick (`controller.kernel.tick`) both call it, and read it with `window_start`.
     """
     size = buf.shape[0] // 2
     p = pos_count[0]

@@ -1,4 +1,4 @@
-"""Recording mode: angles in, no locks out.
+"""Recording mode (the controller "none"): angles in, no locks out.
 
 Used while demonstrations are recorded and whenever no controller is active. It still
 converts counts to angles and reports the mechanism state so that the record is complete,
@@ -14,8 +14,10 @@ import time
 from controller.base import Controller
 from controller.device.base import ENCODER_COUNTS, Sample, Status
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.kernel.check import SampleChecker
+from controller.registry import register
+from controller.spec import ControllerSpec
 from controller.tick import Action, TickFlag, TickRecord
-from controller.tick_kernel import SampleChecker
 
 
 class PassThroughController(Controller):
@@ -71,3 +73,9 @@ class PassThroughController(Controller):
             flags=int(flags),
             compute_us=(time.perf_counter() - t0) * 1e6,
         )
+
+
+@register("none")
+def build(spec: ControllerSpec) -> PassThroughController:
+    """Recording mode with the specification's encoder layout."""
+    return PassThroughController(spec.settings.layout)

@@ -3,7 +3,7 @@
 A sample can be well formed (four 14-bit counts, a finite time, no fault bit) and still
 be impossible: a single-sample glitch of one encoder, a stuck or repeated packet, a
 device that restarted, a device that sends ten times too fast. The control tick
-(`controller.tick_kernel.check_sample`, compiled) checks every sample against the bounds
+(`controller.kernel.check.check_sample`, compiled) checks every sample against the bounds
 below before any controller sees it; a sample that fails is flagged (`TickFlag.IMPLAUSIBLE`
 and the reason bits of `Plausibility`), never enters the filters, and commands no new
 lock. The reasoning and the literature are in `docs/plausibility.md`.
@@ -51,11 +51,6 @@ MIN_INTERVAL_S = 0.005
 RESYNC_S = 0.1
 Q_RANGE = (math.radians(-60.0), math.radians(160.0))
 ALPHA_RANGE = (math.radians(-5.0), math.radians(100.0))
-
-
-def jump_bound(dt: float) -> float:
-    """Largest plausible change of a hip angle (rad) over `dt` seconds of device time."""
-    return HIP_VELOCITY_MAX * dt + ANGLE_NOISE_RAD
 
 
 def course_bound(dt: float) -> float:

@@ -30,26 +30,25 @@ from pathlib import Path
 from typing import cast
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from controller.base import Controller
 from controller.calibration import calibrate
 from controller.config import ControllerConfig
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.device.replay import ReplayDevice
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout, angle_to_count
-from controller.factory import NEEDS_MODELS, controller_names, load_models, make_from_spec
+from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.factory import controller_names, load_models, make_from_spec, needs_models
+from controller.kernel import ROW, ROW_FIELDS, KernelController
 from controller.loop import ControlLoop
-from controller.pipeline import PipelineController
-from controller.sim.plant import _CAM, _OUTPUT, plant_step
 from controller.spec import ControllerSpec
-from controller.tick import TickColumns, TickRecord, columns_from_records, records_from_columns
-from controller.tick_csv import write_columns_csv
-from controller.tick_kernel import N_OUT, O_LOCK_L, O_LOCK_R, OUT_FIELDS, layout_array, tick
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
+from controller.tick import TickColumns, TickRecord
+from controller.tick_codec import (
+    TICK_DTYPE,
+    columns_from_records,
+    records_from_columns,
+    write_csv,
+)
 
 REQUIRED_COLUMNS = ("t", "theta_left", "theta_right")
 
@@ -116,56 +115,6 @@ def read_angles_csv(path: Path) -> AngleRecording:
     )
 
 
-@njit(cache=True, nogil=True)
-def replay_kernel(
-    cfg_f: FloatArray, cfg_i: IntArray, torque_k: FloatArray,
-    kal_st: FloatArray, kal_k: FloatArray, hold: IntArray, win: FloatArray, win_pc: IntArray,
-    ctl: IntArray, pl: FloatArray,
-    bank_prm: FloatArray, crit: FloatArray, acc: FloatArray, bank_d: FloatArray,
-    bank_i: IntArray, bank_s: FloatArray, bank_ok: BoolArray,
-    priors: FloatArray, p_obs: FloatArray, post: FloatArray, table: FloatArray, eu: FloatArray,
-    plant_st: FloatArray, plant_k: FloatArray, device_layout: IntArray,
-    t: FloatArray, q: FloatArray, out: FloatArray, counts: IntArray, status_out: IntArray,
-) -> None:
-    """Replay recorded thigh angles `q` (K, 2) at times `t` through mechanism and `tick`.
-
-    Per sample, as `ReplayDevice` + `ControlLoop` do live: the mechanism steps with the
-    lock command of the previous tick, ideal encoders (layout `device_layout`: offsets
-    then directions) quantise its links to counts, and `tick` turns them into row k of
-    `out`. A gap (NaN angle) gives the impossible counts (0, 0, 2^15, 0), as
-    `ReplayDevice` does, hence a bad-sample row, and leaves the mechanism untouched.
-    """
-    lock_l = False
-    lock_r = False
-    dl = device_layout
-    for k in range(t.shape[0]):
-        ql = q[k, 0]
-        qr = q[k, 1]
-        if math.isfinite(ql) and math.isfinite(qr):
-            status = plant_step(plant_st, plant_k, lock_l, lock_r, ql, qr)
-            c0 = angle_to_count(plant_st[0, _OUTPUT], dl[0], dl[4])
-            c1 = angle_to_count(plant_st[0, _CAM], dl[1], dl[5])
-            c2 = angle_to_count(plant_st[1, _OUTPUT], dl[2], dl[6])
-            c3 = angle_to_count(plant_st[1, _CAM], dl[3], dl[7])
-        else:
-            status = 0
-            c0 = 0
-            c1 = 0
-            c2 = 1 << 15
-            c3 = 0
-        counts[k, 0] = c0
-        counts[k, 1] = c1
-        counts[k, 2] = c2
-        counts[k, 3] = c3
-        status_out[k] = status
-        row = out[k]
-        tick(cfg_f, cfg_i, torque_k, kal_st, kal_k, hold, win, win_pc, ctl, pl,
-             bank_prm, crit, acc, bank_d, bank_i, bank_s, bank_ok,
-             priors, p_obs, post, table, eu, c0, c1, c2, c3, t[k], status, row)
-        lock_l = row[O_LOCK_L] != 0.0
-        lock_r = row[O_LOCK_R] != 0.0
-
-
 def replay_columns(
     rec: AngleRecording,
     controller: Controller,
@@ -174,33 +123,35 @@ def replay_columns(
 ) -> TickColumns:
     """Run `controller` over the recording; one column per `TickRecord` field.
 
-    For the paper's controllers (`PipelineController`) this is one compiled loop
-    (`replay_kernel`) over the controller's own `tick` and state, with the mechanism of
-    `ReplayDevice` in between: the same code, samples and commands as the per-tick
-    path through `ControlLoop`, several times faster (`bench/bench_replay.py`: a
-    10-minute UMC at 100 Hz in about 0.4 s). Tick for tick the columns
-    equal that path's records, except for what only a real-time loop has: `t_host` is
+    For a controller run by the kernel (`KernelController`) this is one compiled loop
+    (its `Compiled.batch`, see `controller.kernel.tick`) over its own tick and
+    state, with the mechanism of `ReplayDevice` in between: the same code, samples and
+    commands as the per-tick path through `ControlLoop`, several times faster
+    (`bench/bench_replay.py`: a 10-minute UMC at 100 Hz in about 0.4 s). Tick for tick
+    the columns equal that path's records, except for what only a real-time loop has: `t_host` is
     the wall-clock time at which the replay started, `compute_us` the mean compute time
     per tick, and no tick carries the loop's OVERRUN or GAP flags. Other controllers
-    (`none`) take the per-tick path.
+    (`none`, or any that is not a `KernelController`) take the per-tick path.
     """
     device = ReplayDevice(rec.t, rec.q, precompression_pct, layout, activity=rec.activity,
                           lift_index=rec.lift_index)
-    if not isinstance(controller, PipelineController):
+    if not isinstance(controller, KernelController):
         return columns_from_records(replay_per_tick(rec, controller, precompression_pct, layout))
     device.open()
     controller.warm_up()
     t = np.ascontiguousarray(device.t, dtype=np.float64)
     q = np.ascontiguousarray(device.q, dtype=np.float64)
     k = t.size
-    out = np.empty((k, N_OUT))
+    out = np.empty(k, dtype=ROW)
     counts = np.empty((k, 4), dtype=np.int64)
     status = np.empty(k, dtype=np.int64)
     t_host = time.time()
     t0 = time.perf_counter()
-    run = cast(Callable[..., None], replay_kernel)  # numba's typing cannot follow a spread
-    run(*controller.core.args, device.plant.state, device.plant.constants,
-        layout_array(layout), t, q, out, counts, status)
+    kern = controller.kernel
+    run = cast(Callable[..., None], kern.compiled.batch)
+    run(kern.state, kern.data, device.plant.state, device.plant.constants,
+        np.array([*layout.offsets, *layout.directions], dtype=np.int64), t, q, out, counts,
+        status)
     per_tick_us = (time.perf_counter() - t0) * 1e6 / k
     device.close()
     cols: TickColumns = {
@@ -213,14 +164,14 @@ def replay_columns(
         "count_right_cam": counts[:, 3].copy(),
     }
     types = TickRecord.field_types()
-    for j, name in enumerate(OUT_FIELDS):
-        col = out[:, j]
+    for name in ROW_FIELDS:
+        col = out[name]
         kind = types[name]
         cols[name] = (col.astype(np.int64) if kind is int else col != 0.0 if kind is bool
                       else col.copy())
     cols["compute_us"] = np.full(k, per_tick_us)
     cols["truth_activity"] = np.array(rec.activity if rec.activity is not None else [""] * k,
-                                      dtype=object)
+                                      dtype=TICK_DTYPE["truth_activity"])
     cols["truth_lift"] = (np.asarray(rec.lift_index, dtype=np.int64).copy()
                           if rec.activity is not None and rec.lift_index is not None
                           else np.full(k, -1, dtype=np.int64))
@@ -273,7 +224,7 @@ def build(
     """The controller for a replay, calibrated from the recording's start for E-UMC."""
     if name not in controller_names():
         raise ValueError(f"unknown controller {name!r}; choose one of {controller_names()}")
-    if name in NEEDS_MODELS and (models is None or utilities is None):
+    if needs_models(name) and (models is None or utilities is None):
         raise ValueError(f"controller {name} needs --models and --utilities")
     spec = ControllerSpec(name, settings,
                           models_path=None if models is None else str(models),
@@ -281,7 +232,7 @@ def build(
     if name == "eumc" and settings.calibration is None:
         mset = load_models(spec)
         start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
-        n = round(calibrate_seconds * 100)
+        n = round(calibrate_seconds / SAMPLE_PERIOD_S)
         cal = calibrate(rec.q[:n], start)
         spec = replace(spec, settings=settings.with_calibration(cal.offset_left,
                                                                 cal.offset_right))
@@ -314,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"exostudy replay: error: {exc}", file=sys.stderr)
         return 2
     with a.out.open("w", newline="") as f:
-        n = write_columns_csv(cols, f)
+        n = write_csv(cols, f)
     locks = int(np.count_nonzero(cols["lock_left"] | cols["lock_right"]))
     print(f"replayed {n} ticks through {a.controller}; {locks} ticks with a lock command; "
           f"wrote {a.out}")

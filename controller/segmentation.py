@@ -28,11 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
+from controller.device.base import SAMPLE_PERIOD_S
+
 FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
-class LiftSegment:
+class SegmentedLift:
     """One lift as sample indices into the recording: onset, peak flexion, return to rest.
 
     `start <= peak <= end`; the demonstration is `q[start:end + 1]`.
@@ -151,7 +153,7 @@ def _baseline(
 
 def segment_lifts(
     t: FloatArray, q: FloatArray, params: SegmentationParams | None = None
-) -> list[LiftSegment]:
+) -> list[SegmentedLift]:
     """Find the lifts in a recording.
 
     Args:
@@ -160,7 +162,8 @@ def segment_lifts(
         params: thresholds; defaults documented in `SegmentationParams`.
 
     Returns:
-        Lifts in time order, non-overlapping.
+        Lifts in time order, non-overlapping; a lift cut by the first or last sample of
+        the recording (not at rest there) is left out.
 
     Raises:
         ValueError: bad shapes, NaN, non-increasing time, or a recording shorter than
@@ -176,7 +179,7 @@ def segment_lifts(
     if t.shape[0] >= 2 and not (np.diff(t) > 0).all():
         raise ValueError("sample times must be strictly increasing")
     k_len = t.shape[0]
-    dt = float(np.median(np.diff(t))) if k_len >= 2 else 0.01
+    dt = float(np.median(np.diff(t))) if k_len >= 2 else SAMPLE_PERIOD_S
     fs = 1.0 / dt
     win = max(round(p.smooth_window_s * fs) | 1, (p.smooth_order + 2) | 1)
     if k_len < win:
@@ -218,10 +221,16 @@ def segment_lifts(
 
     lifts = []
     for start, peak, end in candidates:
+        # A lift cut by the recording's first or last sample (the recording started or
+        # stopped mid-lift) is not a whole demonstration: fitted with the others, it
+        # shifts the model's starting or final posture by the part that is missing.
+        if (start == 0 and not at_rest_before(0)) or (
+                end == k_len - 1 and not at_rest_after(k_len - 1)):
+            continue
         duration = (end - start) * dt
         if not p.min_duration_s <= duration <= p.max_duration_s:
             continue
         if rel[peak].min() < p.min_each_hip_rad:
             continue
-        lifts.append(LiftSegment(start, peak, end))
+        lifts.append(SegmentedLift(start, peak, end))
     return lifts

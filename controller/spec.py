@@ -17,9 +17,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from controller import registry
 from controller.config import ControllerConfig, SettingError
 
-#: Every controller the project knows, and which of them need a model and utility set.
+#: The controllers that ship with ExoStudy, and which of them need a model and utility
+#: set. Controllers a researcher adds register in `controller.registry`, which is what
+#: validation consults.
 CONTROLLER_NAMES: tuple[str, ...] = ("eumc", "none", "pec", "umc")
 NEEDS_MODELS: frozenset[str] = frozenset({"umc", "eumc"})
 _KEYS = frozenset({"settings", "models", "models_path", "utilities", "utilities_path"})
@@ -42,9 +45,10 @@ class ControllerSpec:
     utilities_path: str | None = None
 
     def __post_init__(self) -> None:
-        if self.name not in CONTROLLER_NAMES:
+        reg = registry.lookup(self.name)
+        if reg is None:
             raise SettingError("name", f"unknown controller {self.name!r}; choose one of "
-                               f"{', '.join(CONTROLLER_NAMES)}")
+                               f"{', '.join(registry.names())}")
         if not isinstance(self.settings, ControllerConfig):
             raise SettingError("settings", "must be a ControllerConfig")
         for key in ("models", "utilities"):
@@ -53,7 +57,7 @@ class ControllerSpec:
                 raise SettingError(key, f"must be a JSON object, got {type(inline).__name__}")
             if path is not None and not isinstance(path, str):
                 raise SettingError(f"{key}_path", f"must be a path, got {path!r}")
-            if self.name in NEEDS_MODELS and inline is None and not path:
+            if reg.needs_models and inline is None and not path:
                 raise SettingError(key, f"controller {self.name} needs '{key}' or "
                                    f"'{key}_path'")
 

@@ -15,7 +15,6 @@ import operator
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
-import numpy as np
 import numpy.typing as npt
 
 MODEL_NAMES: tuple[str, str, str] = ("squat", "stoop_left", "stoop_right")
@@ -171,32 +170,11 @@ _FIELD_TYPES: dict[str, type] = {
     for f in fields(TickRecord)
 }
 
-#: A run of ticks as columns: field name to a (K,) array (int64, float64, bool, or object
-#: for strings), in `TickRecord.field_names()` order. What the batch replay produces:
-#: 60,000 ticks as 55 arrays rather than 60,000 objects.
+#: A run of ticks as columns: field name to a (K,) array (int64, float64, bool, or
+#: unicode/object for strings), in `TickRecord.field_names()` order. What the batch
+#: replay produces: 60,000 ticks as 55 arrays rather than 60,000 objects. Conversions
+#: to and from records, rows, JSON and CSV: `controller.tick_codec`.
 TickColumns = dict[str, npt.NDArray[Any]]
-
-
-def records_from_columns(cols: TickColumns) -> list[TickRecord]:
-    """Columns to records. NaN becomes the `NAN` singleton the record defaults use, so
-    records compare equal (`==`, `as_dict`) to records built field by field."""
-    values = []
-    for name in _FIELD_NAMES:
-        v = cols[name].tolist()
-        if _FIELD_TYPES[name] is float:
-            v = [x if x == x else NAN for x in v]
-        values.append(v)
-    return [TickRecord(*row) for row in zip(*values, strict=True)]
-
-
-def columns_from_records(records: list[TickRecord]) -> TickColumns:
-    """Records to columns (the inverse of `records_from_columns`)."""
-    dtypes = {int: np.int64, float: np.float64, bool: np.bool_, str: object}
-    rows = [r.as_tuple() for r in records]
-    return {
-        name: np.array([row[j] for row in rows], dtype=dtypes[_FIELD_TYPES[name]])
-        for j, name in enumerate(_FIELD_NAMES)
-    }
 
 
 #: Units and meanings of every field, for exports and the data dictionary.

@@ -1,38 +1,134 @@
-"""The Utility Maximizing Controller (UMC) and its extension (E-UMC).
+"""The Utility Maximizing Controller (UMC), its decision step and its registration.
 
-UMC, at its rate (10 Hz in the paper): Mahalanobis subsequence DTW of the last 0.3 s
-against each motion model's online half, chi-square likelihoods, Bayes posteriors over
-squat, stoop left, stoop right and other, expected utilities, arg max.
-
-E-UMC: the same, with two guards. It needs a calibration (offsets from standing still)
-and refuses to lock without one. It runs the UMC only while the velocity trigger holds
-(both hips flexing at >= 1 rad/s): at the trigger's rising edge and then at its
-triggered rate. Otherwise it decides "no lock" without evaluating anything.
-
-Both run inside the compiled tick (`controller.tick_kernel`, modes `MODE_UMC` and
-`MODE_EUMC`) on this module's model bank, priors and utility table.
+At its rate (10 Hz in the paper), once the observation window is full: Mahalanobis
+subsequence DTW of the last 0.3 s against each motion model's online half, chi-square
+likelihoods, Bayes posteriors over squat, stoop left, stoop right and other, expected
+utilities, arg max. `evaluate` is that evaluation, compiled into the tick; the E-UMC
+(`controller.eumc`) calls it behind its guards.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
+from numba import njit
 
 from controller import decision
 from controller.config import ControllerConfig, ticks_per_run
-from controller.intent import IntentEstimator
+from controller.decision import decide_fast
+from controller.factory import load_models, load_utilities
+from controller.intent import IntentEstimator, _intent_kernel
+from controller.kernel import Compiled, Kernel, KernelController
+from controller.kernel.records import BoolArray, FloatArray, IntArray
+from controller.kernel.tick import (
+    CONTROLLER_ERROR,
+    NO_LOCK,
+    begin,
+    finish,
+    replay_sample,
+    window_full,
+)
 from controller.motion_model import ModelSet
-from controller.onset import ModelBank, OnsetCriteria
-from controller.pipeline import PipelineController
+from controller.onset import ModelBank, OnsetCriteria, _bank_kernel, window_start
+from controller.registry import register
+from controller.spec import ControllerSpec
 from controller.tick import MODEL_NAMES
-from controller.tick_kernel import MODE_EUMC, MODE_UMC, Decider, TickCore
 from controller.utilities import UtilitySet
 
 
-class UMC(PipelineController):
+class UMCData(NamedTuple):
+    """The UMC's own arrays in the tick: the model bank's (`ModelBank.kernel_arrays`),
+    the intent estimator's and the utility table with its expected utilities. They are
+    the arrays those Python objects own, so after a tick they hold its results."""
+
+    bank_parameters: FloatArray
+    criteria: FloatArray
+    scratch: FloatArray
+    distance: FloatArray
+    ints: IntArray
+    progress: FloatArray
+    accepted: BoolArray
+    priors: FloatArray
+    p_obs: FloatArray
+    post: FloatArray
+    table: FloatArray
+    eu: FloatArray
+
+
+@njit(cache=True, nogil=True)
+def evaluate(window, pos, radius, data, row) -> tuple[bool, int, int]:  # type: ignore[no-untyped-def]
+    """Run the UMC on the window (`state.window`, `state.window_pos`): (ran, action,
+    flags), filling the row's model fields."""
+    prm, crit, acc, dist, ints, prog, ok, priors, p_obs, post, table, eu = data
+    size = window.shape[0] // 2
+    obs = window[window_start(size, pos) : pos[0] + size]
+    if _bank_kernel(obs, prm, radius, crit, acc, dist, ints, prog, ok) != 0:
+        return False, NO_LOCK, CONTROLLER_ERROR  # a NaN in the window; not from counts
+    _intent_kernel(dist, ints[0], ok, priors, p_obs, post)
+    action = decide_fast(table, prog[1], post, eu)
+    row.d_squat = dist[0]
+    row.d_stoop_left = dist[1]
+    row.d_stoop_right = dist[2]
+    row.l_squat = ints[0, 0]
+    row.l_stoop_left = ints[0, 1]
+    row.l_stoop_right = ints[0, 2]
+    row.s_start_squat = prog[0, 0]
+    row.s_start_stoop_left = prog[0, 1]
+    row.s_start_stoop_right = prog[0, 2]
+    row.s_curr_squat = prog[1, 0]
+    row.s_curr_stoop_left = prog[1, 1]
+    row.s_curr_stoop_right = prog[1, 2]
+    row.accepted_squat = 1.0 if ok[0] else 0.0
+    row.accepted_stoop_left = 1.0 if ok[1] else 0.0
+    row.accepted_stoop_right = 1.0 if ok[2] else 0.0
+    row.p_obs_squat = p_obs[0]
+    row.p_obs_stoop_left = p_obs[1]
+    row.p_obs_stoop_right = p_obs[2]
+    row.post_squat = post[0]
+    row.post_stoop_left = post[1]
+    row.post_stoop_right = post[2]
+    row.post_other = post[3]
+    row.eu_no_lock = eu[0]
+    row.eu_lock_both = eu[1]
+    row.eu_lock_right = eu[2]
+    row.eu_lock_left = eu[3]
+    return True, action, 0
+
+
+@njit(cache=True, nogil=True)
+def decide(state, data, row) -> tuple[bool, int, int]:  # type: ignore[no-untyped-def]
+    """The UMC's decision step: evaluate every `divider` ticks once the window is full."""
+    s = state.settings[0]
+    if window_full(state) and state.phase[0].tick % s.divider == 0:
+        return evaluate(state.window, state.window_pos, s.radius, data, row)
+    return False, NO_LOCK, 0
+
+
+@njit(cache=True, nogil=True)
+def step(state, data, c0, c1, c2, c3, t, status, rows) -> None:  # type: ignore[no-untyped-def]
+    """One live tick with this decision (`controller.kernel.tick`)."""
+    if begin(state, c0, c1, c2, c3, t, status, rows, 0):
+        finish(state, decide(state, data, rows[0]), status, rows, 0)
+
+
+@njit(cache=True, nogil=True)
+def batch(state, data, plant, plant_k, layout, t, q, rows, counts, statuses) -> None:  # type: ignore[no-untyped-def]
+    """The batch replay with this decision (`controller.kernel.tick`)."""
+    for k in range(t.shape[0]):
+        c0, c1, c2, c3, status = replay_sample(plant, plant_k, layout, q, rows, counts,
+                                               statuses, k)
+        if begin(state, c0, c1, c2, c3, t[k], status, rows, k):
+            finish(state, decide(state, data, rows[k]), status, rows, k)
+
+
+COMPILED = Compiled(step, batch)
+
+
+class UMC(KernelController):
     """Utility Maximizing Controller over a model set and a utility set."""
 
     name = "umc"
-    mode = MODE_UMC
 
     def __init__(
         self, models: ModelSet, utilities: UtilitySet, config: ControllerConfig | None = None
@@ -51,20 +147,24 @@ class UMC(PipelineController):
             criteria=OnsetCriteria(s_req=c.s_req, t_req=c.t_req, d_max=c.d_max),
             max_window=c.window,
         )
+        if self.bank.max_window < c.window:
+            raise ValueError(f"model bank window {self.bank.max_window} < window {c.window}")
         self.intent = IntentEstimator(np.asarray(c.priors))
         self.table = np.ascontiguousarray(utilities.table.values, dtype=np.float64)
         self.eu = np.zeros(4)
-        self.divider = self._divider(c)
-        super().__init__(c)
+        i = self.intent
+        data = UMCData(*self.bank.kernel_arrays(), i.priors, i.p_obs, i.post, self.table,
+                       self.eu)
+        kernel = Kernel(c, self._compiled(), self._divider(c), data, self.bank.radius)
+        super().__init__(c, kernel)
+
+    @staticmethod
+    def _compiled() -> Compiled:
+        return COMPILED
 
     @staticmethod
     def _divider(c: ControllerConfig) -> int:
         return ticks_per_run(c.umc_rate_hz)
-
-    def _make_core(self) -> TickCore:
-        i = self.intent
-        return TickCore(self.config, self.mode, self.divider,
-                        Decider(self.bank, i.priors, i.p_obs, i.post, self.table, self.eu))
 
     def warm_up(self) -> None:
         """Compile the tick, and the Python-callable DTW, probabilities and decision."""
@@ -74,18 +174,7 @@ class UMC(PipelineController):
         super().warm_up()
 
 
-class EUMC(UMC):
-    """Extended UMC: calibration and the velocity trigger in front of the UMC."""
-
-    name = "eumc"
-    mode = MODE_EUMC
-
-    def __init__(
-        self, models: ModelSet, utilities: UtilitySet, config: ControllerConfig | None = None
-    ) -> None:
-        super().__init__(models, utilities, config)
-        self.calibrated = self.config.calibration is not None
-
-    @staticmethod
-    def _divider(c: ControllerConfig) -> int:
-        return ticks_per_run(c.eumc_triggered_rate_hz)
+@register("umc", needs_models=True)
+def build(spec: ControllerSpec) -> UMC:
+    """The UMC of a specification."""
+    return UMC(load_models(spec), load_utilities(spec), spec.settings)

@@ -17,7 +17,6 @@ def default_sets(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The embedded default model set and utility folder, built once per test session
     (by the same code a first `make run` uses)."""
     from backend import bootstrap
-
     folder = tmp_path_factory.mktemp("defaults")
     models = folder / "models.json"
     bootstrap.ensure_models(models)

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import socket
 import threading
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -12,30 +10,22 @@ import uvicorn
 
 from backend.core.config import Settings
 from backend.main import create_app
-
-
-def free_port() -> int:
-    """A TCP port nobody listens on right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from tests.polling import free_tcp_port, wait_for
 
 
 @contextmanager
 def running_server(settings: Settings) -> Iterator[str]:
     """Start the app on a free port; yields its base URL; stops it (and the worker) after."""
-    port = free_port()
+    port = free_tcp_port()
     settings = settings.model_copy(update={"host": "127.0.0.1", "port": port})
     config = uvicorn.Config(create_app(settings), host="127.0.0.1", port=port,
                             log_level="warning", ws="websockets-sansio")
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="uvicorn", daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        if time.monotonic() > deadline or not thread.is_alive():
-            raise RuntimeError("server did not start")
-        time.sleep(0.05)
+    wait_for(lambda: server.started or not thread.is_alive(), 30, "the server to start")
+    if not server.started:
+        raise RuntimeError("server did not start")
     try:
         yield f"http://127.0.0.1:{port}"
     finally:

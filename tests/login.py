@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from fastapi.testclient import TestClient
 
-from backend import accounts
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
+from backend.study import accounts
 
 USERNAME = "experimenter"
 PASSWORD = "correct horse battery staple"

@@ -9,17 +9,21 @@ from typing import Annotated, Any, Literal, NoReturn
 from fastapi import Depends, FastAPI, HTTPException, Request, WebSocketException
 from fastapi.routing import APIRoute, iter_route_contexts
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.requests import HTTPConnection
 from starlette.routing import BaseRoute
 
-from backend import access as access_rules
-from backend.accounts import resolve_token
+from backend.analysis.jobs import JobRunner
+from backend.analysis.results import ResultsCache
 from backend.api import web_surface
 from backend.api.errors import not_found
 from backend.api.params import MAX_ID
+from backend.core.config import Settings
 from backend.db.models import AuthToken, User
-from backend.runtime import Runtime
+from backend.live.runtime import Runtime
+from backend.study import access as access_rules
+from backend.study.accounts import resolve_token
 
 #: Name of the httponly cookie that carries a browser's login.
 SESSION_COOKIE = "exostudy_session"
@@ -31,9 +35,9 @@ _cookie = APIKeyCookie(name=SESSION_COOKIE, auto_error=False,
                        description="set by POST /api/auth/login")
 
 
-def get_runtime(request: Request) -> Runtime:
-    """The server's live path (created by the lifespan)."""
-    runtime: Runtime = request.app.state.runtime
+def get_runtime(conn: HTTPConnection) -> Runtime:
+    """The server's live path (created by the lifespan); for requests and WebSockets."""
+    runtime: Runtime = conn.app.state.runtime
     return runtime
 
 
@@ -49,6 +53,64 @@ def get_db(request: Request) -> Iterator[Session]:
 
 
 SessionDep = Annotated[Session, Depends(get_db)]
+
+
+def get_settings_of_app(request: Request) -> Settings:
+    """The settings the application was built with (not re-read from the environment)."""
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings_of_app)]
+
+
+def get_engine(request: Request) -> Engine:
+    """The database engine, for reads that stream ticks outside the request's session."""
+    engine: Engine = request.app.state.engine
+    return engine
+
+
+EngineDep = Annotated[Engine, Depends(get_engine)]
+
+
+def get_session_factory(conn: HTTPConnection) -> sessionmaker[Session]:
+    """The session factory, for work that outlives the request (background jobs, a
+    WebSocket's login check)."""
+    factory: sessionmaker[Session] = conn.app.state.sessions
+    return factory
+
+
+SessionFactoryDep = Annotated[sessionmaker[Session], Depends(get_session_factory)]
+
+
+def get_jobs(request: Request) -> JobRunner:
+    """The background job runner (model fitting, utilities, cohorts)."""
+    jobs: JobRunner = request.app.state.jobs
+    return jobs
+
+
+JobsDep = Annotated[JobRunner, Depends(get_jobs)]
+
+
+def get_results_cache(request: Request) -> ResultsCache:
+    """The server's cache of recent study evaluations (one per application)."""
+    cache: ResultsCache | None = getattr(request.app.state, "results_cache", None)
+    if cache is None:
+        cache = request.app.state.results_cache = ResultsCache()
+    return cache
+
+
+ResultsCacheDep = Annotated[ResultsCache, Depends(get_results_cache)]
+
+
+def get_site(request: Request) -> str | None:
+    """The site the caller's grant limits them to (None: every site), as the access
+    check stored it for this request."""
+    site: str | None = getattr(getattr(request.state, "grant", None), "site", None)
+    return site
+
+
+SiteDep = Annotated[str | None, Depends(get_site)]
 
 
 def login_from_token(sessions: sessionmaker[Session], token: str | None
@@ -95,7 +157,7 @@ CurrentUser = Annotated[User, Depends(current_user)]
 # id the resolvers know (`study_id`, `participant_id`, `trial_id`, ...) needs the
 # `viewer` role in that id's study to read and `experimenter` to change anything; a
 # path with only ids no resolver knows needs the admin role (add a resolver in
-# backend/access.py); a path without ids needs a login to read and admin to change.
+# backend/study/access.py); a path without ids needs a login to read and admin to change.
 
 ACCESS_KEY = "x-exostudy-access"
 AccessRule = Literal["public", "participant", "login", "admin", "worker",

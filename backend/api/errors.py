@@ -18,6 +18,8 @@ from pydantic import BaseModel
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from backend.core.errors import ConflictError, InvalidError, NotFoundError
+
 T = TypeVar("T")
 
 
@@ -116,6 +118,20 @@ async def _validation_handler(request: Request, exc: Exception) -> JSONResponse:
                         content={"detail": safe_validation_errors(exc.errors())})
 
 
+async def _service_handler(request: Request, exc: Exception) -> JSONResponse:
+    """A service's refusal, in the shape the routes' own checks give."""
+    if isinstance(exc, NotFoundError):
+        return JSONResponse(status_code=404, content={"detail": str(exc)})
+    if isinstance(exc, ConflictError):
+        return JSONResponse(status_code=409, content={"detail": str(exc)})
+    assert isinstance(exc, InvalidError)
+    return JSONResponse(status_code=422, content={"detail": [
+        {"loc": loc, "msg": msg, "type": "value_error"} for loc, msg in exc.problems]})
+
+
 def install_handlers(app: FastAPI) -> None:
-    """Answer every request validation error with a 422 that can always be encoded."""
+    """Answer every request validation error with a 422 that can always be encoded, and
+    the services' refusals (backend/core/errors.py) with 404, 409 or 422."""
     app.add_exception_handler(RequestValidationError, _validation_handler)
+    for cls in (NotFoundError, ConflictError, InvalidError):
+        app.add_exception_handler(cls, _service_handler)

@@ -7,7 +7,9 @@ from typing import Annotated
 
 from fastapi import Path
 
-MAX_ID = 2_147_483_647
+from backend.schemas.fields import MAX_ID
+
+__all__ = ["MAX_ID"]
 
 StudyId = Annotated[int, Path(ge=1, le=MAX_ID, description="study id")]
 ParticipantId = Annotated[int, Path(ge=1, le=MAX_ID, description="participant id")]

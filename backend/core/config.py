@@ -70,7 +70,7 @@ class Settings(BaseSettings):
     #: one network need different names.
     lsl_name: str = Field(default="ExoStudy", min_length=1, max_length=100)
 
-    #: Create the demo study and account in an empty database (see backend/demo.py).
+    #: Create the demo study and account in an empty database (see backend/study/demo.py).
     demo: bool = True
 
     #: Origins (besides the server's own host) whose pages may send cookie-authenticated

@@ -106,7 +106,7 @@ class User(Base):
     active: Mapped[bool] = mapped_column(Boolean, default=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     #: Global role: "admin" manages accounts and acts as owner of every study; "member"
-    #: has only the roles its study memberships give (backend/access.py).
+    #: has only the roles its study memberships give (backend/study/access.py).
     role: Mapped[str] = mapped_column(String(16), default="member", server_default="member")
     #: True while the password is one printed in the README (the demo account's): the
     #: server refuses a non-loopback host and every page warns until it is changed.

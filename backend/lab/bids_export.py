@@ -32,8 +32,8 @@ from typing import Any
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend import tick_queries
-from backend.db.evidence import LockEvent, Trial, TrialSegment
+from backend.analysis import tick_queries
+from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
 from backend.db.lab import Marker, XdfAttachment
 from backend.db.models import (
     ConditionLabel,
@@ -42,11 +42,10 @@ from backend.db.models import (
     Study,
     StudySession,
 )
+from controller.device.base import SAMPLE_RATE_HZ
 
 #: The BIDS version the layout follows (motion entered the specification in 1.9.0).
 BIDS_VERSION = "1.9.0"
-#: The device's sample rate: the control loop's period is 10 ms.
-SAMPLING_FREQUENCY_HZ = 100.0
 TRACKSYS = "exo"
 
 
@@ -201,15 +200,15 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession,
             [[c.field, c.component, c.type, c.tracked_point, c.units, c.description]
              for c in CHANNELS]).encode()
         t = cols["t"]
-        duration = float(t[-1] - t[0]) + 1.0 / SAMPLING_FREQUENCY_HZ
+        duration = float(t[-1] - t[0]) + 1.0 / SAMPLE_RATE_HZ
         yield f"{stem}_motion.json", _json({
             "TaskName": trial.task,
             "TaskDescription": f"{trial.task} with the exoskeleton under the "
                                f"{trial.controller} controller (blinded label "
                                f"{blinded.get(trial.controller, 'n/a')})",
-            "SamplingFrequency": SAMPLING_FREQUENCY_HZ,
+            "SamplingFrequency": SAMPLE_RATE_HZ,
             "SamplingFrequencyEffective": (t.size - 1) / float(t[-1] - t[0])
-            if t.size > 1 and t[-1] > t[0] else SAMPLING_FREQUENCY_HZ,
+            if t.size > 1 and t[-1] > t[0] else SAMPLE_RATE_HZ,
             "RecordingDuration": duration,
             "TrackingSystemName": "quasi-passive hip exoskeleton encoders (component x: "
                                   "rotation about the medio-lateral axis, flexion positive)",

@@ -15,13 +15,13 @@ from typing import Any
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream
 from backend.lab import markers
 from backend.lab.lsl_outlets import LabOutlets, TickTime, marker_text
 from backend.lab.marker_inlet import MarkerInlet
+from backend.live.stream import LiveStream
 from backend.schemas.lab import LiveMarker, MarkerOut
-from backend.stream import LiveStream
 from backend.worker.messages import TickBatch
 
 log = logging.getLogger(__name__)

@@ -27,13 +27,13 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from backend.worker.messages import TickBatch
-from controller.tick import TICK_FIELD_DOCS, TickRecord
+from controller.device.base import SAMPLE_RATE_HZ
+from controller.tick import TICK_FIELD_DOCS
 
 log = logging.getLogger(__name__)
-
-#: Nominal rate of the tick stream: the control loop's 100 Hz (the device's sample rate).
-TICK_RATE_HZ = 100.0
 
 #: (field, LSL channel type, unit) of each tick-stream channel, in order. Units follow the
 #: tick record's own (radians, rad/s); the type names are those of the XDF meta-data
@@ -56,7 +56,6 @@ TICK_CHANNELS: tuple[tuple[str, str, str], ...] = (
     ("locked_right", "State", "bool"),
 )
 TICK_CHANNEL_NAMES: tuple[str, ...] = tuple(c[0] for c in TICK_CHANNELS)
-_INDEX = [TickRecord.field_names().index(c) for c in TICK_CHANNEL_NAMES]
 
 #: Ticks whose (LSL time, tick time, run) the map keeps: 30 s at 100 Hz, so a marker from
 #: a program whose clock offset LSL is still estimating still finds its tick.
@@ -123,7 +122,7 @@ class LabOutlets:
 
         host = socket.gethostname()
         info = pylsl.StreamInfo(self.name, "ExoskeletonTicks", len(TICK_CHANNELS),
-                                TICK_RATE_HZ, pylsl.cf_double64,
+                                SAMPLE_RATE_HZ, pylsl.cf_double64,
                                 f"exostudy-{self.name}-{host}-ticks")
         desc = info.desc()
         acq = desc.append_child("acquisition")
@@ -160,40 +159,40 @@ class LabOutlets:
 
     def on_ticks(self, batch: TickBatch) -> tuple[TickTime, TickTime] | None:
         """Push a batch to the tick outlet, remember its times, mark lock edges; returns
-        the batch's first and last tick (a batch holds ticks of one run)."""
-        if not batch.records:
+        the batch's first and last tick (a batch holds ticks of one run). Works on the
+        batch's columns: no per-tick Python beyond the lock edges."""
+        ticks = batch.ticks
+        if not len(ticks):
             return None
         offset = lsl_clock_offset() if self.enabled else time.monotonic() - time.time()
         with self._lock:
             run_id = self._runs.get(batch.run_token)
-        stamps: list[float] = []
+        t_host = ticks["t_host"]
+        # A record without a read time (never from the live worker) is stamped now.
+        stamps_a = np.where(np.isfinite(t_host), t_host, time.time()) + offset
+        t_dev = ticks["t"].tolist()
+        held = np.stack([ticks["lock_left"], ticks["lock_right"]], axis=1)
+        # Each tick's command against the one before (the first tick ever has no edge).
+        first = np.asarray(self._held if self._held is not None else held[0], dtype=bool)
+        before = np.vstack([first[None, :], held[:-1]])
         edges: list[tuple[float, str, str, float]] = []
-        held = self._held
-        for r in batch.records:
-            # A record without a read time (never from the live worker) is stamped now.
-            ts = (r.t_host if r.t_host == r.t_host else time.time()) + offset
-            stamps.append(ts)
-            now_held = (r.lock_left, r.lock_right)
-            if held is not None:
-                for i, side in enumerate(("left", "right")):
-                    if now_held[i] != held[i]:
-                        edges.append((ts, "lock" if now_held[i] else "release", side, r.t))
-            held = now_held
-        self._held = held
+        for k, side_no in zip(*np.nonzero(held != before), strict=True):
+            edges.append((float(stamps_a[k]), "lock" if held[k, side_no] else "release",
+                          ("left", "right")[side_no], t_dev[k]))
+        self._held = (bool(held[-1, 0]), bool(held[-1, 1]))
+        stamps: list[float] = stamps_a.tolist()
         with self._lock:
             self._map_lsl.extend(stamps)
-            self._map_t.extend(r.t for r in batch.records)
+            self._map_t.extend(t_dev)
             self._map_run.extend([run_id] * len(stamps))
         outlet = self._tick_outlet
         if outlet is not None:
-            for r, ts in zip(batch.records, stamps, strict=True):
-                row = r.as_tuple()
-                outlet.push_sample([float(row[i]) for i in _INDEX], ts)
+            chunk = np.stack([ticks[c].astype(np.float64) for c in TICK_CHANNEL_NAMES], axis=1)
+            outlet.push_chunk(chunk, stamps)
             self.pushed_ticks += len(stamps)
         for ts, kind, side, t in edges:
             self.push_marker(marker_text(kind, side=side, run_id=run_id, t=t), ts)
-        return (TickTime(run_id, batch.records[0].t, stamps[0]),
-                TickTime(run_id, batch.records[-1].t, stamps[-1]))
+        return (TickTime(run_id, t_dev[0], stamps[0]), TickTime(run_id, t_dev[-1], stamps[-1]))
 
     # Markers and the time map --------------------------------------------------------
     def push_marker(self, text: str, lsl_time: float) -> None:

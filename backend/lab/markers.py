@@ -11,7 +11,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, StudyMarkerLabels
 from backend.db.models import ConditionLabel, Participant, StudySession
 from backend.lab.lsl_outlets import TickTime

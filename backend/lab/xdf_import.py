@@ -21,8 +21,8 @@ import numpy as np
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend import tick_queries
-from backend.db.evidence import Trial
+from backend.analysis import tick_queries
+from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.schemas.lab import XdfStreamSummary
 

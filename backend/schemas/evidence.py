@@ -1,5 +1,5 @@
 """Request and response bodies for recordings, segments, model sets, utility sets, jobs
-and trials (the ORM rows stay in `backend.db.evidence`)."""
+and trials (the ORM rows stay in `backend.db.evidence_tables`)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-#: The largest id or sample index the 32-bit integer columns hold.
-_MAX_ID = 2_147_483_647
+from backend.schemas.fields import MAX_ID
 
 SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
-TrialController = Literal["umc", "eumc", "pec"]
 
 
 class RecordingIn(BaseModel):
@@ -41,9 +39,9 @@ class RecordingOut(BaseModel):
 class SegmentIn(BaseModel):
     """A lift as sample indices from the recording's first tick."""
 
-    start: int = Field(ge=0, le=_MAX_ID)
-    peak: int = Field(ge=0, le=_MAX_ID)
-    end: int = Field(ge=0, le=_MAX_ID)
+    start: int = Field(ge=0, le=MAX_ID)
+    peak: int = Field(ge=0, le=MAX_ID)
+    end: int = Field(ge=0, le=MAX_ID)
     label: SegmentLabel = "unlabelled"
 
     @model_validator(mode="after")
@@ -56,9 +54,9 @@ class SegmentIn(BaseModel):
 class SegmentUpdate(BaseModel):
     """Move a segment's edges or relabel it."""
 
-    start: int | None = Field(default=None, ge=0, le=_MAX_ID)
-    peak: int | None = Field(default=None, ge=0, le=_MAX_ID)
-    end: int | None = Field(default=None, ge=0, le=_MAX_ID)
+    start: int | None = Field(default=None, ge=0, le=MAX_ID)
+    peak: int | None = Field(default=None, ge=0, le=MAX_ID)
+    end: int | None = Field(default=None, ge=0, le=MAX_ID)
     label: SegmentLabel | None = None
 
 
@@ -103,7 +101,7 @@ class ModelSetIn(BaseModel):
     """Fit a model set from labelled segments (a background job)."""
 
     name: str = Field(min_length=1, max_length=200)
-    segment_ids: list[Annotated[int, Field(ge=1, le=_MAX_ID)]] = Field(min_length=6,
+    segment_ids: list[Annotated[int, Field(ge=1, le=MAX_ID)]] = Field(min_length=6,
                                                                         max_length=10_000)
     latent_dim: int | None = Field(default=None, ge=1, le=200)
     explained_variance: float = Field(default=0.95, gt=0.0, lt=1.0)
@@ -178,8 +176,8 @@ class TrialPlanIn(BaseModel):
                              min_length=1, max_length=20)
     include_eumc: bool = True
     # Ids within what the id columns hold: a larger one is a 422, not a driver overflow.
-    model_set_id: int | None = Field(default=None, ge=1, le=_MAX_ID)
-    utility_set_id: int | None = Field(default=None, ge=1, le=_MAX_ID)
+    model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
+    utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
 
 
 class TrialStartIn(BaseModel):

@@ -8,6 +8,10 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field
 
+#: The largest id: ids are bounded to 32-bit integers, so an id beyond what any database
+#: column holds is a 404 or 422, never a driver overflow (a 500).
+MAX_ID = 2_147_483_647
+
 
 def _storable(v: str) -> str:
     # PostgreSQL refuses NUL in text and no UTF-8 codec takes lone surrogates: refuse

@@ -7,9 +7,10 @@ and `t_host` (gaps and latency). The database keeps them all.
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import AfterValidator, BaseModel, Field
 
 #: Tick fields sent to consoles, in column order.
 STREAM_FIELDS: tuple[str, ...] = (
@@ -50,33 +51,53 @@ class LiveTicks(BaseModel):
     columns: dict[str, list[float | int | bool | str | None]]
 
 
-class WorkerHealth(BaseModel):
-    """The worker as the server sees it."""
+def _finite_or_none(v: float | None) -> float | None:
+    return v if v is not None and math.isfinite(v) else None
+
+
+#: A measurement the worker could not make yet (no ticks, no sample): NaN or infinity
+#: on the worker's side, null in JSON.
+Measured = Annotated[float | None, AfterValidator(_finite_or_none)]
+
+
+class LoopReport(BaseModel):
+    """What the worker measures about its control loop. The worker sends it in every
+    status message (`backend.worker.messages.WorkerStatus`) and `WorkerHealth` shows
+    it as is: one definition on both sides of the process boundary."""
+
+    controller: str | None = None
+    ticks: int = 0
+    period_mean_ms: Measured = None
+    jitter_p50_ms: Measured = None
+    jitter_p99_ms: Measured = None
+    jitter_max_ms: Measured = None
+    compute_p50_us: Measured = None
+    compute_p99_us: Measured = None
+    compute_max_us: Measured = None
+    overruns: int = 0
+    gaps: int = 0
+    timeouts: int = Field(default=0, description="reads that waited for a sample in vain")
+    dropped_records: int = Field(default=0, description=(
+        "ticks the worker dropped because the server did not take them"))
+
+
+class WorkerHealth(LoopReport):
+    """The worker as the server sees it: its last `LoopReport` and the process."""
 
     alive: bool
     pid: int | None = None
     restarts: int = 0
     exit_code: int | None = None
     exit_reason: str = ""
-    controller: str | None = None
-    ticks: int = 0
-    period_mean_ms: float | None = None
-    jitter_p50_ms: float | None = None
-    jitter_p99_ms: float | None = None
-    jitter_max_ms: float | None = None
-    compute_p99_us: float | None = None
-    overruns: int = 0
-    gaps: int = 0
-    dropped_records: int = 0
     errors: list[str] = Field(default_factory=list)
 
 
-class DeviceHealth(BaseModel):
-    """The exoskeleton link as the worker reports it."""
+class DeviceReport(BaseModel):
+    """The exoskeleton link as the worker reports it (sent in every status message,
+    shown as is in `DeviceHealth`)."""
 
     alive: bool
-    kind: str
-    last_sample_age_s: float | None = None
+    last_sample_age_s: Measured = None
     faults: list[str] = Field(default_factory=list)
     implausible_samples: int = Field(default=0, description=(
         "samples of the current run that failed a plausibility check (no lock taken)"))
@@ -84,6 +105,12 @@ class DeviceHealth(BaseModel):
         "packets dropped by the UDP link since the worker started, by reason: host side "
         "(auth, replay, ...) and, as the device reports them, device side (device_auth, "
         "device_replay)"))
+
+
+class DeviceHealth(DeviceReport):
+    """The exoskeleton link: the worker's `DeviceReport` and the configured kind."""
+
+    kind: str
 
 
 class DatabaseHealth(BaseModel):
@@ -115,3 +142,40 @@ class LiveStatus(BaseModel):
 
     type: Literal["status"] = "status"
     health: Health
+
+
+class ControllerChoice(BaseModel):
+    """Which controller the worker should run."""
+
+    name: str = Field(description="controller name, e.g. none, umc, eumc, pec")
+    config: dict[str, object] = Field(default_factory=dict)
+
+
+class CalibrationRequest(BaseModel):
+    """Stand still for `seconds`; the wearer moving more than `max_std_deg` fails it."""
+
+    seconds: float = Field(default=3.0, ge=0.5, le=30.0)
+    max_std_deg: float = Field(default=1.0, gt=0.0, le=10.0)
+
+
+class CalibrationOutcome(BaseModel):
+    """The result of a calibration."""
+
+    ok: bool
+    message: str
+    offset_left_deg: float
+    offset_right_deg: float
+    std_left_deg: float | None
+    std_right_deg: float | None
+    samples: int
+
+
+class SimulationChoice(BaseModel):
+    """The virtual participant and what they do."""
+
+    seed: int = Field(ge=0, le=2**31 - 1, description="virtual participant")
+    script: str = Field(description="squat-sequence, stoop-sequence, walking, stairs, "
+                        "paper-evaluation")
+    speed: float | None = Field(default=None, ge=0.1, le=100.0, description=(
+        "samples this many times faster than real time (in-process simulator only); "
+        "default: as before"))

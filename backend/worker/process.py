@@ -12,6 +12,7 @@ Safety rules:
 from __future__ import annotations
 
 import collections
+import dataclasses
 import gc
 import math
 import os
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from backend.schemas.live import DeviceReport, LoopReport
 from backend.worker.devices import make_device
 from backend.worker.messages import (
     Calibrate,
@@ -42,9 +44,10 @@ from backend.worker.messages import (
     WorkerStatus,
 )
 from controller.calibration import CalibrationError, calibrate
-from controller.device.base import Device
-from controller.factory import load_models, make_controller
+from controller.device.base import SAMPLE_PERIOD_S, Device
+from controller.factory import load_models, make_controller, make_from_spec
 from controller.loop import ControlLoop
+from controller.spec import ControllerSpec
 from controller.tick import TickRecord
 
 #: Records kept for the server if it stops reading: one minute at 100 Hz.
@@ -60,12 +63,17 @@ BACKLOG_RESUME = 250
 
 
 class _Outbox:
-    """Hands records from the loop to the pipe on a separate thread."""
+    """Hands records from the loop to the pipe on a separate thread, packed into one
+    block per batch (`TickBatch`). The loop thread only appends a record; packing and
+    pickling happen on this thread, outside the lock the loop takes."""
 
     def __init__(self, conn: Connection) -> None:
         self.conn = conn
-        self.records: collections.deque[TickRecord] = collections.deque()
-        self.messages: collections.deque[WorkerMessage] = collections.deque()
+        self.records: list[TickRecord] = []
+        # Control messages, and the records queued before each of them as
+        # (run token, records) still to be packed, in the order they must go out.
+        self.messages: collections.deque[WorkerMessage | tuple[int, list[TickRecord]]] = (
+            collections.deque())
         self.dropped = 0
         self.broken = threading.Event()
         self.stop = threading.Event()
@@ -77,7 +85,7 @@ class _Outbox:
     def put_record(self, record: TickRecord) -> None:
         with self._lock:
             if len(self.records) >= OUTBOX_LIMIT:
-                self.records.popleft()
+                del self.records[0]
                 self.dropped += 1
             else:
                 self._unsent += 1
@@ -93,18 +101,18 @@ class _Outbox:
         # is never overtaken by ticks of the run it announces (flush first).
         with self._lock:
             if self.records:
-                self.messages.append(TickBatch(self.run_token, tuple(self.records)))
-                self.records.clear()
+                self.messages.append((self.run_token, self.records))
+                self.records = []
             self.messages.append(message)
 
     def _drain(self) -> list[WorkerMessage]:
         with self._lock:
-            out: list[WorkerMessage] = list(self.messages)
+            taken = list(self.messages)
             self.messages.clear()
             if self.records:
-                out.append(TickBatch(self.run_token, tuple(self.records)))
-                self.records.clear()
-        return out
+                taken.append((self.run_token, self.records))
+                self.records = []
+        return [TickBatch.from_records(*m) if isinstance(m, tuple) else m for m in taken]
 
     def _run(self) -> None:
         while not self.stop.is_set():
@@ -123,7 +131,36 @@ class _Outbox:
                 return
             if isinstance(msg, TickBatch):
                 with self._lock:
-                    self._unsent -= len(msg.records)
+                    self._unsent -= len(msg)
+
+
+class _Runs:
+    """The worker's current run, and the one way a new one starts.
+
+    A run is what the server stores ticks under: every change of controller, wearer or
+    configuration starts one, announced by `RunStarted` before any of its ticks (the
+    outbox sends the ticks queued before it under the old token first)."""
+
+    def __init__(self, outbox: _Outbox, pid: int) -> None:
+        self.outbox, self.pid = outbox, pid
+        self.token = 0
+        self.config: dict[str, Any] = {}
+        self.ticks = 0  # samples of the current run
+        self.limit: int | None = None  # a timed run ends by itself after this many
+
+    def start(self, controller: str, config: dict[str, Any], device_kind: str,
+              limit: int | None = None, *, count_again: bool = True) -> int:
+        """Announce a new run of `controller` with `config`; its token. With
+        `count_again=False` the sample count and limit carry over (a calibration
+        applied to the running controller)."""
+        self.token += 1
+        self.config = dict(config)
+        if count_again:
+            self.ticks, self.limit = 0, limit
+        self.outbox.put(RunStarted(self.token, controller, self.config, device_kind,
+                                   self.pid))
+        self.outbox.run_token = self.token
+        return self.token
 
 
 def worker_main(
@@ -164,14 +201,9 @@ def worker_main(
         gc.collect()
         gc.freeze()
         loop = ControlLoop(device, controller)
-        current_config: dict[str, Any] = dict(config.controller_config)
         calibration: _CalibrationJob | None = None
-        run_ticks = 0  # samples of the current run
-        run_limit: int | None = None  # a timed run ends by itself after this many
-        run_token = 1
-        outbox.run_token = run_token
-        outbox.put(RunStarted(run_token, controller.name, dict(config.controller_config),
-                              device.kind, pid))
+        runs = _Runs(outbox, pid)
+        runs.start(controller.name, config.controller_config, device.kind)
         next_status = time.monotonic()
         held = False  # a sped-up simulation waiting for the server (see `_hold`)
         silent = False  # no sample within the last read's timeout (see below)
@@ -208,14 +240,10 @@ def worker_main(
                         new = make_controller("none")
                         cmd = SetController("none", {})
                     loop.controller = new
-                    current_config = dict(cmd.config)
-                    run_ticks, run_limit = 0, cmd.max_ticks
-                    run_token += 1
-                    outbox.put(RunStarted(run_token, new.name, current_config, device.kind, pid))
-                    outbox.run_token = run_token
-                    _answer(outbox, rid, refused, run_token)
+                    token = runs.start(new.name, cmd.config, device.kind, cmd.max_ticks)
+                    _answer(outbox, rid, refused, token)
                 elif isinstance(cmd, Calibrate):
-                    calibration = _CalibrationJob(cmd, config, current_config)
+                    calibration = _CalibrationJob(cmd, config, runs.config)
                 elif isinstance(cmd, SetSimulation):
                     if config.device_kind != "sim":
                         refused = ("the device is not the in-process simulator: there is no "
@@ -227,7 +255,7 @@ def worker_main(
                                          device_speed=cmd.speed or config.device_speed)
                     try:
                         new_device = make_device(sim_config)
-                        fresh = make_controller(loop.controller.name, current_config)
+                        fresh = make_controller(loop.controller.name, runs.config)
                         fresh.warm_up()
                     except Exception as exc:
                         refused = f"simulation seed {cmd.seed}, script {cmd.script!r} " \
@@ -246,12 +274,9 @@ def worker_main(
                     calibration = None
                     # Fresh timing too: health counts ticks from the new wearer's start.
                     loop = ControlLoop(device, fresh)
-                    run_ticks, run_limit = 0, None
                     next_status = 0.0  # report the new wearer at its first sample
-                    run_token += 1
-                    outbox.put(RunStarted(run_token, fresh.name, current_config, device.kind, pid))
-                    outbox.run_token = run_token
-                    _answer(outbox, cmd.request_id, "", run_token)
+                    token = runs.start(fresh.name, runs.config, device.kind)
+                    _answer(outbox, cmd.request_id, "", token)
             if commands:
                 _loop_scheduling(_paced(config))
             if stopping.is_set():
@@ -266,39 +291,37 @@ def worker_main(
             silent = record is None and not held
             if record is not None:
                 outbox.put_record(record)
-                run_ticks += 1
-                if run_limit is not None and run_ticks >= run_limit:
+                runs.ticks += 1
+                if runs.limit is not None and runs.ticks >= runs.limit:
                     # A timed run is over: back to no controller (no locks), a new run.
                     loop.controller = make_controller("none")
-                    current_config = {}
                     _abandon(outbox, calibration, "the timed trial ended")
                     calibration = None
-                    run_ticks, run_limit = 0, None
-                    run_token += 1
-                    outbox.put(RunStarted(run_token, "none", {}, device.kind, pid))
-                    outbox.run_token = run_token
+                    runs.start("none", {}, device.kind)
                     record = None
                 if record is not None and calibration is not None and calibration.add(record):
-                    result, new_config = calibration.finish(loop.controller.name)
+                    result, offsets = calibration.finish(loop.controller.name)
                     calibration = None
                     outbox.put(result)
-                    if new_config is not None:
+                    if offsets is not None:
                         # The running E-UMC takes its calibration at once: a new run.
                         try:
-                            new = make_controller(loop.controller.name, new_config)
+                            spec = ControllerSpec.from_config(loop.controller.name,
+                                                              runs.config)
+                            spec = replace(spec, settings=replace(spec.settings,
+                                                                  calibration=offsets))
+                            new = make_from_spec(spec)
                             new.warm_up()
                             loop.controller = new
-                            current_config = new_config
-                            run_token += 1
-                            outbox.put(RunStarted(run_token, new.name, new_config,
-                                                  device.kind, pid))
-                            outbox.run_token = run_token
+                            runs.start(new.name, spec.to_config(), device.kind,
+                                       count_again=False)
                         except Exception as exc:
                             outbox.put(WorkerError(f"applying the calibration failed: {exc}"))
             now = time.monotonic()
             if now >= next_status:
                 next_status = now + config.status_interval
-                outbox.put(_status(loop, outbox, pid, run_token, device.kind, device.faults()))
+                outbox.put(_status(loop, outbox, pid, runs.token, device.kind,
+                                   device.faults()))
     except Exception as exc:
         outbox.put(WorkerError(f"worker loop failed: {exc!r}", fatal=True))
         exit_code = 5
@@ -405,7 +428,7 @@ class _CalibrationJob:
         self.cmd = cmd
         self.worker = worker
         self.current = current
-        self.needed = max(10, round(cmd.seconds * 100))
+        self.needed = max(10, round(cmd.seconds / SAMPLE_PERIOD_S))
         self.q: list[tuple[float, float]] = []
 
     def add(self, r: TickRecord) -> bool:
@@ -413,14 +436,17 @@ class _CalibrationJob:
         self.q.append((r.q_raw_left, r.q_raw_right))
         return len(self.q) >= self.needed
 
-    def finish(self, running: str) -> tuple[CalibrationResult, dict[str, Any] | None]:
-        """The result, and the E-UMC configuration to switch to if it is running."""
+    def finish(self, running: str
+               ) -> tuple[CalibrationResult, tuple[float, float] | None]:
+        """The result, and the offsets a running E-UMC takes at once (None otherwise)."""
         rid = self.cmd.request_id
         q = np.asarray(self.q, dtype=np.float64)
-        models_cfg = self.current if "models_path" in self.current or "models" in self.current \
-            else {"models_path": self.worker.models_path}
         try:
-            mset = load_models(models_cfg)
+            # The running controller's models, else the worker's default model set.
+            spec = ControllerSpec.from_config(running, self.current)
+            if spec.models is None and not spec.models_path:
+                spec = ControllerSpec("none", models_path=self.worker.models_path)
+            mset = load_models(spec)
             start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
             cal = calibrate(q, start, max_std=math.radians(self.cmd.max_std_deg))
         except (CalibrationError, ValueError) as exc:
@@ -432,40 +458,21 @@ class _CalibrationJob:
             rid, True, "calibrated", cal.offset_left, cal.offset_right,
             math.degrees(std[0]), math.degrees(std[1]), len(q),
         )
-        if running != "eumc":
-            return result, None
-        new_config = dict(self.current)
-        settings = dict(new_config.get("settings", {}))
-        settings["calibration"] = [cal.offset_left, cal.offset_right]
-        new_config["settings"] = settings
-        return result, new_config
+        return result, (cal.offset_left, cal.offset_right) if running == "eumc" else None
 
 
 def _status(
     loop: ControlLoop, outbox: _Outbox, pid: int, run_token: int, kind: str, faults: list[str]
 ) -> WorkerStatus:
-    s = loop.timing.summary()
     last = loop.last_sample_at
-    age = time.monotonic() - last if last is not None else float("inf")
+    age = time.monotonic() - last if last is not None else math.inf
     return WorkerStatus(
         pid=pid,
         run_token=run_token,
-        controller=loop.controller.name,
-        ticks=s.ticks,
-        period_mean_ms=s.period_mean_ms,
-        jitter_p50_ms=s.jitter_p50_ms,
-        jitter_p99_ms=s.jitter_p99_ms,
-        jitter_max_ms=s.jitter_max_ms,
-        compute_p50_us=s.compute_p50_us,
-        compute_p99_us=s.compute_p99_us,
-        overruns=s.overruns,
-        gaps=s.gaps,
-        timeouts=s.timeouts,
-        dropped_records=outbox.dropped,
         device_kind=kind,
-        device_alive=age < 0.5,
-        last_sample_age_s=age,
-        device_faults=tuple(faults),
-        implausible=loop.implausible,
-        link_drops=tuple(sorted(loop.device.link_counters().items())),
+        loop=LoopReport(controller=loop.controller.name, dropped_records=outbox.dropped,
+                        **dataclasses.asdict(loop.timing.summary())),
+        device=DeviceReport(alive=age < 0.5, last_sample_age_s=age, faults=faults,
+                            implausible_samples=loop.implausible,
+                            link_drops=loop.device.link_counters()),
     )

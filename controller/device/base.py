@@ -13,6 +13,13 @@ from dataclasses import dataclass
 ENCODER_BITS = 14
 ENCODER_COUNTS = 1 << ENCODER_BITS  # 16384 counts per turn, 0.0219 deg per count
 
+#: The sample period, s: the device reads its encoders every 10 ms and the controller
+#: runs one tick per sample (docs/hardware.md). Every period, rate and default time
+#: step in the project derives from this one value.
+SAMPLE_PERIOD_S = 0.01
+#: The same rate in samples per second (100 Hz), derived so that the two cannot disagree.
+SAMPLE_RATE_HZ = 1.0 / SAMPLE_PERIOD_S
+
 
 class Status(enum.IntFlag):
     """Status bits a device reports with each sample (same bit values on the wire)."""

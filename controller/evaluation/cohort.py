@@ -40,11 +40,12 @@ from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
 from controller.evaluation.metrics import DecisionOutcome
 from controller.evaluation.study import RecordingEvaluation, evaluate_recording
-from controller.factory import make_controller
+from controller.factory import make_from_spec, needs_models
 from controller.motion_model import ModelSet
 from controller.replay import AngleRecording, replay_columns
 from controller.sim.participant import VirtualParticipant
 from controller.sim.scripts import get_script, realise
+from controller.spec import ControllerSpec
 from controller.utilities import UtilitySet
 
 COHORT_CONTROLLERS: tuple[str, ...] = ("umc", "eumc", "pec")
@@ -246,12 +247,11 @@ def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
         s = settings
         if name == "eumc":
             s, attempts = _calibrated(settings, rec, start)
-        conf: dict[str, Any] = {"settings": s}
-        if name != "pec":
-            conf |= {"models": models_doc, "utilities": utilities_doc}
+        sets = needs_models(name)
+        spec = ControllerSpec(name, s, models=models_doc if sets else None,
+                              utilities=utilities_doc if sets else None)
         # Checked once (the truth columns are converted to text here), read three times.
-        cols = TickData.of(replay_columns(rec, make_controller(name, conf),
-                                          cfg.precompression_pct))
+        cols = TickData.of(replay_columns(rec, make_from_spec(spec), cfg.precompression_pct))
         ev = evaluate_recording(cols, f"V{j + 1:04d}", name, lifts_from_truth(cols),
                                 trials_from_truth(cols))
         out[name] = recording_metrics(ev)

@@ -14,14 +14,16 @@ ignored rather than rejected, so callers can pass their rows as they are.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import fields
 from typing import Any, TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.tick import TickRecord
+from controller.tick_codec import column_from_values, columns_from_records
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -29,9 +31,6 @@ IntArray = NDArray[np.int64]
 StrArray = NDArray[np.str_]
 #: One column as a caller may hold it: an array, or a list with None for SQL NULL.
 ColumnLike: TypeAlias = ArrayLike | Sequence[Any]
-
-#: Nominal tick period (s); used only where the device timestamp is missing.
-DEFAULT_DT = 0.01
 
 # TickRecord is declared with `from __future__ import annotations`, so the field
 # types are the annotation strings.
@@ -53,7 +52,8 @@ def _to_bool(name: str, raw: ColumnLike) -> BoolArray:
 def _to_int(name: str, raw: ColumnLike) -> IntArray:
     a = np.asarray(raw)
     if a.dtype.kind == "O":
-        a = np.asarray([-1 if x is None else x for x in a])
+        # None (SQL NULL) reads back as the codec says, as everywhere else.
+        a = column_from_values(name, a.tolist())
     if a.dtype.kind in "US":
         a = a.astype(np.float64)
     if a.dtype.kind == "f":
@@ -100,61 +100,94 @@ class TickData:
 
     def __init__(self, data: Mapping[str, ColumnLike]) -> None:
         self._data: dict[str, np.ndarray[Any, Any]] = {}
-        n: int | None = None
+        #: Fields not read yet, and how to read one (see `on_demand`).
+        self._later: tuple[str, ...] = ()
+        self._load: Callable[[str], ColumnLike] | None = None
+        self._n: int | None = None
         for name, raw in data.items():
-            kind = _KIND.get(name)
-            if kind is None:
-                continue
-            if kind == "bool":
-                arr: np.ndarray[Any, Any] = _to_bool(name, raw)
-            elif kind == "int":
-                arr = _to_int(name, raw)
-            elif kind == "float":
-                arr = _to_float(raw)
-            else:
-                arr = _to_str(raw)
-            if arr.ndim != 1:
-                raise ValueError(f"column {name!r} must be 1-D, got shape {arr.shape}")
-            if n is None:
-                n = int(arr.shape[0])
-            elif arr.shape[0] != n:
-                raise ValueError(
-                    f"column {name!r} has {arr.shape[0]} values, the others {n}"
-                )
-            # A read-only view: the caller's own array (kept without a copy when its
-            # dtype already fits) must stay writable for the caller.
-            arr = arr.view()
-            arr.setflags(write=False)
-            self._data[name] = arr
-        self._n = 0 if n is None else n
+            if name in _KIND:
+                self._data[name] = self._checked(name, raw)
+        if self._n is None:
+            self._n = 0
+
+    def _checked(self, name: str, raw: ColumnLike) -> np.ndarray[Any, Any]:
+        kind = _KIND[name]
+        if kind == "bool":
+            arr: np.ndarray[Any, Any] = _to_bool(name, raw)
+        elif kind == "int":
+            arr = _to_int(name, raw)
+        elif kind == "float":
+            arr = _to_float(raw)
+        else:
+            arr = _to_str(raw)
+        if arr.ndim != 1:
+            raise ValueError(f"column {name!r} must be 1-D, got shape {arr.shape}")
+        if self._n is None:
+            self._n = int(arr.shape[0])
+        elif arr.shape[0] != self._n:
+            raise ValueError(
+                f"column {name!r} has {arr.shape[0]} values, the others {self._n}"
+            )
+        # A read-only view: the caller's own array (kept without a copy when its
+        # dtype already fits) must stay writable for the caller.
+        arr = arr.view()
+        arr.setflags(write=False)
+        return arr
+
+    @classmethod
+    def on_demand(cls, n: int, names: Iterable[str],
+                  load: Callable[[str], ColumnLike]) -> TickData:
+        """`n` ticks whose fields `names` are read by `load(name)` when first asked
+        for, for a store where one column costs much less than all of them (a stored
+        trial is 55 columns, and an output reads a handful)."""
+        data = cls({})
+        data._n = n
+        data._later = tuple(name for name in names if name in _KIND)
+        data._load = load
+        return data
 
     @classmethod
     def of(cls, data: TickData | Mapping[str, ColumnLike]) -> TickData:
         """`data` itself if it is already checked, else a checked copy."""
         return data if isinstance(data, TickData) else cls(data)
 
+    def with_columns(self, changes: Mapping[str, ColumnLike]) -> TickData:
+        """A copy with `changes` (field name to a column of the same length) instead
+        of those fields; fields not read yet stay so."""
+        out = TickData({})
+        out._n = self._n
+        out._data = dict(self._data)
+        out._later = tuple(n for n in self._later if n not in changes)
+        out._load = self._load
+        for name, raw in changes.items():
+            if name in _KIND:
+                out._data[name] = out._checked(name, raw)
+        return out
+
     @classmethod
     def from_records(cls, records: Sequence[TickRecord]) -> TickData:
         """Columns from tick records, as a controller loop produces them."""
-        names = TickRecord.field_names()
-        rows = [r.as_tuple() for r in records]
-        return cls({n: [row[i] for row in rows] for i, n in enumerate(names)})
+        return cls(columns_from_records(records))
 
     def __len__(self) -> int:
-        return self._n
+        return self._n or 0
 
     def __contains__(self, name: object) -> bool:
-        return name in self._data
+        return name in self._data or name in self._later
 
     @property
     def names(self) -> tuple[str, ...]:
-        """The fields present."""
-        return tuple(self._data)
+        """The fields present (read or not yet)."""
+        return (*self._data, *(n for n in self._later if n not in self._data))
 
     def _get(self, name: str) -> np.ndarray[Any, Any]:
         try:
             return self._data[name]
         except KeyError:
+            if name in self._later and self._load is not None:
+                arr = self._checked(name, self._load(name))
+                self._data[name] = arr
+                return arr
             if name not in _KIND:
                 raise ValueError(f"{name!r} is not a TickRecord field") from None
             raise ValueError(f"tick column {name!r} is needed but was not provided") from None
@@ -180,31 +213,32 @@ class TickData:
 
         Bad samples can carry a NaN timestamp; those are interpolated over the tick
         index from their neighbours, so durations stay measured in device time. With
-        no usable `t` at all the ticks are assumed `DEFAULT_DT` apart from 0.
+        no usable `t` at all the ticks are assumed `SAMPLE_PERIOD_S` apart from 0.
         """
-        idx = np.arange(self._n, dtype=np.float64)
-        if "t" not in self._data:
-            return idx * DEFAULT_DT
+        idx = np.arange(len(self), dtype=np.float64)
+        if "t" not in self:
+            return idx * SAMPLE_PERIOD_S
         t = self.float_("t")
         ok = np.isfinite(t)
         if ok.all():
             return t
         if ok.sum() == 0:
-            return idx * DEFAULT_DT
+            return idx * SAMPLE_PERIOD_S
         if ok.sum() == 1:
             k = int(np.flatnonzero(ok)[0])
-            return t[k] + (idx - k) * DEFAULT_DT
+            return t[k] + (idx - k) * SAMPLE_PERIOD_S
         return np.asarray(np.interp(idx, idx[ok], t[ok]), dtype=np.float64)
 
     def select(self, start: int, stop: int) -> TickData:
         """Ticks `start..stop-1` as new columns (for a figure of a stretch)."""
-        if not 0 <= start <= stop <= self._n:
-            raise ValueError(f"need 0 <= start <= stop <= {self._n}, got {start}, {stop}")
-        return TickData({k: v[start:stop] for k, v in self._data.items()})
+        if not 0 <= start <= stop <= len(self):
+            raise ValueError(f"need 0 <= start <= stop <= {len(self)}, got {start}, {stop}")
+        return TickData.on_demand(stop - start, self.names,
+                                  lambda name: self._get(name)[start:stop])
 
     def as_dict(self) -> dict[str, np.ndarray[Any, Any]]:
-        """The typed columns (read-only arrays)."""
-        return dict(self._data)
+        """The typed columns (read-only arrays), every one read."""
+        return {name: self._get(name) for name in self.names}
 
 
 #: What the public functions accept: checked columns or a plain mapping.

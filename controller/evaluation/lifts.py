@@ -9,7 +9,7 @@ Two sources give the same objects, so every metric is computed one way:
   recording that is one walking or stair-walking trial, as in the paper.
 
 Indices are tick (sample) indices into the recording, `end` inclusive, like
-`controller.segmentation.LiftSegment`.
+`controller.segmentation.SegmentedLift`.
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ class Lift:
 
 
 @dataclass(frozen=True, slots=True)
-class Trial:
+class GaitTrial:
     """A walking or stair-walking trial: ticks `start..end` (inclusive) of a recording,
     where any lock is a false positive."""
 
@@ -244,7 +244,7 @@ def lifts_from_segments(
     return out
 
 
-def trials_from_truth(columns: Columns, min_duration_s: float = 5.0) -> list[Trial]:
+def trials_from_truth(columns: Columns, min_duration_s: float = 5.0) -> list[GaitTrial]:
     """Walking and stair-walking trials of a simulated recording.
 
     A trial is a maximal run of ticks whose `truth_activity` is a gait activity (walk,
@@ -259,16 +259,16 @@ def trials_from_truth(columns: Columns, min_duration_s: float = 5.0) -> list[Tri
     act = cols.str_("truth_activity")
     t = cols.time()
     gait = np.isin(act, np.asarray(GAIT_KINDS))
-    out: list[Trial] = []
+    out: list[GaitTrial] = []
     for s, e in _runs(gait):
         if t[e] - t[s] < min_duration_s:
             continue
         stairs = bool(np.isin(act[s : e + 1], np.asarray(sorted(_STAIR_ACTIVITIES))).any())
-        out.append(Trial("stair_walking" if stairs else "walking", s, e))
+        out.append(GaitTrial("stair_walking" if stairs else "walking", s, e))
     return out
 
 
-def whole_recording_trial(columns: Columns | int, kind: str) -> Trial:
+def whole_recording_trial(columns: Columns | int, kind: str) -> GaitTrial:
     """The whole recording as one trial of `kind` ("walking", "stairs", "SW", ...), as
     the paper recorded its walking and stair-walking trials.
 
@@ -279,5 +279,5 @@ def whole_recording_trial(columns: Columns | int, kind: str) -> Trial:
     n = columns if isinstance(columns, int) else len(TickData.of(columns))
     if n < 1:
         raise ValueError("an empty recording has no trial")
-    return Trial(trial_kind(kind), 0, n - 1)
+    return GaitTrial(trial_kind(kind), 0, n - 1)
 

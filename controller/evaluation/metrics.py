@@ -44,7 +44,7 @@ from typing import Literal
 import numpy as np
 
 from controller.evaluation.columns import BoolArray, Columns, FloatArray, TickData
-from controller.evaluation.lifts import Lift, Trial
+from controller.evaluation.lifts import GaitTrial, Lift
 from controller.tick import Action
 
 #: The paper's recognition threshold on the correct model's posterior.
@@ -224,7 +224,7 @@ class FalsePositives:
         duration_s: the trial's duration.
     """
 
-    trial: Trial
+    trial: GaitTrial
     signals: int
     edges_left: int
     edges_right: int
@@ -239,7 +239,7 @@ def _rising(held: BoolArray) -> BoolArray:
     return held & ~prev
 
 
-def count_false_positives(columns: Columns, trials: Sequence[Trial]) -> list[FalsePositives]:
+def count_false_positives(columns: Columns, trials: Sequence[GaitTrial]) -> list[FalsePositives]:
     """False positive lock commands per gait trial (the paper's "False positives").
 
     Every lock command sent during a walking or stair-walking trial is a false

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from controller.evaluation.columns import Columns, TickData
-from controller.evaluation.lifts import Lift, Trial
+from controller.evaluation.lifts import GaitTrial, Lift
 from controller.evaluation.metrics import (
     FalsePositives,
     LiftOutcome,
@@ -59,7 +59,7 @@ def evaluate_recording(
     participant: str,
     controller: str,
     lifts: Sequence[Lift] = (),
-    trials: Sequence[Trial] = (),
+    trials: Sequence[GaitTrial] = (),
     recording: str = "",
     with_intent: bool | None = None,
 ) -> RecordingEvaluation:

@@ -41,7 +41,7 @@ def recompute_torques(
             `locked_*` columns are absent.
     """
     cols = TickData.of(columns)
-    data = cols.as_dict()
+    data: dict[str, FloatArray] = {}
     for side in ("left", "right"):
         alpha = cols.float_(f"alpha_{side}")
         name = f"locked_{side}"
@@ -52,4 +52,4 @@ def recompute_torques(
         )
         torque[~ok] = math.nan
         data[f"torque_{side}"] = torque
-    return TickData(data)
+    return cols.with_columns(data)

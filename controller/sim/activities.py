@@ -10,8 +10,9 @@ Kinematic assumptions (the project's own, against `docs/simulated-wearer.md`):
 - Lifts: minimum-jerk lowering (1.1-1.45 s at nominal speed), a 0.25-0.55 s pause at
   the bottom (grasp or release), minimum-jerk raising (0.95-1.15 x the lowering time).
   Peak hip velocity is 1.875 x range / duration, i.e. 2-3 rad/s.
-- Squat: both hips to the participant's depth (92-108 deg), trunk inclination a fixed
-  fraction (0.36-0.48) of hip flexion. Asymmetric stoop: the box-side hip to 76-94 deg,
+- Squat: both hips to the participant's depth (92-108 deg); the pelvis tilts by a fixed
+  fraction (0.36-0.48) of hip flexion and the lumbar spine flexes on top of it
+  (`biomechanics.squat_pose`). Asymmetric stoop: the box-side hip to 76-94 deg,
   the other hip to 0.62-0.78 of it (the feet are at 90 degrees, so the trunk's bend is
   partly rotation and abduction for that hip); the trunk inclines 0.95 x the box-side
   hip flexion (lumbar flexion compensates the thighs' backward tilt).
@@ -35,17 +36,19 @@ import numpy.typing as npt
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.sim.biomechanics import (
     Anthropometrics,
     FloatArray,
     gait_moment,
     lift_hip_moment,
     split_moment,
+    squat_pose,
     stoop_leg_moments,
+    top_down_hip_moment,
 )
 from controller.sim.participant import VirtualParticipant
 
-DT = 0.01
 ACTIVITIES: tuple[str, ...] = (
     "stand",
     "squat",
@@ -97,7 +100,7 @@ def min_jerk(x: npt.ArrayLike) -> FloatArray:
 
 
 def _n_samples(duration: float) -> int:
-    return max(2, math.ceil(duration / DT - 1e-9) + 1)
+    return max(2, math.ceil(duration / SAMPLE_PERIOD_S - 1e-9) + 1)
 
 
 def _labels(n: int, activity: str, in_lift: bool) -> tuple[NDArray[np.int8], NDArray[np.int32]]:
@@ -118,7 +121,7 @@ def stand(
     n = _n_samples(duration)
     theta = np.tile(p.stand_flexion, (n, 1))
     body = Anthropometrics.from_body(p.mass_kg, p.height_m)
-    total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), DT)
+    total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), SAMPLE_PERIOD_S)
     torque = split_moment(total, 0.5)  # feet parallel, load on the midline
     act, lift = _labels(n, "stand", False)
     return Segment(theta, torque, act, lift, np.full(n, np.nan))
@@ -190,13 +193,12 @@ def lift(
     touch-down when putting down.
     """
     n = _n_samples(shape.duration)
-    t = (np.arange(n) * DT).astype(np.float64)
+    t = (np.arange(n) * SAMPLE_PERIOD_S).astype(np.float64)
     s = np.stack([shape.profile(t, 0), shape.profile(t, 1)], axis=1)
     stand_flex = p.stand_flexion
     delta = np.radians(np.asarray(shape.peak_deg)) - stand_flex
     theta = stand_flex[None, :] + s * delta[None, :]
     if shape.kind == "squat":
-        trunk = p.squat_trunk_ratio * (s @ delta) / 2.0
         ref = int(np.argmin(shape.lag_s))
     else:
         ref = 0 if shape.kind == "stoop_left" else 1
@@ -209,15 +211,18 @@ def lift(
         held = 1.0 - min_jerk((u - shape.t_down) / BOX_TRANSFER_S)
     body = Anthropometrics.from_body(p.mass_kg, p.height_m)
     if shape.kind == "squat":
-        # Feet parallel, load on the midline: each hip half (biomechanics docstring).
-        d_box = body.squat_box_distance(trunk, theta.mean(axis=1))
-        total = lift_hip_moment(body, trunk, box_kg * held, DT, box_distance=d_box)
+        # Feet parallel, load on the midline: each hip half. The hips move down and
+        # back, the thorax leans by the pelvis' tilt plus lumbar flexion (biomechanics).
+        pose = squat_pose(body, s @ delta / 2.0, p.squat_pelvis_ratio, box_kg * held)
+        total = top_down_hip_moment(
+            body, pose.trunk, pose.hip, pose.box, box_kg * held, SAMPLE_PERIOD_S
+        )
         torque = split_moment(total, 0.5)
     else:
         # The box stands where the hands reach it at the bottom of the bend.
         bottom = np.array([STOOP_TRUNK_RATIO * float(delta[ref])])
         reach = float(body.box_distance(bottom)[0])
-        torque = stoop_leg_moments(body, trunk, box_kg * held, DT, ref, reach)
+        torque = stoop_leg_moments(body, trunk, box_kg * held, SAMPLE_PERIOD_S, ref, reach)
     act, lift_idx = _labels(n, shape.kind, True)
     progress = np.clip(t / shape.duration, 0.0, 1.0)
     return Segment(theta, torque, act, lift_idx, progress)
@@ -300,7 +305,7 @@ def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left") -> 
     bounds = np.concatenate([[0.0], np.cumsum(durations)])
     total = float(bounds[-1])
     n = _n_samples(total)
-    t = np.arange(n) * DT
+    t = np.arange(n) * SAMPLE_PERIOD_S
     # Smooth partition of unity over the pieces.
     h = [np.ones(n)] + [min_jerk((t - b) / CROSS_FADE_S + 0.5) for b in bounds[1:-1]]
     h.append(np.zeros(n))
@@ -309,7 +314,7 @@ def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left") -> 
     for w, pc in zip(weights, pieces, strict=True):
         freq += w / pc.stride_s
     start = 0.5 if lead == "left" else 0.0  # phase 0.5: the leg is about to swing
-    phase_left = start + np.concatenate([[0.0], np.cumsum(freq[:-1]) * DT])
+    phase_left = start + np.concatenate([[0.0], np.cumsum(freq[:-1]) * SAMPLE_PERIOD_S])
     ramp_in = RAMP_STRIDES * pieces[0].stride_s
     ramp_out = RAMP_STRIDES * pieces[-1].stride_s
     env = min_jerk(t / ramp_in) * (1.0 - min_jerk((t - (total - ramp_out)) / ramp_out))

@@ -47,16 +47,44 @@ Per-leg split, by task:
   at about 0.8 and 0.3 of the hip's height when the straight legs tilt back).
 - **Box position.** The box is a point mass `d_box = 0.114 H + 0.6 L sin(theta_trunk)`
   ahead of the hips in a stoop (against the belly upright, under and a little behind
-  the shoulders when bent). In a squat the box must clear the knees, which lie ahead
-  of the hips by `l_thigh sin(phi_thigh)` (thigh inclination = hip flexion - trunk
-  inclination); the box centre is then taken 0.20 m ahead of the knee (half a 0.3 m
-  box plus the knee's own depth; the paper gives no box size, so this is assumed).
+  the shoulders when bent). In a squat it must also clear the knees: its centre is at
+  least 0.20 m ahead of the knee joint (half a 0.3 m box plus the knee's own depth; the
+  paper gives no box size, so this is assumed).
+
+**Squat: a moving chain** (`squat_pose`, `top_down_hip_moment`). A squat lift is not
+a stoop with an upright back. The hips go down and back, and the thorax leans by the
+pelvis' tilt *plus* the lumbar spine's flexion, which a rigid "trunk = pelvis" leaves
+out. The chain, ankle to shoulder, from the exoskeleton's hip flexion `phi_hip`:
+- pelvis tilt `r_p phi_hip` (the participant's `squat_pelvis_ratio`, 0.36-0.48) and thigh
+  inclination `(1 - r_p) phi_hip`; lumbar flexion growing with hip flexion to 25.1 deg
+  at the bottom (von Arx et al. 2021: lumbar range of motion in squat lifting of a
+  15 kg box, 25.1 +- 8.2 deg, 30 adults), so `theta_trunk = r_p phi_hip + lumbar`;
+- shank length 0.246 H (knee height 0.285 H less ankle height 0.039 H, Winter); the
+  shank's inclination follows from balance: the centre of mass of shanks (0.567 of the
+  knee's forward travel), thighs (centre 0.433 of the thigh below the hip), HAT and the
+  held box stays above the ankles, which puts the knee in closed form (feet left out);
+- the hands keep the bottom's distance below the shoulders while they carry the box,
+  and the box stands on the floor with its grip 0.25 m up (an assumption, the paper
+  gives no box size).
+The moment about both hips is then Newton-Euler about the moving hip joint centre:
+`M = sum_i m_i (x_i (g + z_i'') - z_i x_i'') - I_c theta_trunk''` over the HAT and the
+box, each at its position relative to the hip and with its own acceleration (x'', z'')
+in the ground frame; `I_c` is the HAT's moment of inertia about its centre of mass.
+With the hip held still this is the formula above. Of the two additions, the lumbar
+flexion matters: it takes the squat's peak from about 1.2 to about 1.65 Nm/kg per hip
+(10 kg box, 75 kg, 1.75 m); the hips' vertical acceleration adds about 0.03. The squat
+then peaks about 1-3 % above the stoop's total per hip, the order Van der Have et al.
+2019 (the paper's data source) report; the margin is small, so the order rests on the
+lumbar flexion measured by von Arx et al. No lifting moments were found to check the
+magnitudes against (`tests/fixtures/README.md`).
 
 Not modelled: the legs' own inertia and weight (a straight prop leg's weight passes
-near its hip), knee and ankle moments, vertical accelerations of the upper body,
-out-of-plane moments. The non-box leg's moment is therefore a small, bounded
-remainder rather than zero: it is nonzero only while the load is still between the
-hips *and* the hip has moved back past the turned foot's edge.
+near its hip), knee and ankle moments, out-of-plane moments, the stoop's hip travel
+(its accelerations are small against g) and the stoop's own lumbar flexion (its trunk
+rule is the fixed ratio of `controller.sim.activities`). The non-box leg's moment is
+therefore a small, bounded remainder rather than zero: it is nonzero only while the
+load is still between the hips *and* the hip has moved back past the turned foot's
+edge.
 
 Walking and stairs use normative curves (Nm/kg) read from Winter and Schwartz et al.
 2008 (walking) and Riener et al. 2002 / Costigan et al. 2002 (stairs), scaled by body
@@ -90,6 +118,10 @@ class Anthropometrics:
     stance_width: float = 0.0  # between the feet's centre lines (shoulder width)
     foot_width: float = 0.0
     m_legs_tilt: float = 0.0  # leg mass that moves back with the hips, 0.8 thighs + 0.3 shanks
+    shank_length: float = 0.0  # ankle to knee
+    ankle_height: float = 0.0
+    m_thighs: float = 0.0  # both thighs
+    m_shanks: float = 0.0  # both shanks
 
     @classmethod
     def from_body(cls, mass_kg: float, height_m: float) -> Anthropometrics:
@@ -107,17 +139,15 @@ class Anthropometrics:
             stance_width=0.259 * height_m,
             foot_width=0.055 * height_m,
             m_legs_tilt=(0.8 * 2 * 0.100 + 0.3 * 2 * 0.0465) * mass_kg,
+            shank_length=(0.285 - 0.039) * height_m,
+            ankle_height=0.039 * height_m,
+            m_thighs=2 * 0.100 * mass_kg,
+            m_shanks=2 * 0.0465 * mass_kg,
         )
 
     def box_distance(self, trunk: FloatArray) -> FloatArray:
         """Horizontal hip-to-box distance (m) in a stoop at trunk inclination `trunk`."""
         return 0.114 * self.height_m + 0.6 * self.trunk_length * np.sin(trunk)
-
-    def squat_box_distance(self, trunk: FloatArray, hip_flexion: FloatArray) -> FloatArray:
-        """Hip-to-box distance (m) in a squat: as in a stoop, but clear of the knees."""
-        thigh = np.clip(np.asarray(hip_flexion) - np.asarray(trunk), 0.0, np.pi / 2)
-        knees = self.thigh_length * np.sin(thigh) + SQUAT_BOX_AHEAD_OF_KNEE_M
-        return np.maximum(self.box_distance(trunk), knees)
 
 
 #: Box centre ahead of the knee joint in a squat (m): half a 0.3 m box plus the
@@ -125,29 +155,127 @@ class Anthropometrics:
 SQUAT_BOX_AHEAD_OF_KNEE_M = 0.20
 
 
-def _box_distance(
-    body: Anthropometrics, trunk: FloatArray, box_distance: FloatArray | None
-) -> FloatArray:
-    return body.box_distance(trunk) if box_distance is None else np.asarray(box_distance)
-
-
 def lift_hip_moment(
-    body: Anthropometrics, trunk: FloatArray, box_kg: FloatArray, dt: float,
-    box_distance: FloatArray | None = None,
+    body: Anthropometrics, trunk: FloatArray, box_kg: FloatArray, dt: float
 ) -> FloatArray:
-    """Total hip extension moment of both hips (Nm) from the planar model.
+    """Total hip extension moment of both hips (Nm) about hips that stay in place:
+    standing, and the stoop, whose hips move back as the straight legs tilt but with
+    accelerations small against g (under about 1 m/s^2; `top_down_hip_moment` for
+    hips that move, as in a squat).
 
     `trunk` (rad) and `box_kg` are sampled every `dt` seconds; the trunk must be smooth
-    because its second derivative is taken numerically. `box_distance` (m) overrides
-    the stoop's box position (a squat passes `squat_box_distance`).
+    because its second derivative is taken numerically.
     """
     trunk = np.asarray(trunk, dtype=np.float64)
     box = np.asarray(box_kg, dtype=np.float64)
-    d_box = _box_distance(body, trunk, box_distance)
+    d_box = body.box_distance(trunk)
     acc = np.gradient(np.gradient(trunk, dt), dt) if trunk.size > 2 else np.zeros_like(trunk)
     inertia = body.i_hip + box * d_box * d_box
     static = G * (body.m_hat * body.r_com * np.sin(trunk) + box * d_box)
     return np.asarray(static - inertia * acc, dtype=np.float64)
+
+
+#: Lumbar flexion at the bottom of a squat lift (deg): the lumbar range of motion
+#: von Arx et al. 2021 measured in squat lifting of a 15 kg box from the floor
+#: (25.1 +- 8.2 deg, 30 adults). The thorax inclines by the pelvis' tilt plus this.
+SQUAT_LUMBAR_FLEXION_DEG = 25.1
+
+#: Height of the hands above the floor as they take the box (m): a box standing on the
+#: floor, held by handles near its top. The paper gives no box size: an assumption.
+GRIP_HEIGHT_M = 0.25
+
+
+@dataclass(frozen=True, slots=True)
+class SquatPose:
+    """The sagittal chain of a squat lift over time (x forward of the ankles, z up, m)."""
+
+    trunk: FloatArray  # thorax inclination from vertical (rad)
+    thigh: FloatArray  # thigh inclination from vertical, knee ahead of the hip (rad)
+    knee_x: FloatArray
+    hip: FloatArray  # (K, 2) hip joint centre
+    box: FloatArray  # (K, 2) box centre (where the hands hold it)
+
+
+def _squat_chain(
+    body: Anthropometrics, flexion: FloatArray, thigh: FloatArray, lumbar: FloatArray,
+    box_kg: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Trunk, knee x, hip (x, z), shoulder height and box x for a squat posture, with
+    the whole body's centre of mass above the ankles (feet flat, quasi-static balance).
+
+    Every segment above the knee sits at a fixed offset from it, and the shank's centre
+    of mass at 0.567 of the knee's forward travel (Winter: 0.433 of the shank from the
+    knee), so balance gives the knee's position in closed form. The feet are left out.
+    """
+    trunk = flexion - thigh + lumbar
+    off_hip = -body.thigh_length * np.sin(thigh)
+    off_thigh = 0.567 * off_hip  # thigh centre of mass 0.433 of its length below the hip
+    off_hat = off_hip + body.r_com * np.sin(trunk)
+    off_box = np.maximum(SQUAT_BOX_AHEAD_OF_KNEE_M, off_hip + body.box_distance(trunk))
+    moment = body.m_thighs * off_thigh + body.m_hat * off_hat + box_kg * off_box
+    knee_x = -moment / (body.m_hat + body.m_thighs + box_kg + 0.567 * body.m_shanks)
+    shank = np.arcsin(np.clip(knee_x / body.shank_length, -1.0, 1.0))
+    hip_x = knee_x + off_hip
+    hip_z = body.ankle_height + body.shank_length * np.cos(shank) + body.thigh_length * np.cos(
+        thigh
+    )
+    shoulder_z = hip_z + body.trunk_length * np.cos(trunk)
+    return trunk, knee_x, np.stack([hip_x, hip_z], axis=-1), shoulder_z, knee_x + off_box
+
+
+def squat_pose(
+    body: Anthropometrics, flexion: FloatArray, pelvis_ratio: float, box_kg: FloatArray,
+    lumbar_deg: float = SQUAT_LUMBAR_FLEXION_DEG,
+) -> SquatPose:
+    """The chain of a squat lift from the mean hip flexion above standing (rad).
+
+    The pelvis tilts by `pelvis_ratio` of the hip flexion and the thigh by the rest;
+    the lumbar spine flexes in proportion to hip flexion up to `lumbar_deg` at the
+    bottom, so the thorax inclines by the pelvis' tilt plus that flexion. The hands
+    keep the bottom's distance below the shoulders while they hold the box.
+    """
+    flexion = np.asarray(flexion, dtype=np.float64)
+    box = np.asarray(box_kg, dtype=np.float64)
+    peak = float(flexion.max())
+    if peak <= 0.0:
+        raise ValueError("a squat needs hip flexion")
+    if not 0.0 <= pelvis_ratio < 1.0:
+        raise ValueError(f"pelvis_ratio must be in [0, 1), got {pelvis_ratio}")
+    q = np.clip(flexion / peak, 0.0, 1.0)
+    thigh = (1.0 - pelvis_ratio) * flexion
+    lumbar = np.radians(lumbar_deg) * q
+    trunk, knee_x, hip, shoulder_z, box_x = _squat_chain(body, flexion, thigh, lumbar, box)
+    drop = float(shoulder_z[int(np.argmax(flexion))]) - GRIP_HEIGHT_M
+    box_xz = np.stack([box_x, shoulder_z - drop], axis=-1)
+    return SquatPose(trunk, thigh, knee_x, hip, box_xz)
+
+
+def top_down_hip_moment(
+    body: Anthropometrics, trunk: FloatArray, hip: FloatArray, box: FloatArray,
+    box_kg: FloatArray, dt: float,
+) -> FloatArray:
+    """Total hip extension moment of both hips (Nm) when the hips themselves move.
+
+    Newton-Euler for the upper body about the moving hip joint centre: each mass m at
+    (x, z) relative to the hip needs m (x (g + z'') - z x''), with its own acceleration
+    (x'', z'') in the ground frame; the HAT adds its rotation about its own centre of
+    mass, I_c theta''. With a fixed hip and no box this is `lift_hip_moment`.
+    """
+    trunk = np.asarray(trunk, dtype=np.float64)
+    w = np.asarray(box_kg, dtype=np.float64)
+    com = hip + body.r_com * np.stack([np.sin(trunk), np.cos(trunk)], axis=-1)
+
+    def acc(x: FloatArray) -> FloatArray:
+        return np.asarray(np.gradient(np.gradient(x, dt, axis=0), dt, axis=0))
+
+    def lever(m: FloatArray | float, at: FloatArray) -> FloatArray:
+        a = acc(at)
+        rel = at - hip
+        return np.asarray(m * (rel[:, 0] * (G + a[:, 1]) - rel[:, 1] * a[:, 0]))
+
+    i_com = body.i_hip - body.m_hat * body.r_com**2
+    spin = i_com * np.gradient(np.gradient(trunk, dt), dt)
+    return np.asarray(lever(body.m_hat, com) + lever(w, box) - spin, dtype=np.float64)
 
 
 def stoop_leg_moments(

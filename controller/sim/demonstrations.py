@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.motion_model import ModelSet, fit_model_set
-from controller.segmentation import LiftSegment, segment_lifts
+from controller.segmentation import SegmentedLift, segment_lifts
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.tick import MODEL_NAMES
 
@@ -27,7 +27,7 @@ DEMO_SCRIPTS: tuple[str, ...] = ("squat-sequence", "stoop-sequence")
 
 
 @dataclass(frozen=True)
-class Recording:
+class SimulatedRecording:
     """A continuous measured recording with its ground truth, one row per 10 ms sample."""
 
     seed: int
@@ -47,7 +47,7 @@ class Demonstrations:
     discarded: int = 0
 
 
-def record(seed: int, script: str, layout: EncoderLayout = DEFAULT_LAYOUT) -> Recording:
+def record(seed: int, script: str, layout: EncoderLayout = DEFAULT_LAYOUT) -> SimulatedRecording:
     """Run one script with no lock commands and decode what the encoders measured."""
     exo = SimulatedExoskeleton(seed=seed, script=script, layout=layout, loop=False)
     n = round(exo.duration / exo.dt)
@@ -61,12 +61,12 @@ def record(seed: int, script: str, layout: EncoderLayout = DEFAULT_LAYOUT) -> Re
         t[k], q[k, 0], q[k, 1] = s.t, ql, qr
         activity.append(s.truth.activity if s.truth else "")
         lift[k] = s.truth.lift_index if s.truth else -1
-    return Recording(seed, script, t, q, tuple(activity), lift)
+    return SimulatedRecording(seed, script, t, q, tuple(activity), lift)
 
 
 def label_segments(
-    rec: Recording, segments: Sequence[LiftSegment]
-) -> list[tuple[str, LiftSegment]]:
+    rec: SimulatedRecording, segments: Sequence[SegmentedLift]
+) -> list[tuple[str, SegmentedLift]]:
     """Label each segment with the true activity at its peak; drop non-lifts."""
     out = []
     for seg in segments:

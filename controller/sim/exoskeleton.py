@@ -12,9 +12,9 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from controller.device.base import GroundTruth, LockCommand, Sample
+from controller.device.base import SAMPLE_PERIOD_S, GroundTruth, LockCommand, Sample
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
-from controller.sim.activities import ACTIVITIES, DT
+from controller.sim.activities import ACTIVITIES
 from controller.sim.participant import VirtualParticipant
 from controller.sim.plant import ExoPlant
 from controller.sim.scripts import Trajectory, get_script, realise
@@ -51,7 +51,7 @@ class SimulatedExoskeleton:
     the length of one repetition in seconds.
     """
 
-    dt: float = DT
+    dt: float = SAMPLE_PERIOD_S
 
     def __init__(
         self,
@@ -93,7 +93,7 @@ class SimulatedExoskeleton:
         if self._pool is None:
             return
         rep = self._rep + 1
-        t0 = (self._start + self._chunk.n) * DT
+        t0 = (self._start + self._chunk.n) * SAMPLE_PERIOD_S
         offset = self._lift_offset + self._chunk.traj.n_lifts
         self._next = self._pool.submit(self._make_chunk, rep, t0, offset)
 
@@ -125,7 +125,8 @@ class SimulatedExoskeleton:
                 if self._next is not None:
                     self._chunk = chunk = self._next.result()
                 else:
-                    self._chunk = chunk = self._make_chunk(self._rep, k * DT, self._lift_offset)
+                    self._chunk = chunk = self._make_chunk(
+                        self._rep, k * SAMPLE_PERIOD_S, self._lift_offset)
                 self._start = k
                 i = 0
                 self._prefetch()
@@ -140,7 +141,7 @@ class SimulatedExoskeleton:
         self._k = k + 1
         if not self.loop and self._k - self._start >= chunk.n:
             self.finished = True
-        return Sample(seq=k, t=k * DT, counts=counts, status=status, truth=truth)
+        return Sample(seq=k, t=k * SAMPLE_PERIOD_S, counts=counts, status=status, truth=truth)
 
     def true_torques(self) -> tuple[float, float]:
         """Exoskeleton extension torque (Nm), left and right, at the last sample."""
@@ -163,6 +164,6 @@ class SimulatedExoskeleton:
     def __repr__(self) -> str:
         return (
             f"SimulatedExoskeleton(seed={self.seed}, script={self.script.name!r}, "
-            f"loop={self.loop}, t={self._k * DT:.2f}, duration={self.duration:.1f})"
+            f"loop={self.loop}, t={self._k * SAMPLE_PERIOD_S:.2f}, duration={self.duration:.1f})"
         )
 

@@ -29,8 +29,8 @@ from controller.sim.activities import GaitPiece, draw_lift, gait_cycle_values, l
 from controller.sim.participant import VirtualParticipant
 
 #: 2: per-leg moments from the stance geometry (no `box_side_share`), squat box clear
-#: of the knees.
-GENERATOR_VERSION = "2"
+#: of the knees. 3: squats with lumbar flexion and moving hips (Newton-Euler).
+GENERATOR_VERSION = "3"
 DEFAULT_PARTICIPANTS = 24
 DEFAULT_REPETITIONS = 5
 DEFAULT_BOX_KG = 10.0

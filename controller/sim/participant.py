@@ -42,7 +42,7 @@ class VirtualParticipant:
     squat_depth_deg: float  # mean peak hip flexion in a squat
     stoop_depth_deg: float  # mean peak hip flexion of the box-side hip in a stoop
     stoop_other_ratio: float  # other hip's peak flexion over the box-side hip's, in a stoop
-    squat_trunk_ratio: float  # trunk inclination over hip flexion in a squat (back upright)
+    squat_pelvis_ratio: float  # pelvis tilt over hip flexion in a squat (lumbar flexion adds)
     asymmetry: float  # left over right flexion ratio minus 1 (favours a leg)
     rep_variation: float  # relative SD of depth and duration between repetitions
     stand_flexion_deg: tuple[float, float]  # true hip flexion when standing, left/right
@@ -94,7 +94,7 @@ class VirtualParticipant:
             squat_depth_deg=float(r.uniform(92.0, 108.0)),
             stoop_depth_deg=float(r.uniform(76.0, 94.0)),
             stoop_other_ratio=float(r.uniform(0.62, 0.78)),
-            squat_trunk_ratio=float(r.uniform(0.36, 0.48)),
+            squat_pelvis_ratio=float(r.uniform(0.36, 0.48)),
             asymmetry=asym,
             rep_variation=float(r.uniform(0.03, 0.07)),
             stand_flexion_deg=(stand_l, stand_r),

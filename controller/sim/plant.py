@@ -25,7 +25,7 @@ Sensors: four AS5048A (14 bit) with Gaussian noise (0.04 deg RMS, plus quantisat
 
 One mechanism model: the per-tick logic is the compiled `hip_step` / `plant_step` on
 state arrays, called by `HipModule` and `ExoPlant` (the live simulator, `ReplayDevice`)
-and by the batch replay's compiled loop (`controller.replay.replay_kernel`), so a lock
+and by the batch replay's compiled loop (`controller.kernel.tick.replay_sample`), so a lock
 has the same effect on deflection and torque in every path.
 """
 
@@ -39,7 +39,7 @@ import numpy.typing as npt
 from numba import njit
 
 from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
-from controller.device.base import Status
+from controller.device.base import SAMPLE_PERIOD_S, Status
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
 
 PULL_IN_S = 0.02
@@ -149,7 +149,7 @@ class HipModule:
         precompression_pct: float = 25.0,
         params: MaccepaParams = PAPER_ACTUATOR,
         tooth_phase: float = 0.0,
-        dt: float = 0.01,
+        dt: float = SAMPLE_PERIOD_S,
         pull_in_s: float = PULL_IN_S,
         state: FloatArray | None = None,
         constants: FloatArray | None = None,
@@ -265,7 +265,7 @@ class ExoPlant:
         layout: EncoderLayout = DEFAULT_LAYOUT,
         encoders: EncoderModel | None = None,
         params: MaccepaParams = PAPER_ACTUATOR,
-        dt: float = 0.01,
+        dt: float = SAMPLE_PERIOD_S,
     ) -> None:
         r = np.random.default_rng(np.random.SeedSequence([0x7007, HARDWARE_SEED]))
         phases = r.uniform(0.0, params.tooth_angle, 2)

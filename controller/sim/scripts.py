@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.sim.activities import (
     ACTIVITIES,
-    DT,
     GaitPiece,
     Segment,
     draw_lift,
@@ -45,7 +45,7 @@ class Stand:
 
 
 @dataclass(frozen=True, slots=True)
-class Lift:
+class LiftStep:
     """One lift of `kind`: pick the box up or put it down."""
 
     kind: str
@@ -59,7 +59,7 @@ class GaitStep:
     pieces: tuple[tuple[str, tuple[float, float]], ...]
 
 
-Step = Stand | Lift | GaitStep
+Step = Stand | LiftStep | GaitStep
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,9 +79,9 @@ def _lift_cycles(kinds: list[tuple[str, str]]) -> tuple[Step, ...]:
     steps: list[Step] = [Stand((3.0, 5.0))]
     for pick, put in kinds:
         steps += [
-            Lift(pick, True),
+            LiftStep(pick, True),
             Stand((0.8, 1.3), holding_box=True),
-            Lift(put, False),
+            LiftStep(put, False),
             Stand((1.8, 3.5)),
         ]
     return tuple(steps)
@@ -149,7 +149,7 @@ def get_script(name: str) -> Script:
 @dataclass(frozen=True)
 class Trajectory:
     """One realisation of a script: true hip flexion (rad), human hip extension moments
-    (Nm) and ground truth at `t` (s, absolute, step DT)."""
+    (Nm) and ground truth at `t` (s, absolute, step SAMPLE_PERIOD_S)."""
 
     t: FloatArray  # (K,)
     theta: FloatArray  # (K, 2)
@@ -166,8 +166,8 @@ class Trajectory:
 
     @property
     def duration(self) -> float:
-        """Seconds covered, n * DT."""
-        return self.n * DT
+        """Seconds covered, n * SAMPLE_PERIOD_S."""
+        return self.n * SAMPLE_PERIOD_S
 
     def activity_names(self) -> NDArray[np.str_]:
         """Activity labels as strings."""
@@ -224,7 +224,7 @@ def realise(
             box = script.box_kg if step.holding_box else 0.0
             seg = stand(p, float(rng.uniform(*step.seconds)), box)
             lift_ids.append(-1)
-        elif isinstance(step, Lift):
+        elif isinstance(step, LiftStep):
             shape = draw_lift(p, rng, step.kind)
             seg = lift(p, shape, script.box_kg, step.pick_up)
             lift_ids.append(lift_offset + n_lifts)
@@ -235,7 +235,7 @@ def realise(
             lift_ids.append(-1)
         segments.append(seg)
     n = sum(s.n for s in segments)
-    t: FloatArray = (t0 + np.arange(n) * DT).astype(np.float64)
+    t: FloatArray = (t0 + np.arange(n) * SAMPLE_PERIOD_S).astype(np.float64)
     theta = np.concatenate([s.theta for s in segments]) + p.sway(t)
     lift_idx = np.concatenate(
         [

@@ -23,7 +23,6 @@ async function loadUsers(me) {
 
 async function main() {
   const me = await get("/api/auth/me");
-  $("#who").textContent = `${me.username} (${me.role})`;
   if (me.role === "admin") {
     $("#admin-only").hidden = false;
     await loadUsers(me);

@@ -16,7 +16,8 @@ function describe(detail) {
   return "request failed";
 }
 
-export async function api(method, path, body) {
+// A request; without a login, off to the login page, which brings the user back here.
+async function send(method, path, body) {
   const init = { method, headers: {} };
   if (body !== undefined) {
     init.headers["Content-Type"] = "application/json";
@@ -27,6 +28,11 @@ export async function api(method, path, body) {
     location.assign(`/login?next=${encodeURIComponent(location.pathname + location.search)}`);
     throw new ApiError(401, "not logged in");
   }
+  return r;
+}
+
+export async function api(method, path, body) {
+  const r = await send(method, path, body);
   if (r.status === 204) return null;
   const data = await r.json().catch(() => null);
   if (!r.ok) throw new ApiError(r.status, describe(data && data.detail));
@@ -37,3 +43,10 @@ export const get = (path) => api("GET", path);
 export const post = (path, body = {}) => api("POST", path, body);
 export const patch = (path, body) => api("PATCH", path, body);
 export const del = (path) => api("DELETE", path);
+
+// A text download (CSV): the body as a string.
+export async function getText(path) {
+  const r = await send("GET", path);
+  if (!r.ok) throw new ApiError(r.status, `${path}: ${r.status}`);
+  return r.text();
+}

@@ -3,10 +3,15 @@
 import { get, post } from "/static/api.js";
 import { $, act, fmtDate, h, showFatal } from "/static/dom.js";
 import { progressView } from "/static/jobs.js";
+import { controllerLabel, STUDY_CONTROLLERS } from "/static/names.js";
 
-const LABEL = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
 const fmt = (x, digits = 2) => (x == null ? "" : Number(x).toFixed(digits));
 const fmtP = (p) => (p == null ? "" : p < 0.001 ? p.toExponential(1) : p.toFixed(3));
+
+// One checkbox per controller a study compares, all ticked.
+$("#cohort-controllers").replaceChildren(...STUDY_CONTROLLERS.map((name) => h("label", {},
+  h("input", { type: "checkbox", name: `c-${name}`, id: `cohort-${name}`, value: name, checked: true }),
+  ` ${controllerLabel(name)}`)));
 
 function fill(table, header, rows) {
   table.querySelector("thead").replaceChildren(h("tr", {}, header.map((c) => h("th", {}, c))));
@@ -19,7 +24,7 @@ function n80(c) {
 }
 
 function comparisonRow(c) {
-  return [c.metric, `${LABEL[c.a]} − ${LABEL[c.b]}`,
+  return [c.metric, `${controllerLabel(c.a)} − ${controllerLabel(c.b)}`,
     `${fmt(c.mean_diff)} [${fmt(c.ci_low)}, ${fmt(c.ci_high)}]`, fmtP(c.p_value),
     fmt(c.rank_biserial), n80(c)];
 }
@@ -39,7 +44,7 @@ function show(cohort) {
   fill($("#comparisons"), header, doc.comparisons.map(comparisonRow));
   const units = Object.fromEntries(doc.metrics.map((m) => [m.name, m.unit]));
   fill($("#summaries"), ["metric", "unit", "controller", "n", "mean", "95 % CI", "SD", "median"],
-    doc.summaries.map((s) => [s.metric, units[s.metric], LABEL[s.controller], String(s.n),
+    doc.summaries.map((s) => [s.metric, units[s.metric], controllerLabel(s.controller), String(s.n),
       fmt(s.mean), `[${fmt(s.ci_low)}, ${fmt(s.ci_high)}]`, fmt(s.sd), fmt(s.median)]));
   const base = `/api/cohorts/${cohort.id}`;
   $("#power-figure").src = `${base}/figures/power.svg`;
@@ -71,7 +76,8 @@ async function load() {
 $("#cohort-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#cohort-run"), $("#cohort-msg"), async () => {
-    const controllers = ["umc", "eumc", "pec"].filter((c) => $(`#cohort-${c}`).checked);
+    const controllers = [...document.querySelectorAll("#cohort-controllers input:checked")]
+      .map((box) => box.value);
     const rate = $("#cohort-rate").value;
     const cohort = await post("/api/cohorts", {
       participants: Number($("#cohort-participants").value),
@@ -95,7 +101,6 @@ $("#cohort-form").addEventListener("submit", (ev) => {
   });
 });
 
-get("/api/auth/me").then((me) => { $("#who").textContent = me.username ?? ""; }).catch(() => {});
 load().then(() => {
   const id = Number(location.hash.slice(1));
   if (id) return open(id);

@@ -25,5 +25,4 @@ $("#study-form").addEventListener("submit", (ev) => {
   });
 });
 
-get("/api/auth/me").then((me) => { $("#who").textContent = me.username ?? ""; }).catch(() => {});
 load().catch(showFatal);

@@ -55,9 +55,6 @@ export function cellNode(v) {
   return cellText(v);
 }
 
-// Controller cells read "UMC", "E-UMC", "umc", "eumc": one key for all of them.
-export const controllerKey = (v) => String(v ?? "").toLowerCase().replace(/[^a-z]/g, "");
-
 function compare(a, b) {
   if (a == null || b == null) return a == null ? (b == null ? 0 : 1) : -1;
   const na = numeric(a);

@@ -3,6 +3,7 @@
 //    server set at login, as the X-CSRF-Token header: the server refuses a change made
 //    with the session cookie without it, so another site cannot act with the cookie.
 // 2. While an account still has the published demo password, every page says so.
+// 3. The header names who is logged in (the page shell leaves it a place, #who).
 (() => {
   const SAFE = new Set(["GET", "HEAD", "OPTIONS"]);
   const token = () => {
@@ -26,6 +27,8 @@
     const r = await original("/api/auth/me");
     if (!r.ok) return;
     const me = await r.json();
+    const who = document.getElementById("who");
+    if (who) who.textContent = `${me.username} (${me.role})`;
     const names = me.published_login_accounts || [];
     if (!names.length) return;
     const banner = document.createElement("div");

@@ -1,12 +1,16 @@
 // Live console: one WebSocket, ring buffers, uPlot redrawn at most ~30 times a second.
 // With ?trial=ID the same plots replay a stored trial, scrubbed with a slider.
+import { ApiError, get, post } from "/static/api.js";
 import { connectLive, Ring } from "/static/livestream.js";
-import { addProgress, createTimePlots, displayValue, PLOT_COLUMNS } from "/static/timeplots.js";
-import { createStateStrip, lastTick } from "/static/statestrip.js";
+import { createTimePlots } from "/static/timeplots.js";
+import { addProgress, displayValue, lastTick, PLOT_COLUMNS } from "/static/tickdata.js";
+import { createStateStrip } from "/static/statestrip.js";
 import { createMarkerBar, markDrawn, noteMarker } from "/static/markers.js";
+import { CATEGORY_NAMES, controllerLabel, CONTROLLER_NAMES, MODEL_NAMES, tickColumn } from "/static/names.js";
 
 const RATE_HZ = 100;
-const STRIP_COLUMNS = ["lock_left", "lock_right", "locked_left", "locked_right", "action", "trigger"];
+const STRIP_COLUMNS = ["lock_left", "lock_right", "locked_left", "locked_right", "action", "trigger"]
+  .map(tickColumn);
 const PLOTTED = ["t", ...new Set(Object.values(PLOT_COLUMNS).flat())];
 
 // What the browser tests read: counts, not pixels.
@@ -23,21 +27,21 @@ const stats = (window.exostudyLive = {
 });
 
 function observePosteriors(columns) {
-  const models = ["squat", "stoop_left", "stoop_right", "other"];
-  const post = models.map((m) => columns[`post_${m}`] || []);
+  const models = CATEGORY_NAMES;
+  const posts = models.map((m) => columns[`post_${m}`] || []);
   for (let i = 0; i < columns.t.length; i++) {
     // The leading model, or "none" while no estimate runs (E-UMC between triggers).
     let lead = "none";
     let best = -1;
     models.forEach((m, k) => {
-      const v = post[k][i];
+      const v = posts[k][i];
       if (v == null) return;
       if (v > (stats.posteriorMax[m] ?? -1)) stats.posteriorMax[m] = v;
       if (v > best) { best = v; lead = m; }
     });
     if (lead !== stats.leader) { stats.leaderChanges += 1; stats.leader = lead; }
   }
-  for (const m of ["squat", "stoop_left", "stoop_right"]) {
+  for (const m of MODEL_NAMES) {
     for (const v of columns[`progress_${m}`] || []) {
       if (v == null) continue;
       stats.leading[m] = (stats.leading[m] ?? 0) + 1;
@@ -53,7 +57,6 @@ const plots = createTimePlots({
 }, { onDraw: () => { stats.draws += 1; }, onMarkersShown: markDrawn });
 const strip = createStateStrip($("strip"));
 stats.strip = strip.counts;
-window.addEventListener("resize", () => plots.resize());
 
 const pauseBtn = $("pause");
 pauseBtn.addEventListener("click", () => {
@@ -221,20 +224,22 @@ async function startReplay(id) {
   $("replay-bar").hidden = false;
   setConn("replay", `replay of trial ${id}`);
   const [trial, body] = await Promise.all([
-    fetch(`/api/trials/${id}`).then((r) => r.json()),
-    fetch(`/api/trials/${id}/ticks.json`).then((r) => {
-      if (!r.ok) throw new Error(`trial ${id} has no stored ticks (it has not run)`);
-      return r.json();
+    get(`/api/trials/${id}`),
+    get(`/api/trials/${id}/ticks.json`).catch((err) => {
+      if (err instanceof ApiError && err.status === 404) {
+        throw new Error(`trial ${id} has no stored ticks (it has not run)`);
+      }
+      throw err;
     }),
   ]);
   const raw = addProgress(body.columns);
   const thr = trial.config_snapshot?.settings?.velocity_threshold;
   if (thr != null) plots.setThreshold(thr);
-  $("mode-text").textContent = `replay · trial ${id} · ${trial.controller.toUpperCase()} · ` +
+  $("mode-text").textContent = `replay · trial ${id} · ${controllerLabel(trial.controller)} · ` +
     `${trial.task} · ${trial.status}`;
   const disp = Object.fromEntries(PLOTTED.map((n) => [n, (raw[n] || []).map((v) => displayValue(n, v))]));
   replay = { raw, disp, n: raw.t.length, index: 0 };
-  fetch(`/api/trials/${id}/markers`).then((r) => (r.ok ? r.json() : [])).then((list) => {
+  get(`/api/trials/${id}/markers`).catch(() => []).then((list) => {
     list.forEach(noteMarker);
     plots.setMarkers(list);
   });
@@ -313,31 +318,37 @@ function showHealth(h) {
   $("device-detail").textContent = d.faults.length ? "faults: " + d.faults.join("; ") : "no faults";
 }
 
+// The controllers the worker can run, from the vocabulary ("none" records without locks).
+// "none" first: the worker starts with it.
+const noneFirst = [...CONTROLLER_NAMES].sort((a, b) => Number(b === "none") - Number(a === "none"));
+controllerSel.replaceChildren(...noneFirst.map((name) => {
+  const option = document.createElement("option");
+  option.value = name;
+  option.textContent = name === "none" ? "none (recording, no locks)" : controllerLabel(name);
+  return option;
+}));
+
 controllerSel.addEventListener("change", async () => {
   controllerMsg.textContent = `switching to ${controllerSel.value}…`;
-  const r = await fetch("/api/worker/controller", {
-    method: "POST", headers: { "Content-Type": "application/json" },
-    body: JSON.stringify({ name: controllerSel.value }),
-  });
-  const body = await r.json();
-  controllerMsg.textContent = r.ok ? `requested ${controllerSel.value}` : `refused: ${body.detail}`;
+  try {
+    await post("/api/worker/controller", { name: controllerSel.value });
+    controllerMsg.textContent = `requested ${controllerSel.value}`;
+  } catch (err) {
+    controllerMsg.textContent = `refused: ${err.message}`;
+  }
 });
 
 $("calibrate").addEventListener("click", async (ev) => {
   ev.target.disabled = true;
   controllerMsg.textContent = "calibrating: the wearer stands still…";
   try {
-    const r = await fetch("/api/worker/calibrate", {
-      method: "POST", headers: { "Content-Type": "application/json" },
-      body: JSON.stringify({ seconds: 3 }),
-    });
-    const body = await r.json();
-    const res = r.ok ? body : body.detail;
-    controllerMsg.dataset.calibrated = String(r.ok);
-    controllerMsg.textContent = typeof res === "string" ? `calibration failed: ${res}`
-      : r.ok ? `calibrated: offsets ${res.offset_left_deg.toFixed(1)}°, ${res.offset_right_deg.toFixed(1)}° ` +
-        `(std ${res.std_left_deg.toFixed(2)}°, ${res.std_right_deg.toFixed(2)}°)`
-      : `calibration failed: ${res.message}`;
+    const res = await post("/api/worker/calibrate", { seconds: 3 });
+    controllerMsg.dataset.calibrated = "true";
+    controllerMsg.textContent = `calibrated: offsets ${res.offset_left_deg.toFixed(1)}°, ` +
+      `${res.offset_right_deg.toFixed(1)}° (std ${res.std_left_deg.toFixed(2)}°, ${res.std_right_deg.toFixed(2)}°)`;
+  } catch (err) {
+    controllerMsg.dataset.calibrated = "false";
+    controllerMsg.textContent = `calibration failed: ${err.message}`;
   } finally {
     ev.target.disabled = false;
   }
@@ -346,8 +357,9 @@ $("calibrate").addEventListener("click", async (ev) => {
 $("restart").addEventListener("click", async (ev) => {
   ev.target.disabled = true;
   try {
-    const r = await fetch("/api/worker/restart", { method: "POST" });
-    if (r.ok) showHealth(await r.json());
+    showHealth(await post("/api/worker/restart"));
+  } catch (err) {
+    controllerMsg.textContent = `restart failed: ${err.message}`;
   } finally {
     ev.target.disabled = false;
   }

@@ -1,12 +1,14 @@
 // A fitted model set in the plane of left versus right hip flexion: each motion's mean
 // trajectory and its 95 % confidence ellipses along progress (from cov_rad2).
 
-const COLOURS = { squat: "#2b8a3e", stoop_left: "#1f6feb", stoop_right: "#d9480f" };
+import { categoryColour } from "/static/palette.js";
+import { DEG } from "/static/tickdata.js";
+
+// The 95 % quantile of the chi-square distribution with 2 degrees of freedom, -2 ln 0.05.
 const CHI2_2DOF_95 = 5.991464547107979;
-const DEG = 180 / Math.PI;
 
 // Semi-axes and angle of the 95 % ellipse of a 2x2 covariance (in deg^2).
-function ellipse(cov) {
+export function ellipse(cov) {
   const a = cov[0][0], b = cov[0][1], d = cov[1][1];
   const tr = (a + d) / 2;
   const disc = Math.sqrt(Math.max(0, ((a - d) / 2) ** 2 + b * b));
@@ -75,9 +77,8 @@ export function drawModelSet(canvas, doc, { every = 5 } = {}) {
 
   const scale = w / (hi - lo);
   for (const m of models) {
-    const colour = COLOURS[m.name] ?? "#555";
-    ctx.strokeStyle = colour;
-    ctx.fillStyle = colour + "14";
+    ctx.strokeStyle = categoryColour(m.name);
+    ctx.fillStyle = categoryColour(m.name, 0.08);
     ctx.lineWidth = 1;
     m.mean.forEach(([l, r], i) => {
       if (i % every !== 0 && i !== m.mean.length - 1) return;
@@ -104,8 +105,6 @@ function niceStep(raw) {
   for (const m of [1, 2, 5, 10]) if (m * p >= raw) return m * p;
   return 10 * p;
 }
-
-export { COLOURS as MODEL_COLOURS };
 
 // What the plot shows before a model set is fitted.
 export function drawEmpty(canvas, text) {

@@ -2,9 +2,9 @@
 // and conditions, and show the scored answers (unblinded) as they arrive.
 import { get, post } from "/static/api.js";
 import { $, act, fmtDate, h } from "/static/dom.js";
+import { controllerLabel } from "/static/names.js";
 
 const sessionId = Number(location.pathname.split("/").pop());
-const LABEL = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
 const POLL_MS = 3000;
 // What the browser tests read.
 const state = (window.exostudyForms = { responses: [], preferences: [], polls: 0 });
@@ -17,7 +17,7 @@ function renderChoices() {
     ...instruments.map((i) => h("th", {}, i.title || i.key)));
   $("#link-choices tbody").replaceChildren(...conditions.map((c) => h("tr", { "data-condition": c.label },
     // The controller is shown to the study's owners only (null for other roles).
-    h("td", {}, h("strong", {}, c.label), c.controller ? h("span", { class: "muted small" }, ` (${LABEL[c.controller] ?? c.controller})`) : ""),
+    h("td", {}, h("strong", {}, c.label), c.controller ? h("span", { class: "muted small" }, ` (${controllerLabel(c.controller)})`) : ""),
     ...instruments.map((i) => h("td", {}, h("input", {
       type: "checkbox", name: "form", value: `${i.key}|${c.label}`, checked: true,
       "aria-label": `${i.key} for condition ${c.label}` }))))));
@@ -38,11 +38,11 @@ async function refreshAnswers() {
   state.preferences = preferences;
   $("#responses tbody").replaceChildren(...responses.map((r) => h("tr", { "data-response": r.id, "data-instrument": r.instrument_key },
     h("td", {}, `${r.instrument_key.toUpperCase()} ${r.instrument_version}`), h("td", {}, r.condition_label ?? "–"),
-    h("td", {}, LABEL[r.controller] ?? r.controller ?? "–"),
+    h("td", {}, controllerLabel(r.controller) ?? "–"),
     h("td", { class: "score" }, h("strong", {}, Number(r.score).toFixed(1))), h("td", {}, fmtDate(r.submitted_at)))));
   const last = preferences.at(-1);
   $("#preference-out").textContent = last
-    ? `Preferred: ${last.choice === "none" ? "no preference" : `${last.choice} (${LABEL[last.controller] ?? last.controller})`}`
+    ? `Preferred: ${last.choice === "none" ? "no preference" : `${last.choice} (${controllerLabel(last.controller)})`}`
     : "";
 }
 

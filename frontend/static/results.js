@@ -1,10 +1,12 @@
 // A study's results: the paper's tables and figures from the stored trials, the trials
 // with their replay, timeline and what-if replay, and the leave-one-out model evaluation.
-import { api, get, post } from "/static/api.js";
+import { api, get, getText, post } from "/static/api.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
-import { cellNode, controllerKey, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
+import { cellNode, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
+import { CONTROLLER_NAMES, controllerKey, controllerLabel, correctAction, SEGMENT_LABELS } from "/static/names.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
+$("#whatif-controller").replaceChildren(...CONTROLLER_NAMES.map((c) => h("option", { value: c }, controllerLabel(c))));
 // `wide`: the JSON table is the paper's layout, participants as columns from index 2;
 // the long form (one row per participant, controller and motion) is its CSV download.
 const TABLES = [
@@ -22,7 +24,6 @@ const TABLES = [
 ];
 const FIGURES = [["peak_torques", "Peak exoskeleton torques per lift"],
   ["onset_to_lock", "Lift onset to lock"]];
-const LABEL = { umc: "UMC", eumc: "E-UMC", pec: "PEC", none: "none" };
 let doc = null;
 // The long forms, from the CSV downloads: name -> {header, rows}.
 let long = {};
@@ -33,12 +34,6 @@ const sorts = {};
 const state = (window.exostudyResults = {
   loaded: 0, whatIf: null, lopo: null, segments: null, layout: "paper", tables: {}, trials: [],
 });
-
-async function getText(path) {
-  const r = await fetch(path);
-  if (!r.ok) throw new Error(`${path}: ${r.status}`);
-  return r.text();
-}
 
 // Filter one table by the toolbar: a "participant" column filters rows, participant
 // columns of the paper's layout are hidden, a "controller" column filters rows (rows
@@ -84,7 +79,7 @@ function tableView(key, header, rows, extra = {}, record = null) {
 // Controller keys ("eumc") read as their labels ("E-UMC"); the rest as the table has them.
 function labelled(header) {
   const cCol = header.map((x) => x.toLowerCase()).indexOf("controller");
-  return { render: (r, col) => (col === cCol && LABEL[r[col]] ? LABEL[r[col]] : cellNode(r[col])) };
+  return { render: (r, col) => (col === cCol && CONTROLLER_NAMES.includes(r[col]) ? controllerLabel(r[col]) : cellNode(r[col])) };
 }
 
 function tableCard(spec, table, wide) {
@@ -147,7 +142,7 @@ function renderTrials() {
   const trials = doc.trials.filter((t) => (!p || t.participant === p) && (!c || t.controller === c));
   state.trials = trials.map((t) => t.trial_id);
   const byId = new Map(trials.map((t) => [t.trial_id, t]));
-  const rows = trials.map((t) => [t.trial_id, t.participant, LABEL[t.controller] ?? t.controller,
+  const rows = trials.map((t) => [t.trial_id, t.participant, controllerLabel(t.controller),
     t.task, t.truth, t.lifts, t.incomplete_lifts, t.gait_trials, null]);
   $("#trials").replaceChildren(tableView("trials", TRIAL_HEADER, rows, {
     sortable: (col) => col < TRIAL_HEADER.length - 1,
@@ -207,7 +202,7 @@ async function loadResults() {
   const q = long.questionnaires;
   const qc = q ? q.header.indexOf("controller") : -1;
   if (qc >= 0) for (const r of q.rows) ctls.add(controllerKey(r[qc]));
-  fill($("#filter-controller"), ["umc", "eumc", "pec", "none"].filter((c) => ctls.has(c)), (v) => LABEL[v] ?? v);
+  fill($("#filter-controller"), CONTROLLER_NAMES.filter((c) => ctls.has(c)), controllerLabel);
   render();
   // Figures are drawn by the server from the same evaluation (cached there).
   const stamp = Date.now();
@@ -228,7 +223,7 @@ let currentTrial = null;
 function openTrial(t) {
   currentTrial = t;
   $("#trial-panel").hidden = false;
-  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${LABEL[t.controller] ?? t.controller} · ${t.task}`;
+  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${controllerLabel(t.controller)} · ${t.task}`;
   $("#panel-replay").href = `/live?trial=${t.trial_id}`;
   $("#panel-timeline-svg").href = `/api/trials/${t.trial_id}/figures/timeline.svg`;
   $("#panel-timeline-png").href = `/api/trials/${t.trial_id}/figures/timeline.png`;
@@ -252,14 +247,12 @@ $("#panel-timeline").addEventListener("error", () => {
 });
 
 // ---------------------------------------------------------------- segments
-const SEG_LABELS = ["squat", "stoop_left", "stoop_right", "other", "unlabelled"];
-
 function segRow(seg) {
   const num = (k) => h("input", { type: "number", min: 0, step: 1, name: k, value: seg[k], class: "narrow", "aria-label": k });
   return h("tr", { "data-segment": "" }, h("td", {}, num("start")), h("td", {}, num("peak")),
     h("td", {}, num("end")),
     h("td", {}, h("select", { name: "label", "aria-label": "label" },
-      SEG_LABELS.map((l) => h("option", { value: l, selected: l === seg.label ? "" : null }, l)))),
+      SEGMENT_LABELS.map((l) => h("option", { value: l, selected: l === seg.label ? "" : null }, l)))),
     h("td", {}, h("button", { type: "button", onclick: (ev) => ev.target.closest("tr").remove() }, "Remove")));
 }
 
@@ -325,8 +318,8 @@ $("#whatif-form").addEventListener("submit", (ev) => {
     state.whatIf = r;
     const rate = body.rate_hz ? ` at ${body.rate_hz} Hz` : "";
     $("#whatif thead tr").replaceChildren(h("th", {}, "metric"),
-      h("th", {}, `original (${LABEL[r.original.controller] ?? r.original.controller}, as run)`),
-      h("th", {}, `what-if (${LABEL[r.replay.controller] ?? r.replay.controller}${rate})`),
+      h("th", {}, `original (${controllerLabel(r.original.controller)}, as run)`),
+      h("th", {}, `what-if (${controllerLabel(r.replay.controller)}${rate})`),
       h("th", {}, "change"));
     $("#whatif tbody").replaceChildren(...METRICS.map(([k, label]) => {
       const a = r.original[k];
@@ -350,8 +343,6 @@ function confusion(title, conf, correct) {
     h("tbody", {}, rows.map((r) => h("tr", { "data-true": r }, h("th", {}, r),
       cols.map((c) => h("td", { "data-predicted": c, class: correct(r, c) ? "diag" : null }, conf[r][c])))))));
 }
-// The paper's correct first decision: both sides in a squat, the supporting side in a stoop.
-const CORRECT_DECISION = { squat: "lock_both", stoop_left: "lock_left", stoop_right: "lock_right" };
 
 $("#lopo-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
@@ -369,7 +360,7 @@ $("#lopo-form").addEventListener("submit", (ev) => {
           : [h("td", {}, f.segments), h("td", {}, f.recognised), h("td", {}, f.correct)])))),
       h("div", { class: "grid2" },
         confusion("Recognition: first posterior to reach 0.5", r.recognition_confusion, (a, b) => a === b),
-        confusion("First lock decision", r.decision_confusion, (a, b) => CORRECT_DECISION[a] === b)));
+        confusion("First lock decision", r.decision_confusion, (a, b) => correctAction(a) === b)));
     return `done: ${r.folds.length} participants held out in turn`;
   });
 });

@@ -1,12 +1,10 @@
 // A recording's hip angles with its lift segments drawn as bands. The experimenter drags
 // a band's start or end edge; the edge snaps to the nearest sample when let go.
-import uPlot from "/vendor/uplot/uPlot.esm.js";
-import { DEG, LEFT, RIGHT, sizeOf } from "/static/timeplots.js";
+import { makePlot } from "/static/plot.js";
+import { modelLabel } from "/static/names.js";
+import { categoryColour, LEFT, RIGHT } from "/static/palette.js";
+import { degrees } from "/static/tickdata.js";
 
-export const LABEL_COLOURS = {
-  squat: "43,138,62", stoop_left: "31,111,235", stoop_right: "217,72,15",
-  other: "134,142,150", unlabelled: "156,54,181",
-};
 const GRAB_PX = 9;
 
 export function createSegmentPlot(el, { onEdgeMoved, height = 300 }) {
@@ -24,34 +22,31 @@ export function createSegmentPlot(el, { onEdgeMoved, height = 300 }) {
       if (t[s.start] == null || t[s.end] == null) continue;
       const x0 = u.valToPos(t[s.start], "x", true);
       const x1 = u.valToPos(t[s.end], "x", true);
-      const rgb = LABEL_COLOURS[s.label] ?? LABEL_COLOURS.unlabelled;
-      ctx.fillStyle = `rgba(${rgb},${s.excluded ? 0.06 : 0.16})`;
+      ctx.fillStyle = categoryColour(s.label, s.excluded ? 0.06 : 0.16);
       ctx.fillRect(x0, top, x1 - x0, hgt);
       for (const [which, x] of [["start", x0], ["end", x1]]) {
         const active = (drag && drag.seg === s && drag.which === which) ||
           (hover && hover.seg === s && hover.which === which);
-        ctx.fillStyle = `rgba(${rgb},1)`;
+        ctx.fillStyle = categoryColour(s.label);
         ctx.fillRect(x - (active ? 3 : 1.5) * devicePixelRatio, top, (active ? 6 : 3) * devicePixelRatio, hgt);
         // A grip in the middle of the edge, to show it can be dragged.
         ctx.fillRect(x - 6 * devicePixelRatio, top + hgt / 2 - 14 * devicePixelRatio,
           12 * devicePixelRatio, 28 * devicePixelRatio);
       }
-      ctx.fillStyle = `rgba(${rgb},1)`;
+      ctx.fillStyle = categoryColour(s.label);
       ctx.font = `${600} ${12 * devicePixelRatio}px system-ui`;
-      ctx.fillText(`${s.label.replace("_", " ")}${s.source === "edited" ? " ✎" : ""}`,
+      ctx.fillText(`${modelLabel(s.label)}${s.source === "edited" ? " ✎" : ""}`,
         x0 + 4 * devicePixelRatio, top + 14 * devicePixelRatio);
     }
     ctx.restore();
   }
 
-  const plot = new uPlot({
-    ...sizeOf(el, height),
-    scales: { x: { time: false } },
+  const plot = makePlot(el, {
     cursor: { drag: { x: false, y: false }, points: { show: false } },
     axes: [{ label: "device time (s)" }, { label: "hip flexion (deg)" }],
     series: [{}, { label: "left hip", stroke: LEFT, width: 2 }, { label: "right hip", stroke: RIGHT, width: 2 }],
     hooks: { draw: [drawSegments] },
-  }, [[], [], []], el);
+  }, { height });
   const over = plot.over;
 
   function nearestIndex(time) {
@@ -111,14 +106,12 @@ export function createSegmentPlot(el, { onEdgeMoved, height = 300 }) {
     if (d.seg[d.which] !== d.original) onEdgeMoved(d.seg, d.which, d.seg[d.which], d.original);
     plot.redraw(false, false);
   });
-  window.addEventListener("resize", () => plot.setSize(sizeOf(el, height)));
 
   return {
     plot,
     setRecording(angles) {
       t = angles.t;
-      plot.setData([t, angles.q_left.map((v) => (v == null ? null : v * DEG)),
-        angles.q_right.map((v) => (v == null ? null : v * DEG))]);
+      plot.setData([t, degrees(angles.q_left), degrees(angles.q_right)]);
     },
     setSegments(list) { segments = list; plot.redraw(false, false); },
     // Where an edge is on screen (page coordinates), for tests and keyboard-free checks.

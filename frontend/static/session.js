@@ -6,18 +6,18 @@ import { del, get, patch, post } from "/static/api.js";
 import { $, act, h, showFatal } from "/static/dom.js";
 import { waitForJob, progressView } from "/static/jobs.js";
 import { connectLive, Ring } from "/static/livestream.js";
-import { createTimePlots, displayValue } from "/static/timeplots.js";
-import { createStateStrip, lastTick } from "/static/statestrip.js";
-import { createSegmentPlot, LABEL_COLOURS } from "/static/segmentplot.js";
+import { createTimePlots } from "/static/timeplots.js";
+import { displayValue, lastTick } from "/static/tickdata.js";
+import { createStateStrip } from "/static/statestrip.js";
+import { createSegmentPlot } from "/static/segmentplot.js";
 import { drawEmpty, drawModelSet } from "/static/modelplot.js";
 import { createUtilityPlots } from "/static/utilityplot.js";
 import { Stillness } from "/static/stillness.js";
 import { createMarkerBar, createStreamPicker, markDrawn, noteMarker } from "/static/markers.js";
+import { controllerLabel, MODEL_NAMES, modelLabel, SCRIPTS, SEGMENT_LABELS } from "/static/names.js";
+import { categoryColour } from "/static/palette.js";
 
 const sessionId = Number(location.pathname.split("/").pop());
-const MODEL_NAMES = ["squat", "stoop_left", "stoop_right"];
-const LABELS = ["squat", "stoop_left", "stoop_right", "other", "unlabelled"];
-const CONTROLLER = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
 
 // What the browser tests read.
 const page = (window.exostudySession = {
@@ -37,7 +37,26 @@ const strip = createStateStrip($("#strip"));
 page.strip = strip.counts;
 const stillness = new Stillness();
 let latest = null;
-let dirty = false;
+let frameQueued = false;
+let lastDraw = -Infinity;
+
+// A frame is asked for only when ticks arrived (no idle animation loop), and drawn at
+// most every 40 ms: the small plot and the indicator need no more.
+function requestDraw() {
+  if (frameQueued) return;
+  frameQueued = true;
+  const wait = lastDraw + 40 - performance.now();
+  if (wait > 0) setTimeout(() => requestAnimationFrame(frame), wait);
+  else requestAnimationFrame(frame);
+}
+
+function frame(ts) {
+  frameQueued = false;
+  lastDraw = ts;
+  livePlots.setData(ring.cols);
+  strip.update(latest);
+  showStillness();
+}
 
 connectLive({
   onTicks(msg) {
@@ -46,7 +65,7 @@ connectLive({
     strip.observe(msg.columns);
     latest = lastTick(msg.columns);
     page.samples += msg.columns.t.length;
-    dirty = true;
+    requestDraw();
   },
   onMarker(m) { if (m.session_id === sessionId) { noteMarker(m); livePlots.addMarker(m); } },
   onStatus(hlth) {
@@ -63,19 +82,6 @@ connectLive({
     $("#conn-text").textContent = state === "live" ? "live" : "disconnected, retrying";
   },
 });
-
-let lastDraw = 0;
-function frame(ts) {
-  if (dirty && ts - lastDraw >= 40) {
-    lastDraw = ts;
-    dirty = false;
-    livePlots.setData(ring.cols);
-    strip.update(latest);
-    showStillness();
-  }
-  requestAnimationFrame(frame);
-}
-requestAnimationFrame(frame);
 
 function showStillness() {
   const el = $("#stillness");
@@ -174,8 +180,13 @@ const segPlot = createSegmentPlot($("#seg-plot"), {
 });
 page.edgeClientPoint = (id, which) => segPlot.edgeClientPoint(id, which);
 
-$("#seg-legend").replaceChildren(...LABELS.map((l) => h("span", {},
-  h("span", { class: "swatch", style: `background: rgb(${LABEL_COLOURS[l]})` }), l.replace("_", " "))));
+// The simulated wearer's scripts and the model legend, from the vocabulary.
+$("#sim-script").replaceChildren(...SCRIPTS.map((name) => h("option", { value: name }, name)));
+$("#model-legend").prepend(...MODEL_NAMES.map((m) => h("span", {},
+  h("span", { class: "swatch", style: `background: ${categoryColour(m)}` }), modelLabel(m))));
+
+$("#seg-legend").replaceChildren(...SEGMENT_LABELS.map((l) => h("span", {},
+  h("span", { class: "swatch", style: `background: ${categoryColour(l)}` }), modelLabel(l))));
 
 let shownAngles = null;
 const segTime = (i) => (shownAngles && shownAngles.t[i] != null ? (shownAngles.t[i] - shownAngles.t[0]).toFixed(2) : "–");
@@ -263,7 +274,7 @@ function showSegments() {
     h("td", {}, i + 1), h("td", {}, segTime(s.start)), h("td", {}, segTime(s.end)),
     h("td", {}, h("select", { class: "label", "aria-label": `label of lift ${i + 1}`,
       onchange: (ev) => relabel(s, ev.target.value) },
-    ...LABELS.map((l) => h("option", { value: l, selected: l === s.label ? "selected" : null }, l.replace("_", " "))))),
+    ...SEGMENT_LABELS.map((l) => h("option", { value: l, selected: l === s.label ? "selected" : null }, modelLabel(l))))),
     h("td", {}, h("span", { class: "badge" }, s.source)),
     h("td", {}, h("button", { type: "button", class: "danger", onclick: () => removeSegment(s) }, "Delete")))));
   updateFitCounts();
@@ -273,7 +284,7 @@ async function relabel(seg, label) {
   try {
     Object.assign(seg, await patch(`/api/segments/${seg.id}`, { label }));
     $("#seg-msg").className = "msg msg-ok";
-    $("#seg-msg").textContent = `lift ${seg.id} is now ${label.replace("_", " ")}`;
+    $("#seg-msg").textContent = `lift ${seg.id} is now ${modelLabel(label)}`;
   } catch (err) {
     $("#seg-msg").className = "msg msg-bad";
     $("#seg-msg").textContent = err.message;
@@ -300,7 +311,7 @@ function updateFitCounts() {
   const counts = MODEL_NAMES.map((m) => [m, chosen.filter((s) => s.label === m).length]);
   const short = counts.filter(([, c]) => c < 2);
   $("#fit-counts").innerHTML = "";
-  $("#fit-counts").append(`${chosen.length} lifts chosen: ` + counts.map(([m, c]) => `${m.replace("_", " ")} ${c}`).join(", "),
+  $("#fit-counts").append(`${chosen.length} lifts chosen: ` + counts.map(([m, c]) => `${modelLabel(m)} ${c}`).join(", "),
     short.length ? h("span", { class: "warn-text" }, ` · need at least 2 of each`) : "");
   $("#fit-run").disabled = short.length > 0;
 }
@@ -336,7 +347,7 @@ async function showModelSet(id) {
   $("#ms-info").replaceChildren(h("h3", { class: "small" }, `Model set ${doc.version}`),
     h("table", { class: "list" }, h("thead", {}, h("tr", {}, h("th", {}, "motion"), h("th", {}, "demonstrations"),
       h("th", {}, "latent dim"), h("th", {}, "explained variance"))),
-    h("tbody", {}, ...Object.entries(doc.models).map(([name, m]) => h("tr", {}, h("td", {}, name.replace("_", " ")),
+    h("tbody", {}, ...Object.entries(doc.models).map(([name, m]) => h("tr", {}, h("td", {}, modelLabel(name)),
       h("td", {}, m.n_demonstrations ?? counts[name] ?? "–"), h("td", {}, m.q),
       h("td", {}, m.explained_variance != null ? `${(m.explained_variance * 100).toFixed(1)} %` : "–"))))));
 }
@@ -398,7 +409,7 @@ async function loadTrials() {
   if (trials.length) $("#plan-msg").textContent = "planned: the order below is fixed for this session";
   const running = trials.some((t) => t.status === "running");
   $("#trials tbody").replaceChildren(...trials.map((t) => h("tr", { "data-trial": t.id, "data-controller": t.controller, "data-status": t.status },
-    h("td", {}, t.planned_order + 1), h("td", {}, h("strong", {}, CONTROLLER[t.controller] ?? t.controller)),
+    h("td", {}, t.planned_order + 1), h("td", {}, h("strong", {}, controllerLabel(t.controller))),
     h("td", {}, blind[t.controller] ? `setting ${blind[t.controller]}` : "–"), h("td", {}, t.task),
     h("td", {}, h("span", { class: "badge", "data-status": t.status }, t.status)),
     h("td", {}, ...trialButtons(t, running)))));
@@ -408,7 +419,7 @@ async function loadTrials() {
 function trialButtons(t, running) {
   if (t.status === "planned") {
     return [h("button", { type: "button", class: "primary start", disabled: running,
-      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/start`, {}, `${CONTROLLER[t.controller]} · ${t.task} running`,
+      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/start`, {}, `${controllerLabel(t.controller)} · ${t.task} running`,
         () => followTask(t.task)) }, "▶ Start")];
   }
   if (t.status === "running") {
@@ -446,7 +457,7 @@ $("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), 
   await loadTrials();
   // The plan made the blinded condition labels: the questionnaire step offers them now.
   document.dispatchEvent(new CustomEvent("exostudy:planned", { detail: { trials } }));
-  const order = [...new Set(trials.map((t) => CONTROLLER[t.controller]))].join(" → ");
+  const order = [...new Set(trials.map((t) => controllerLabel(t.controller)))].join(" → ");
   return `planned ${trials.length} trials: ${order}`;
 }, () => { $("#plan-run").disabled = (page.trials || []).length > 0; }));
 

@@ -1,8 +1,6 @@
 // The state strip: which lock each side holds, whether the mechanism engaged, and the
 // controller's action, large enough to read from across the lab.
-
-// Action numbers are the paper's a1..a4 (controller/tick.py Action).
-const ACTIONS = { 1: "no lock", 2: "lock both", 3: "lock right", 4: "lock left" };
+import { actionLabel, plausibilityReasons } from "/static/names.js";
 
 export function createStateStrip(root) {
   root.classList.add("strip");
@@ -10,7 +8,7 @@ export function createStateStrip(root) {
     <div class="strip-cell" id="strip-left" data-lock="off"><span class="strip-side">LEFT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>
     <div class="strip-cell strip-action" id="strip-action" data-action="1"><span class="strip-side">ACTION</span>
-      <span class="strip-value">no lock</span><span class="strip-sub">trigger –</span>
+      <span class="strip-value">${actionLabel(1)}</span><span class="strip-sub">trigger –</span>
       <span class="strip-sub strip-implausible" id="strip-implausible" hidden>implausible sample</span></div>
     <div class="strip-cell" id="strip-right" data-lock="off"><span class="strip-side">RIGHT</span>
       <span class="strip-value">free</span><span class="strip-sub">mechanism –</span></div>`;
@@ -21,9 +19,6 @@ export function createStateStrip(root) {
   // Ticks whose sample failed a plausibility check (controller/tick.py Plausibility):
   // no lock is taken on them, and the strip says so while they last.
   const counts = { lockChanges: 0, lockOnSeen: 0, implausible: 0 };
-  const REASONS = [[1, "angle jump"], [2, "hip velocity"], [4, "repeated"],
-    [8, "time backwards"], [16, "too early"], [32, "out of range"], [64, "resync"],
-    [128, "acceleration"]];
   let last = null;
 
   const leftParts = [left.querySelector(".strip-value"), left.querySelector(".strip-sub")];
@@ -66,25 +61,16 @@ export function createStateStrip(root) {
       if (shown.plausibility !== p) {
         shown.plausibility = p;
         implausible.hidden = !p;
-        implausible.textContent = p ? `implausible sample: ${REASONS.filter(([b]) => p & b)
-          .map(([, n]) => n).join(", ")}` : "";
+        implausible.textContent = p ? `implausible sample: ${plausibilityReasons(p).join(", ")}` : "";
       }
       const a = tick.action ?? 1;
       const now = `${a}/${tick.trigger ? 1 : 0}`;
       if (shown.action === now) return;
       shown.action = now;
       action.dataset.action = String(a);
-      actionParts[0].textContent = ACTIONS[a] ?? String(a);
+      actionParts[0].textContent = actionLabel(a);
       actionParts[1].textContent = `trigger ${tick.trigger ? "ON" : "off"}`;
     },
   };
 }
 
-// The last tick in a columns message, as a plain object.
-export function lastTick(columns) {
-  const n = columns.t.length;
-  if (!n) return null;
-  const out = {};
-  for (const [k, v] of Object.entries(columns)) out[k] = v[n - 1];
-  return out;
-}

@@ -1,10 +1,25 @@
 // Is the wearer standing still? The standard deviation of each hip angle over the last
-// second, from the live stream, against the calibration's limit.
+// second, from the live stream, against the calibration's limit. The same definition as
+// the calibration the server runs (controller/calibration.py): the population standard
+// deviation (divide by n), a missing sample makes the window not still, and a deviation
+// equal to the limit still counts as still.
+
+import { DEG } from "/static/tickdata.js";
+
+// Population standard deviation (two-pass, as numpy's `std` with ddof = 0); NaN for an
+// empty list or one holding a missing (null) or non-finite value.
+export function populationStd(values) {
+  const n = values.length;
+  if (!n || values.some((x) => x == null || !Number.isFinite(x))) return NaN;
+  const mean = values.reduce((a, b) => a + b, 0) / n;
+  return Math.sqrt(values.reduce((a, b) => a + (b - mean) ** 2, 0) / n);
+}
 
 export class Stillness {
-  constructor({ seconds = 1.0, limitDeg = 1.0 } = {}) {
+  constructor({ seconds = 1.0, limitDeg = 1.0, minSamples = 20 } = {}) {
     this.seconds = seconds;
     this.limitDeg = limitDeg;
+    this.minSamples = minSamples;
     this.t = [];
     this.left = [];
     this.right = [];
@@ -25,15 +40,9 @@ export class Stillness {
 
   // {stdLeftDeg, stdRightDeg, still} or null while there is too little data.
   state() {
-    if (this.t.length < 20) return null;
-    const sd = (xs) => {
-      const v = xs.filter((x) => x != null);
-      if (v.length < 10) return NaN;
-      const m = v.reduce((a, b) => a + b, 0) / v.length;
-      return Math.sqrt(v.reduce((a, b) => a + (b - m) ** 2, 0) / (v.length - 1)) * 180 / Math.PI;
-    };
-    const l = sd(this.left);
-    const r = sd(this.right);
-    return { stdLeftDeg: l, stdRightDeg: r, still: l < this.limitDeg && r < this.limitDeg };
+    if (this.t.length < this.minSamples) return null;
+    const l = populationStd(this.left) * DEG;
+    const r = populationStd(this.right) * DEG;
+    return { stdLeftDeg: l, stdRightDeg: r, still: l <= this.limitDeg && r <= this.limitDeg };
   }
 }

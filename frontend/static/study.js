@@ -2,6 +2,7 @@
 import { get, patch, post } from "/static/api.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 import { createLabelEditor } from "/static/markers.js";
+import { controllerLabel } from "/static/names.js";
 
 const studyId = Number(location.pathname.split("/").pop());
 let participants = [];
@@ -52,8 +53,6 @@ async function loadSessions() {
     h("td", {}, h("a", { href: `/console/sessions/${s.id}`, class: "session-link" }, "Open session ›")))));
 }
 
-const CONTROLLER = { umc: "UMC", eumc: "E-UMC", pec: "PEC" };
-
 // The participant's scored questionnaires and stated preference, unblinded.
 async function loadAnswers() {
   const [responses, preferences] = await Promise.all([
@@ -63,14 +62,14 @@ async function loadAnswers() {
     { "data-response": r.id, "data-instrument": r.instrument_key },
     h("td", {}, `${r.instrument_key.toUpperCase()} ${r.instrument_version}`),
     h("td", {}, r.condition_label ?? "–"),
-    h("td", {}, CONTROLLER[r.controller] ?? r.controller ?? "–"),
+    h("td", {}, controllerLabel(r.controller) ?? "–"),
     h("td", { class: "score" }, h("strong", {}, Number(r.score).toFixed(1))),
     h("td", {}, fmtDate(r.submitted_at)))));
   $("#participant-responses-empty").hidden = responses.length > 0;
   const last = preferences.at(-1);
   $("#participant-preference").textContent = !last ? ""
     : `Preferred: ${last.choice === "none" ? "no preference"
-      : `${last.choice} (${CONTROLLER[last.controller] ?? last.controller})`}`;
+      : `${last.choice} (${controllerLabel(last.controller)})`}`;
 }
 
 $("#participant-form").addEventListener("submit", (ev) => {

@@ -2,94 +2,43 @@
 // velocities with the trigger threshold, posteriors with lock commands, the progress of
 // the most probable model, torques.
 // All plots share one cursor (uPlot cursor.sync), so a time reads across them.
-import uPlot from "/vendor/uplot/uPlot.esm.js";
+import { makePlot, uPlot } from "/static/plot.js";
+import { CATEGORY_NAMES, MODEL_NAMES, modelLabel } from "/static/names.js";
+import { categoryColour, LEFT, MARKER, NEUTRAL, RIGHT, TRIGGER } from "/static/palette.js";
+import { PLOT_COLUMNS } from "/static/tickdata.js";
 
-export const DEG = 180 / Math.PI;
-export const LEFT = "#1f6feb";
-export const RIGHT = "#d9480f";
 const SYNC_KEY = "exostudy-time";
 const stepped = uPlot.paths.stepped({ align: 1 });
-
-export function sizeOf(el, height = 220) {
-  return { width: Math.max(300, el.clientWidth - 4), height };
-}
 
 function thresholdLine(getValue) {
   return (u) => {
     const v = getValue();
     if (v == null || u.scales.y.min == null) return;
     const { ctx } = u;
+    const py = u.valToPos(v, "y", true);
     ctx.save();
     ctx.setLineDash([8, 5]);
     ctx.lineWidth = 2;
-    ctx.strokeStyle = "#6b7685";
-    for (const y of [v]) {
-      const py = u.valToPos(y, "y", true);
-      ctx.beginPath();
-      ctx.moveTo(u.bbox.left, py);
-      ctx.lineTo(u.bbox.left + u.bbox.width, py);
-      ctx.stroke();
-    }
-    ctx.fillStyle = "#6b7685";
+    ctx.strokeStyle = NEUTRAL;
+    ctx.beginPath();
+    ctx.moveTo(u.bbox.left, py);
+    ctx.lineTo(u.bbox.left + u.bbox.width, py);
+    ctx.stroke();
+    ctx.fillStyle = NEUTRAL;
     ctx.font = `${12 * devicePixelRatio}px system-ui`;
     ctx.textAlign = "right";
-    ctx.fillText(`trigger threshold ${v} rad/s`, u.bbox.left + u.bbox.width - 6, u.valToPos(v, "y", true) - 6);
+    ctx.fillText(`trigger threshold ${v} rad/s`, u.bbox.left + u.bbox.width - 6, py - 6);
     ctx.restore();
   };
 }
 
 const xAxis = { label: "device time (s)" };
-const base = (el, height, onDraw) => ({
-  ...sizeOf(el, height),
-  scales: { x: { time: false } },
-  cursor: { sync: { key: SYNC_KEY, setSeries: false }, drag: { x: false, y: false } },
-  hooks: { draw: [onDraw] },
-  legend: { live: true },
-});
-
-// Which tick columns each plot needs, in series order after t.
-export const PLOT_COLUMNS = {
-  angles: ["q_left", "q_right"],
-  velocities: ["omega_left", "omega_right", "trigger"],
-  posteriors: ["post_squat", "post_stoop_left", "post_stoop_right", "post_other",
-    "lock_left", "lock_right"],
-  torques: ["torque_left", "torque_right"],
-  progress: ["progress_squat", "progress_stoop_left", "progress_stoop_right"],
-};
-
-const MODELS = ["squat", "stoop_left", "stoop_right"];
-
-// The progress estimate of the most probable model (its s_curr), one column per model so
-// the colour says which model leads; null where "other" leads or nothing was estimated.
-// Adds `progress_<model>` columns to a columns object (live message or stored trial).
-export function addProgress(columns) {
-  const n = columns.t.length;
-  const post = MODELS.map((m) => columns[`post_${m}`] || []);
-  const other = columns.post_other || [];
-  const curr = MODELS.map((m) => columns[`s_curr_${m}`] || []);
-  const out = MODELS.map(() => new Array(n).fill(null));
-  for (let i = 0; i < n; i++) {
-    let best = -1;
-    let bestP = other[i] ?? -Infinity;
-    for (let k = 0; k < MODELS.length; k++) {
-      const p = post[k][i];
-      if (p != null && p > bestP) { best = k; bestP = p; }
-    }
-    if (best >= 0 && curr[best][i] != null) out[best][i] = curr[best][i];
-  }
-  MODELS.forEach((m, k) => { columns[`progress_${m}`] = out[k]; });
-  return columns;
-}
-
-// Ticks as they arrive (SI units, booleans) to what the plots draw.
-export function displayValue(name, v) {
-  if (v == null) return null;
-  if (name === "q_left" || name === "q_right") return v * DEG;
-  if (name === "lock_left") return v ? 1 : 0;
-  if (name === "lock_right") return v ? 1.2 : 0.2;
-  if (name === "trigger") return v ? 1 : 0;
-  return v;
-}
+const CURSOR = { drag: { x: false, y: false } };
+// One series per motion category: its colour, dashed for the one-sided (stoop) models.
+const categorySeries = (names, extra) => names.map((m) => ({
+  label: modelLabel(m), stroke: categoryColour(m), width: 2,
+  dash: /_(left|right)$/.test(m) ? [6, 3] : undefined, ...extra,
+}));
 
 // Event markers (backend/schemas/lab.py MarkerOut): a dashed line and the label at the
 // marker's tick time. Calls `onShown(labels)` with the labels drawn in view.
@@ -104,8 +53,8 @@ function markerLines(getMarkers, onShown) {
     ctx.save();
     ctx.setLineDash([4, 4]);
     ctx.lineWidth = 2;
-    ctx.strokeStyle = "#9c36b5";
-    ctx.fillStyle = "#9c36b5";
+    ctx.strokeStyle = MARKER;
+    ctx.fillStyle = MARKER;
     ctx.font = `${11 * devicePixelRatio}px system-ui`;
     for (const m of markers) {
       if (m.t == null || m.t < x0 || m.t > x1) continue;
@@ -127,62 +76,41 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
   const plots = {};
   const state = { threshold };
   const c = containers;
-  if (c.angles) {
-    plots.angles = new uPlot({
-      ...base(c.angles, height, onDraw),
-      axes: [xAxis, { label: "hip flexion (deg)" }],
-      series: [{}, { label: "left hip", stroke: LEFT, width: 2 },
-        { label: "right hip", stroke: RIGHT, width: 2 }],
-    }, [[], [], []], c.angles);
-  }
-  if (c.velocities) {
-    plots.velocities = new uPlot({
-      ...base(c.velocities, height, onDraw),
-      hooks: { draw: [onDraw, thresholdLine(() => state.threshold)] },
-      scales: {
-        x: { time: false },
-        y: { range: (u, min, max) => [Math.min(min ?? -1, -1), Math.max(max ?? 1, state.threshold * 1.5)] },
-        trig: { range: [-0.1, 8] },
-      },
-      axes: [xAxis, { label: "hip velocity (rad/s)" }],
-      series: [{}, { label: "left", stroke: LEFT, width: 2 },
-        { label: "right", stroke: RIGHT, width: 2 },
-        { label: "trigger", stroke: "#2b8a3e", fill: "rgba(43,138,62,0.15)", width: 2, scale: "trig", paths: stepped }],
-    }, [[], [], [], []], c.velocities);
-  }
-  if (c.posteriors) {
-    plots.posteriors = new uPlot({
-      ...base(c.posteriors, height, onDraw),
-      scales: { x: { time: false }, p: { range: [0, 1.05] }, lock: { range: [-0.1, 3] } },
-      axes: [xAxis, { scale: "p", label: "P(model | obs)" }],
-      series: [{},
-        { label: "squat", stroke: "#2b8a3e", scale: "p", width: 2, spanGaps: true },
-        { label: "stoop left", stroke: LEFT, scale: "p", width: 2, spanGaps: true, dash: [6, 3] },
-        { label: "stoop right", stroke: RIGHT, scale: "p", width: 2, spanGaps: true, dash: [6, 3] },
-        { label: "other", stroke: "#868e96", scale: "p", width: 2, spanGaps: true },
-        { label: "lock left", stroke: LEFT, scale: "lock", width: 3, paths: stepped },
-        { label: "lock right", stroke: RIGHT, scale: "lock", width: 3, paths: stepped }],
-    }, [[], [], [], [], [], [], []], c.posteriors);
-  }
-  if (c.progress) {
-    plots.progress = new uPlot({
-      ...base(c.progress, height, onDraw),
-      scales: { x: { time: false }, y: { range: [0, 1.05] } },
-      axes: [xAxis, { label: "progress s (0-1)" }],
-      series: [{},
-        { label: "squat", stroke: "#2b8a3e", width: 2 },
-        { label: "stoop left", stroke: LEFT, width: 2, dash: [6, 3] },
-        { label: "stoop right", stroke: RIGHT, width: 2, dash: [6, 3] }],
-    }, [[], [], [], []], c.progress);
-  }
-  if (c.torques) {
-    plots.torques = new uPlot({
-      ...base(c.torques, height, onDraw),
-      axes: [xAxis, { label: "torque (Nm)" }],
-      series: [{}, { label: "left", stroke: LEFT, width: 2, spanGaps: true },
-        { label: "right", stroke: RIGHT, width: 2, spanGaps: true }],
-    }, [[], [], []], c.torques);
-  }
+  const make = (name, opts, draw = [onDraw]) => {
+    if (c[name]) plots[name] = makePlot(c[name], { cursor: CURSOR, legend: { live: true }, hooks: { draw }, ...opts },
+      { height, sync: SYNC_KEY });
+  };
+  make("angles", {
+    axes: [xAxis, { label: "hip flexion (deg)" }],
+    series: [{}, { label: "left hip", stroke: LEFT, width: 2 }, { label: "right hip", stroke: RIGHT, width: 2 }],
+  });
+  make("velocities", {
+    scales: {
+      y: { range: (u, min, max) => [Math.min(min ?? -1, -1), Math.max(max ?? 1, state.threshold * 1.5)] },
+      trig: { range: [-0.1, 8] },
+    },
+    axes: [xAxis, { label: "hip velocity (rad/s)" }],
+    series: [{}, { label: "left", stroke: LEFT, width: 2 },
+      { label: "right", stroke: RIGHT, width: 2 },
+      { label: "trigger", stroke: TRIGGER, fill: categoryColour("squat", 0.15), width: 2, scale: "trig", paths: stepped }],
+  }, [onDraw, thresholdLine(() => state.threshold)]);
+  make("posteriors", {
+    scales: { p: { range: [0, 1.05] }, lock: { range: [-0.1, 3] } },
+    axes: [xAxis, { scale: "p", label: "P(model | obs)" }],
+    series: [{}, ...categorySeries(CATEGORY_NAMES, { scale: "p", spanGaps: true }),
+      { label: "lock left", stroke: LEFT, scale: "lock", width: 3, paths: stepped },
+      { label: "lock right", stroke: RIGHT, scale: "lock", width: 3, paths: stepped }],
+  });
+  make("progress", {
+    scales: { y: { range: [0, 1.05] } },
+    axes: [xAxis, { label: "progress s (0-1)" }],
+    series: [{}, ...categorySeries(MODEL_NAMES, {})],
+  });
+  make("torques", {
+    axes: [xAxis, { label: "torque (Nm)" }],
+    series: [{}, { label: "left", stroke: LEFT, width: 2, spanGaps: true },
+      { label: "right", stroke: RIGHT, width: 2, spanGaps: true }],
+  });
 
   state.markers = [];
   const drawMarkers = markerLines(() => state.markers, onMarkersShown);
@@ -220,8 +148,5 @@ export function createTimePlots(containers, { threshold = 1.0, height = 220, onD
       return visible;
     },
     setThreshold(v) { state.threshold = v; },
-    resize() {
-      for (const [name, plot] of Object.entries(plots)) plot.setSize(sizeOf(c[name], height));
-    },
   };
 }

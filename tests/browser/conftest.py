@@ -13,6 +13,7 @@ from urllib.parse import urlparse
 import pytest
 
 from backend.core.config import Settings
+from tests.browser.login_page import log_in_through
 from tests.live_server import running_server
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -89,10 +90,5 @@ def page(browser: Any, request: pytest.FixtureRequest) -> Iterator[Any]:
 def logged_in(server: str, page: Any, experimenter: dict[str, str]) -> str:
     """Log `page` in through the login page, as an experimenter would: opening the
     console without a login lands on the login page, which leads back to it."""
-    page.goto(f"{server}/live")
-    page.wait_for_url("**/login?next=/live")
-    page.fill("#username", experimenter["username"])
-    page.fill("#password", experimenter["password"])
-    page.click("#submit")
-    page.wait_for_url(f"{server}/live")
+    log_in_through(page, server, "/live", experimenter)
     return server

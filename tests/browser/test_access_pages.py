@@ -9,9 +9,9 @@ from typing import Any
 
 import pytest
 
-from backend import accounts
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
+from backend.study import accounts
 from tests.live_server import running_server
 
 

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from backend.core.config import Settings
+from tests.browser.login_page import log_in_through
 from tests.live_server import running_server
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -23,12 +24,7 @@ def plain_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[s
 
 def test_a_cohort_runs_from_the_page(plain_server: str, page: Any,
                                      experimenter: dict[str, str]) -> None:
-    page.goto(f"{plain_server}/console/cohorts")
-    page.wait_for_url("**/login?next=/console/cohorts")
-    page.fill("#username", experimenter["username"])
-    page.fill("#password", experimenter["password"])
-    page.click("#submit")
-    page.wait_for_url(f"{plain_server}/console/cohorts")
+    log_in_through(page, plain_server, "/console/cohorts", experimenter)
     page.wait_for_selector("body[data-ready='true']")
     assert page.is_visible("#cohorts-empty")
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -16,8 +15,10 @@ import pytest
 
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
-from backend.db.evidence import ModelSetRecord, UtilitySetRecord
+from backend.db.evidence_tables import ModelSetRecord, UtilitySetRecord
+from tests.browser.login_page import log_in_through
 from tests.live_server import running_server
+from tests.polling import wait_for
 
 
 @pytest.fixture
@@ -41,16 +42,6 @@ def _ok(r: httpx.Response) -> Any:
     return r.json()
 
 
-def _log_in(page: Any, server: str, path: str, experimenter: dict[str, str]) -> None:
-    """Open a console page: it sends us to the login page, which brings us back."""
-    page.goto(f"{server}{path}")
-    page.wait_for_url(f"**/login?next={path}")
-    page.fill("#username", experimenter["username"])
-    page.fill("#password", experimenter["password"])
-    page.click("#submit")
-    page.wait_for_url(f"{server}{path}")
-
-
 def _session(api: httpx.Client, kind: str, participants: int = 1) -> tuple[int, int]:
     sid = _ok(api.post("/api/studies", json={"name": f"console {kind}"}))["id"]
     pid = 0
@@ -62,17 +53,32 @@ def _session(api: httpx.Client, kind: str, participants: int = 1) -> tuple[int, 
     return sid, sess["id"] if pid else 0
 
 
-def _wait_ticks(api: httpx.Client) -> None:
-    deadline = time.monotonic() + 30
-    while api.get("/api/health").json()["worker"]["ticks"] < 20:
-        assert time.monotonic() < deadline, "worker never ticked"
-        time.sleep(0.2)
+def _wait_ticks(api: httpx.Client, ticks: int = 20, controller: str | None = None) -> None:
+    """Until the worker's current run (of `controller`, if given) has `ticks` ticks."""
+    def done() -> bool:
+        worker = api.get("/api/health").json()["worker"]
+        return worker["ticks"] >= ticks and controller in (None, worker["controller"])
+
+    wait_for(done, 60, f"{ticks} ticks of the worker's run", poll=0.2)
+
+
+def _pec_trial(api: httpx.Client, session_id: int, ticks: int) -> int:
+    """Plan the session's squat trials, run the PEC trial for `ticks` ticks of the
+    device (at 5x, five times as many as wall-clock hundredths), stop it; its id."""
+    trials = _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
+                          json={"tasks": ["squat-sequence"]}))
+    pec = next(t for t in trials if t["controller"] == "pec")
+    _wait_ticks(api)
+    _ok(api.post(f"/api/trials/{pec['id']}/start", json={}))
+    _wait_ticks(api, ticks, controller="pec")
+    _ok(api.post(f"/api/trials/{pec['id']}/stop", json={"outcome": "completed"}))
+    return int(pec["id"])
 
 
 def test_log_in_create_a_study_and_a_participant_with_a_session(
     server: str, page: Any, experimenter: dict[str, str]
 ) -> None:
-    _log_in(page, server, "/console", experimenter)
+    log_in_through(page, server, "/console", experimenter)
     page.fill("#study-name", "Lifting study")
     page.fill("#study-description", "UMC against PEC")
     page.click("#study-create")
@@ -136,7 +142,7 @@ def test_record_segment_drag_an_edge_and_fit_models(
 ) -> None:
     api = _api(fast_server, experimenter)
     _, session_id = _session(api, "data_collection")
-    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    log_in_through(page, fast_server, f"/console/sessions/{session_id}", experimenter)
     page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
                            timeout=20000)
     page.wait_for_selector("#sim-form:not([hidden])")
@@ -184,7 +190,7 @@ def test_plan_and_run_a_pec_trial_with_utilities_and_the_state_strip(
 ) -> None:
     api = _api(fast_server, experimenter)
     _, session_id = _session(api, "evaluation")
-    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    log_in_through(page, fast_server, f"/console/sessions/{session_id}", experimenter)
     page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
                            timeout=20000)
 
@@ -258,7 +264,7 @@ def test_run_an_eumc_trial_and_watch_posteriors_progress_and_locks_change(
     # The session page's calibration step: one second of standing still. The simulated
     # wearer squats between stands, so the page waits for its stillness indicator and
     # tries again while the wearer moves.
-    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    log_in_through(page, fast_server, f"/console/sessions/{session_id}", experimenter)
     page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
                            timeout=20000)
     assert page.is_visible("#calib-step")
@@ -306,17 +312,11 @@ def test_replay_a_stored_trial_and_scrub_it(
 ) -> None:
     api = _api(fast_server, experimenter)
     _, session_id = _session(api, "evaluation")
-    trials = _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
-                          json={"tasks": ["squat-sequence"]}))
-    pec = next(t for t in trials if t["controller"] == "pec")
-    _wait_ticks(api)
-    _ok(api.post(f"/api/trials/{pec['id']}/start", json={}))
-    time.sleep(4)
-    _ok(api.post(f"/api/trials/{pec['id']}/stop", json={"outcome": "completed"}))
+    pec = {"id": _pec_trial(api, session_id, 2000)}  # 20 s of squats
     cols = _ok(api.get(f"/api/trials/{pec['id']}/ticks.json"))["columns"]
     locked_at = next(i for i, v in enumerate(cols["lock_left"]) if v)
 
-    _log_in(page, fast_server, f"/console/sessions/{session_id}", experimenter)
+    log_in_through(page, fast_server, f"/console/sessions/{session_id}", experimenter)
     page.wait_for_selector(f"#trials tr[data-trial='{pec['id']}'] a.replay")
     page.click(f"#trials tr[data-trial='{pec['id']}'] a.replay")
     page.wait_for_url(f"**/live?trial={pec['id']}")

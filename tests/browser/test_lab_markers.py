@@ -12,6 +12,9 @@ from typing import Any
 import httpx
 import pylsl
 
+from tests.browser.login_page import log_in_through
+from tests.polling import wait_for
+
 
 def _ok(r: httpx.Response) -> Any:
     assert r.is_success, r.text
@@ -21,10 +24,7 @@ def _ok(r: httpx.Response) -> Any:
 def _until(page: Any, expression: str, timeout: float) -> None:
     """Poll a page expression (page.evaluate runs over the DevTools protocol, so the
     pages' Content-Security-Policy, which forbids eval, does not stop it)."""
-    deadline = time.monotonic() + timeout
-    while not page.evaluate(expression):
-        assert time.monotonic() < deadline, f"timed out waiting for {expression}"
-        time.sleep(0.1)
+    wait_for(lambda: page.evaluate(expression), timeout, expression, poll=0.1)
 
 
 def test_a_marker_hotkey_marks_the_plot_and_the_export(
@@ -40,12 +40,7 @@ def test_a_marker_hotkey_marks_the_plot_and_the_export(
                   json={"labels": ["pause", " pause "]})
     assert bad.status_code == 422 and "different" in bad.text
 
-    page.goto(f"{server}/live")
-    page.wait_for_url("**/login?next=/live")
-    page.fill("#username", experimenter["username"])
-    page.fill("#password", experimenter["password"])
-    page.click("#submit")
-    page.wait_for_url(f"{server}/live")
+    log_in_through(page, server, "/live", experimenter)
     # The study page sets the study's labels (the hotkeys' order).
     page.goto(f"{server}/console/studies/{study['id']}")
     page.locator("#marker-labels-input").wait_for(timeout=15_000)

@@ -11,9 +11,11 @@ import pytest
 
 from backend.core.config import Settings
 from controller.device.auth import create_key
-from tests.faults.device_rig import free_udp_port, model_device_process, wait_for
+from tests.browser.login_page import log_in_through
+from tests.faults.device_rig import model_device_process
 from tests.faults.test_sample_faults import serve_glitchy
 from tests.live_server import running_server
+from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -30,12 +32,7 @@ def test_the_strip_names_implausible_samples(
         "run_dir": tmp_path})
     with model_device_process(serve_glitchy, port, str(key_file), 1, "squat-sequence"), \
             running_server(live) as url:
-        page.goto(f"{url}/live")
-        page.wait_for_url("**/login?next=/live")
-        page.fill("#username", experimenter["username"])
-        page.fill("#password", experimenter["password"])
-        page.click("#submit")
-        page.wait_for_url(f"{url}/live")
+        log_in_through(page, url, "/live", experimenter)
         # About one sample in twenty is a glitch: the strip counts them and, while one
         # is the latest tick, names why.
         wait_for(lambda: page.evaluate("() => window.exostudyLive?.strip?.implausible ?? 0")

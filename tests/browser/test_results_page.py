@@ -5,7 +5,6 @@ by side without touching the stored trial."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -13,7 +12,8 @@ import httpx
 import pytest
 
 from backend.core.config import Settings
-from tests.browser.test_console import _api, _log_in, _ok, _session, _wait_ticks
+from tests.browser.login_page import log_in_through
+from tests.browser.test_console import _api, _ok, _pec_trial, _session
 from tests.live_server import running_server
 
 
@@ -56,13 +56,7 @@ def test_results_page_shows_the_trial_figures_and_a_what_if(
 ) -> None:
     api = _api(fast_server, experimenter)
     study_id, session_id = _session(api, "evaluation")
-    trials = _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
-                          json={"tasks": ["squat-sequence"]}))
-    pec = next(t for t in trials if t["controller"] == "pec")
-    _wait_ticks(api)
-    _ok(api.post(f"/api/trials/{pec['id']}/start", json={}))
-    time.sleep(5)  # 25 s of squats at 5x
-    _ok(api.post(f"/api/trials/{pec['id']}/stop", json={"outcome": "completed"}))
+    pec = {"id": _pec_trial(api, session_id, 2500)}  # 25 s of squats
     before = api.get(f"/api/trials/{pec['id']}/ticks.csv").text
     doc = _ok(api.get(f"/api/studies/{study_id}/results"))
     lifts = next(t for t in doc["trials"] if t["trial_id"] == pec["id"])["lifts"]
@@ -85,7 +79,7 @@ def test_results_page_shows_the_trial_figures_and_a_what_if(
     sus |= {("P02", c): _sus(a) for c, a in answers02.items()}
     assert sus[("P01", "umc")] > sus[("P01", "pec")] and sus[("P02", "pec")] > sus[("P02", "umc")]
 
-    _log_in(page, fast_server, f"/console/studies/{study_id}", experimenter)
+    log_in_through(page, fast_server, f"/console/studies/{study_id}", experimenter)
     page.click("#results-link")
     page.wait_for_url(f"**/console/studies/{study_id}/results")
     page.wait_for_function("window.exostudyResults.loaded >= 1", timeout=30000)

@@ -1,4 +1,4 @@
-"""The MACCEPA 2.0 torque against the figures in shared/spec/hardware.md."""
+"""The MACCEPA 2.0 torque against the check figures in docs/hardware.md."""
 
 from __future__ import annotations
 

@@ -15,19 +15,19 @@ import pytest
 from controller.base import Controller
 from controller.config import ControllerConfig
 from controller.device.base import LockCommand, Sample, Status
+from controller.eumc import EUMC
 from controller.factory import make_controller
 from controller.motion_model import ModelSet
 from controller.pec import PEC
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.tick import Action, TickFlag, TickRecord
-from controller.umc import EUMC, UMC
+from controller.umc import UMC
 from controller.utilities import UtilitySet
 
 
 @pytest.fixture(scope="module")
 def sets(default_sets: tuple[Path, Path]) -> tuple[ModelSet, UtilitySet]:
     from backend import bootstrap
-
     models, folder = default_sets
     return ModelSet.load(models), UtilitySet.load(bootstrap.utilities_path(folder, 25.0))
 

@@ -51,7 +51,7 @@ def ref_costs(
 
 
 def ref_match(obs: np.ndarray, mean: np.ndarray, cov: np.ndarray, band: int | None) -> Match:
-    """Plain-Python DP and backtracking written from controller.md."""
+    """Plain-Python DP and backtracking written from docs/controller-design.md."""
     c = ref_costs(obs, mean, cov, band)
     m_rows, n_cols = len(c), len(c[0])
     D = [[math.inf] * n_cols for _ in range(m_rows)]

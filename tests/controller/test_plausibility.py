@@ -1,5 +1,5 @@
 """Plausible samples only: what a hip cannot do is flagged before any controller sees it,
-and never leads to a new lock (live path, `PipelineController.step`)."""
+and never leads to a new lock (live path, `KernelController.step`)."""
 
 from __future__ import annotations
 
@@ -225,11 +225,11 @@ def test_a_held_lock_is_not_carried_over_a_silence_or_a_device_restart() -> None
             v = min(v + 100.0 * 0.01, 3.0)
             q += v * 0.01
             out.append(ctl.step(_sample(k, q, q)))
-        assert ctl.hold.remaining[0] > 0
+        assert ctl.kernel.hold.remaining[0] > 0
         r = ctl.step(_sample(k + 1, q, q, t=k * 0.01 + later if later > 0.1 else later))
         assert r.plausibility in (Plausibility.RESYNC, Plausibility.TIME_BACKWARDS)
         assert not r.lock_left and not r.lock_right
-        assert ctl.hold.remaining == (0, 0)
+        assert ctl.kernel.hold.remaining == (0, 0)
 
 
 def test_an_encoder_that_jumps_and_stays_is_resynchronised_not_read_as_motion() -> None:

@@ -21,8 +21,13 @@ from controller.replay import (
     replay_per_tick,
 )
 from controller.sim.recording import simulate_to_csv
-from controller.tick import TickFlag, TickRecord, columns_from_records, records_from_columns
-from controller.tick_csv import write_columns_csv, write_ticks_csv
+from controller.tick import TickFlag, TickRecord
+from controller.tick_codec import (
+    columns_from_records,
+    records_from_columns,
+    write_csv,
+    write_records_csv,
+)
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +148,7 @@ def test_batch_replay_equals_the_per_tick_live_path(
             continue
         assert batch[col].dtype == live[col].dtype, col
         np.testing.assert_array_equal(batch[col], live[col], err_msg=col)
-    for a, b in zip(batch_ctl.core.args, live_ctl.core.args, strict=True):  # type: ignore[attr-defined]
+    for a, b in zip(batch_ctl.kernel.arrays(), live_ctl.kernel.arrays(), strict=True):  # type: ignore[attr-defined]
         np.testing.assert_array_equal(a, b)
     # The comparison had something to compare: locks, a bad sample, the mechanism.
     assert batch["flags"][1500] & TickFlag.BAD_SAMPLE
@@ -182,6 +187,6 @@ def test_columns_records_and_csv_agree(squats: Path) -> None:
     for name in TickRecord.field_names():
         np.testing.assert_array_equal(back[name], cols[name], err_msg=name)
     a, b = io.StringIO(), io.StringIO()
-    assert write_columns_csv(cols, a) == write_ticks_csv(records, b) == len(records)
+    assert write_csv(cols, a) == write_records_csv(records, b) == len(records)
     assert a.getvalue() == b.getvalue()
     assert ",," in a.getvalue()  # NaN is an empty cell

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.segmentation import LiftSegment, SegmentationParams, segment_lifts
+from controller.segmentation import SegmentationParams, SegmentedLift, segment_lifts
 
 FS = 100.0
 NOISE_RAD = np.radians(0.06)
@@ -31,7 +31,7 @@ class Truth:
 
 
 @dataclass
-class Recording:
+class RecordingBuilder:
     """Builds a recording piece by piece and remembers where the lifts are."""
 
     parts: list[np.ndarray] = field(default_factory=list)
@@ -41,12 +41,12 @@ class Recording:
     def length(self) -> int:
         return sum(len(p) for p in self.parts)
 
-    def rest(self, seconds: float) -> Recording:
+    def rest(self, seconds: float) -> RecordingBuilder:
         self.parts.append(np.zeros((int(seconds * FS), 2)))
         return self
 
     def lift(self, peak_l: float, peak_r: float, down: float = 1.2, hold: float = 0.3,
-             up: float = 1.3) -> Recording:
+             up: float = 1.3) -> RecordingBuilder:
         n1, nh, n2 = int(down * FS), int(hold * FS), int(up * FS)
         peak = np.array([peak_l, peak_r])
         seg = np.vstack([
@@ -60,7 +60,8 @@ class Recording:
         self.parts.append(seg)
         return self
 
-    def walk(self, seconds: float, stride: float = 1.1, range_deg: float = 36.0) -> Recording:
+    def walk(self, seconds: float, stride: float = 1.1,
+             range_deg: float = 36.0) -> RecordingBuilder:
         n = int(seconds * FS)
         t = np.arange(n) / FS
         env = np.clip(np.minimum(t, seconds - t) / 1.0, 0.0, 1.0)  # 1 s ramps in and out
@@ -72,7 +73,7 @@ class Recording:
         self.parts.append(np.column_stack([left, right]))
         return self
 
-    def stairs(self, steps: int, step_s: float = 0.9) -> Recording:
+    def stairs(self, steps: int, step_s: float = 0.9) -> RecordingBuilder:
         """Stair ascent: the leading hip flexes ~63 deg, the other stays low."""
         n = int(step_s * FS)
         bump = np.sin(np.pi * np.arange(n) / n) ** 2
@@ -94,7 +95,7 @@ class Recording:
         return t, q
 
 
-def check(found: list[LiftSegment], truth: list[Truth]) -> None:
+def check(found: list[SegmentedLift], truth: list[Truth]) -> None:
     assert len(found) == len(truth), (found, truth)
     for seg, tr in zip(found, truth, strict=True):
         assert abs(seg.start - tr.start) <= TOL, (seg, tr)
@@ -104,7 +105,7 @@ def check(found: list[LiftSegment], truth: list[Truth]) -> None:
 
 def test_lifts_with_pauses_drift_and_walking() -> None:
     rec = (
-        Recording().rest(3.0)
+        RecordingBuilder().rest(3.0)
         .lift(1.75, 1.75)  # squat
         .rest(1.5)
         .lift(1.65, 1.15, down=1.0, up=1.1)  # stoop left
@@ -121,14 +122,14 @@ def test_lifts_with_pauses_drift_and_walking() -> None:
 
 
 def test_walking_and_stairs_give_no_lift() -> None:
-    rec = Recording().rest(2.0).walk(20.0, range_deg=42.0).rest(1.0).stairs(11).rest(2.0)
+    rec = RecordingBuilder().rest(2.0).walk(20.0, range_deg=42.0).rest(1.0).stairs(11).rest(2.0)
     t, q = rec.build(seed=2)
     assert segment_lifts(t, q) == []
 
 
 def test_walking_straight_into_lifts_without_standing_still() -> None:
     """No quiet spell before the lift's onset: the baseline comes from elsewhere."""
-    rec = Recording().rest(2.0).walk(6.0).rest(0.4).lift(1.7, 1.7).rest(2.0)
+    rec = RecordingBuilder().rest(2.0).walk(6.0).rest(0.4).lift(1.7, 1.7).rest(2.0)
     t, q = rec.build(seed=3)
     check(segment_lifts(t, q), rec.lifts)
 
@@ -141,7 +142,7 @@ def test_walking_straight_into_lifts_without_standing_still() -> None:
 )
 def test_random_sessions(kinds: list[str], seed: int) -> None:
     rng = np.random.default_rng(seed)
-    rec = Recording().rest(float(rng.uniform(1.5, 3.0)))
+    rec = RecordingBuilder().rest(float(rng.uniform(1.5, 3.0)))
     for kind in kinds:
         if kind == "walk":
             rec.walk(float(rng.uniform(4.0, 10.0)), stride=float(rng.uniform(1.0, 1.2)),
@@ -160,7 +161,7 @@ def test_random_sessions(kinds: list[str], seed: int) -> None:
 
 
 def test_five_times_the_encoder_noise_still_finds_every_lift() -> None:
-    rec = (Recording().rest(2.0).lift(1.6, 1.6).rest(1.5).walk(8.0).rest(1.5)
+    rec = (RecordingBuilder().rest(2.0).lift(1.6, 1.6).rest(1.5).walk(8.0).rest(1.5)
            .lift(1.5, 1.1).rest(2.0))
     t, q = rec.build(seed=9)
     q = q + np.random.default_rng(10).normal(0.0, 4 * NOISE_RAD, q.shape)
@@ -171,7 +172,7 @@ def test_five_times_the_encoder_noise_still_finds_every_lift() -> None:
 
 
 def test_returns_plain_editable_indices() -> None:
-    rec = Recording().rest(2.0).lift(1.7, 1.7).rest(2.0)
+    rec = RecordingBuilder().rest(2.0).lift(1.7, 1.7).rest(2.0)
     t, q = rec.build()
     (seg,) = segment_lifts(t, q)
     assert all(type(v) is int for v in (seg.start, seg.peak, seg.end))
@@ -179,16 +180,35 @@ def test_returns_plain_editable_indices() -> None:
     assert demo.shape[0] == seg.end - seg.start + 1
     np.testing.assert_array_equal(demo[[0, -1]], q[[seg.start, seg.end]])
     with pytest.raises(ValueError):
-        LiftSegment(10, 5, 20)
+        SegmentedLift(10, 5, 20)
 
 
 def test_stricter_threshold_drops_shallow_lifts() -> None:
-    rec = Recording().rest(2.0).lift(1.0, 1.0).rest(2.0).lift(1.8, 1.8).rest(2.0)
+    rec = RecordingBuilder().rest(2.0).lift(1.0, 1.0).rest(2.0).lift(1.8, 1.8).rest(2.0)
     t, q = rec.build()
     assert len(segment_lifts(t, q)) == 2
     strict = SegmentationParams(detect_rad=np.radians(70.0))
     (only,) = segment_lifts(t, q, strict)
     assert abs(only.start - rec.lifts[1].start) <= TOL
+
+
+@pytest.mark.parametrize("cut", ["start", "end"])
+def test_a_lift_cut_by_the_recording_edge_is_left_out(cut: str) -> None:
+    """A recording that starts (or stops) mid-lift holds only part of that lift; the
+    whole lifts beside it are still found."""
+    rec = RecordingBuilder().rest(2.0).lift(1.6, 1.5).rest(2.0).lift(1.4, 1.5).rest(2.0)
+    t, q = rec.build(seed=3)
+    whole = rec.lifts
+    if cut == "start":
+        k = whole[0].peak_lo + 20  # rising out of the first lift's peak
+        t, q, kept = t[k:] - t[k], q[k:], [Truth(tr.start - k, tr.peak_lo - k,
+                                                  tr.peak_hi - k, tr.end - k)
+                                            for tr in whole[1:]]
+    else:
+        k = whole[1].peak_lo - 20  # still going down into the second lift
+        t, q, kept = t[:k], q[:k], whole[:1]
+    check(segment_lifts(t, q), kept)
+    check(segment_lifts(*rec.build(seed=3)), whole)  # uncut: both
 
 
 def test_input_validation() -> None:

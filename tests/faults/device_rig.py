@@ -11,7 +11,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,24 +19,9 @@ from typing import Any
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.tick import TickRecord
+from tests.polling import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def free_udp_port() -> int:
-    """A UDP port nobody has bound right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll `condition` until it holds; fail naming `what` after `timeout` seconds."""
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(0.02)
 
 
 @contextmanager
@@ -117,7 +101,7 @@ class Worker:
     def link_drops(self) -> dict[str, int]:
         """The link's drop counters from the worker's latest status report."""
         st = self.sup.state.status
-        return dict(st.link_drops) if st is not None else {}
+        return dict(st.device.link_drops) if st is not None else {}
 
     def __enter__(self) -> Worker:
         self.sup.start()

@@ -8,7 +8,9 @@ Used by tests/faults/test_watchdog_faults.py and bench/bench_faults.py.
 
 from __future__ import annotations
 
+import os
 import select
+import signal
 import socket
 import threading
 import time
@@ -24,6 +26,7 @@ from controller.device.base import LockCommand, Sample
 from controller.sim.device_server import serve
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.spec import ControllerSpec
+from tests.polling import free_udp_port, wait_for
 
 
 class RecordingModel:
@@ -123,19 +126,13 @@ class Rig:
         self.relay.close()
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def start_rig(folder: Path, script: str = "squat-sequence", seed: int = 1,
               controller: str = "pec") -> Rig:
     """A worker running `controller` on the simulated wearer, through the relay."""
     key_file = folder / "device.key"
     key = load_or_create_key(key_file)
     model = RecordingModel(SimulatedExoskeleton(seed=seed, script=script, loop=True))
-    device_port = _free_udp_port()
+    device_port = free_udp_port()
     stop = threading.Event()
     stats: list[Any] = []
 
@@ -157,19 +154,39 @@ def start_rig(folder: Path, script: str = "squat-sequence", seed: int = 1,
 
 def wait_for_lock(rig: Rig, timeout: float = 60.0) -> None:
     """Until the device has held a lock for 5 samples (mid-lift: PEC on a squat)."""
-    deadline = time.monotonic() + timeout
-    while not rig.locked_since(5):
-        if time.monotonic() > deadline:
-            raise AssertionError(f"no lock within {timeout} s; worker errors: "
-                                 f"{rig.supervisor.state.errors}")
-        time.sleep(0.005)
+    wait_for(lambda: rig.locked_since(5), timeout,
+             f"a lock (worker errors: {rig.supervisor.state.errors})", poll=0.005)
 
 
 def wait_release(rig: Rig, after: float, timeout: float = 5.0) -> float:
     """The first released sample after `after` (monotonic), waiting for it."""
-    deadline = time.monotonic() + timeout
-    while (released := rig.first_release_after(after)) is None:
-        if time.monotonic() > deadline:
-            raise AssertionError("the device never released")
-        time.sleep(0.005)
-    return released
+    return wait_for(lambda: rig.first_release_after(after), timeout,
+                    "the device to release", poll=0.005)
+
+
+# The two watchdog scenarios, shared by the fault test (which asserts what happens) and
+# bench/bench_faults.py (which measures how long it takes).
+
+def device_goes_silent(rig: Rig) -> tuple[float, float]:
+    """Mid-lift with a lock held, the device's samples stop reaching the worker (left
+    muted: the caller clears `rig.relay.mute_device`). Returns (monotonic time of the
+    last sample forwarded, time of the first sample the device applied unlocked)."""
+    wait_for_lock(rig)
+    rig.relay.mute_device.set()
+    silent_from = rig.relay.last_sample_at
+    return silent_from, wait_release(rig, silent_from)
+
+
+def worker_freezes(rig: Rig) -> tuple[int, float, float]:
+    """With a lock held, the worker gets no CPU (SIGSTOP) until the device has released;
+    then it is resumed. Returns (the worker's pid, monotonic time of its last command
+    forwarded, time of the first sample the device applied unlocked)."""
+    wait_for_lock(rig)
+    pid = rig.supervisor.state.pid
+    assert pid is not None
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        released = wait_release(rig, time.monotonic())
+        return pid, rig.relay.last_command_at, released
+    finally:
+        os.kill(pid, signal.SIGCONT)

@@ -5,11 +5,9 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -19,30 +17,11 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from backend.db.engine import make_engine
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.models import Participant, Study, StudyMember, StudySession, User, ticks_table
-from tests.live_server import free_port
+from tests.polling import free_tcp_port, wait_for
 
 EXOSTUDY = Path(sys.executable).with_name("exostudy")
-
-
-def free_udp_port() -> int:
-    """A UDP port nobody is bound to right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def wait_for(cond: Callable[[], Any], timeout: float, what: str, poll: float = 0.05) -> Any:
-    """Poll `cond` until it returns something truthy (returned) or `timeout` passes."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = cond()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(poll)
 
 
 def alive(pid: int) -> bool:
@@ -95,7 +74,7 @@ def serve(tmp_path: Path, db_url: str, default_sets: tuple[Path, Path], device_p
     """`exostudy serve` on a free port with a UDP device simulator it spawns on
     `device_port`; killed (if still running) afterwards."""
     models, folder = default_sets
-    port = free_port()
+    port = free_tcp_port()
     full_env = dict(os.environ,
                     EXOSTUDY_DATABASE_URL=db_url, EXOSTUDY_MODELS_PATH=str(models),
                     EXOSTUDY_UTILITIES_DIR=str(folder), EXOSTUDY_DEMO="false",

@@ -20,9 +20,10 @@ from fastapi.testclient import TestClient
 from backend.core.config import Settings
 from backend.main import create_app
 from controller.device.auth import create_key
-from tests.faults.device_rig import Worker, device_process, free_udp_port, locked_ticks, wait_for
+from tests.faults.device_rig import Worker, device_process, locked_ticks
 from tests.faults.served import make_trials
 from tests.login import USERNAME, bearer
+from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -82,7 +83,7 @@ def test_every_settings_route_names_the_bad_field(live: TestClient, settings: Se
 
 
 def test_what_if_names_the_bad_setting(client: TestClient, settings: Settings) -> None:
-    from tests.backend.test_results import _setup
+    from tests.backend.analysis.test_results import _setup
 
     ids = _setup(client, settings)
     for raw, field, word in BAD_SETTINGS:

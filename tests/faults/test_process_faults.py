@@ -16,23 +16,17 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
-from backend import device_process
 from backend.core.config import Settings
 from backend.db.engine import make_engine
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.models import Run
+from backend.live import device_process
+from backend.live.runtime import Runtime
 from backend.main import create_app
-from backend.runtime import Runtime
 from controller.device.auth import load_or_create_key
-from tests.faults.served import (
-    alive,
-    free_udp_port,
-    make_trials,
-    serve,
-    stored_ticks,
-    wait_for,
-)
+from tests.faults.served import alive, make_trials, serve, stored_ticks
 from tests.login import USERNAME, bearer
+from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
 

@@ -22,14 +22,8 @@ from controller.device.protocol import SAMPLE_BODY, SESSIONS, CommandPacket, enc
 from controller.device.protocol import encode_sample as encode
 from controller.encoders import DEFAULT_LAYOUT
 from controller.tick import TickRecord
-from tests.faults.device_rig import (
-    Proxy,
-    Worker,
-    device_process,
-    free_udp_port,
-    locked_ticks,
-    wait_for,
-)
+from tests.faults.device_rig import Proxy, Worker, device_process, locked_ticks
+from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
 

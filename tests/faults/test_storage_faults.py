@@ -16,8 +16,9 @@ from sqlalchemy.engine import make_url
 
 from backend.core.config import Settings
 from backend.main import create_app
-from tests.faults.served import stored_ticks, wait_for
+from tests.faults.served import stored_ticks
 from tests.login import bearer
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
 

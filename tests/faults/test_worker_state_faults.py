@@ -24,12 +24,13 @@ from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
 from backend.db.engine import make_engine
-from backend.db.evidence import Recording, Trial
+from backend.db.evidence_tables import Recording, Trial
 from backend.db.models import Run
 from backend.main import create_app
-from tests.faults.served import make_trials, stored_ticks, wait_for
+from tests.faults.served import make_trials, stored_ticks
 from tests.live_server import running_server
 from tests.login import USERNAME, bearer
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -208,7 +209,7 @@ def test_server_start_closes_what_a_dead_server_left(settings: Settings, db_url:
     from datetime import UTC, datetime
 
     from backend.db import migrate
-    from backend.recorder import TickRecorder
+    from backend.live.recorder import TickRecorder
     from backend.worker.messages import RunStarted, TickBatch
     from controller.tick import TickRecord
 
@@ -217,7 +218,7 @@ def test_server_start_closes_what_a_dead_server_left(settings: Settings, db_url:
     engine = make_engine(db_url)
     rec = TickRecorder(engine)
     run_id = rec.run_started(RunStarted(1, "pec", {}, "sim", 1), "sim")
-    rec.add(TickBatch(1, tuple(TickRecord(seq=i, t=i * 0.01) for i in range(137))))
+    rec.add(TickBatch.from_records(1, (TickRecord(seq=i, t=i * 0.01) for i in range(137))))
     assert rec.flush() == 137
     with Session(engine) as db:
         db.execute(update(Trial).where(Trial.id == trial_id).values(

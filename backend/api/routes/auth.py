@@ -9,8 +9,14 @@ from typing import Annotated, Any
 from fastapi import APIRouter, HTTPException, Path, Request, Response
 from sqlalchemy import select
 
-from backend import accounts, audit
-from backend.api.deps import SESSION_COOKIE, CurrentLogin, CurrentUser, SessionDep, access
+from backend.api.deps import (
+    SESSION_COOKIE,
+    CurrentLogin,
+    CurrentUser,
+    SessionDep,
+    SettingsDep,
+    access,
+)
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, ErrorMessage, invalid, not_found
 from backend.api.params import MAX_ID
 from backend.api.web_surface import CSRF_COOKIE, csrf_token_for
@@ -25,6 +31,7 @@ from backend.schemas.auth import (
     TokenOut,
     UserOut,
 )
+from backend.study import accounts, audit
 
 router = APIRouter(prefix="/api/auth", tags=["auth"])
 users = APIRouter(prefix="/api/users", tags=["accounts"], responses=AUTH_RESPONSES)
@@ -65,12 +72,12 @@ def _login(db: SessionDep, request: Request, creds: Credentials, kind: accounts.
 
 @router.post("/login", response_model=LoginOut, responses={**_BAD_LOGIN, **BODY},
              openapi_extra=access("public"))
-def login(creds: Credentials, db: SessionDep, request: Request, response: Response
-          ) -> LoginOut:
+def login(creds: Credentials, db: SessionDep, request: Request, response: Response,
+          settings: SettingsDep) -> LoginOut:
     """Log in from a browser: sets the httponly session cookie and the CSRF cookie
     (whose value the pages send as `X-CSRF-Token` with every change)."""
     token, expires, user = _login(db, request, creds, "session")
-    secure = request.app.state.settings.secure_cookies or request.url.scheme == "https"
+    secure = settings.secure_cookies or request.url.scheme == "https"
     max_age = int((expires - datetime.now(UTC)).total_seconds())
     response.set_cookie(SESSION_COOKIE, token, httponly=True, samesite="strict", path="/",
                         secure=secure, max_age=max_age)

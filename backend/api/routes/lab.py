@@ -11,12 +11,12 @@ import zipfile
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from fastapi import APIRouter, File, Path, Request, UploadFile
+from fastapi import APIRouter, File, Path, UploadFile
 from fastapi.responses import Response
-from sqlalchemy import select
+from sqlalchemy import Engine, select
+from sqlalchemy.orm import Session
 
-from backend import audit
-from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, access
+from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SiteDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -28,7 +28,7 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import MAX_ID, SessionId, StudyId
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream, StudyMarkerLabels, XdfAttachment
 from backend.db.models import Study, StudySession
 from backend.lab import bids_export, markers, xdf_import
@@ -41,6 +41,7 @@ from backend.schemas.lab import (
     MarkerStreamOut,
     XdfAttachmentOut,
 )
+from backend.study import audit
 
 router = APIRouter(tags=["lab"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
@@ -191,7 +192,7 @@ def unsubscribe(session_id: SessionId, subscription_id: SubscriptionId, user: Cu
 # XDF attachments -----------------------------------------------------------------------------
 @router.post("/api/sessions/{session_id}/xdf", response_model=XdfAttachmentOut,
              status_code=201, responses={413: {"description": "the file is too large"}})
-async def attach_xdf(session_id: SessionId, request: Request, user: CurrentUser,
+async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser,
                      db: SessionDep,
                      file: Annotated[UploadFile, File(description="a LabRecorder .xdf file")],
                      ) -> XdfAttachment:
@@ -207,8 +208,7 @@ async def attach_xdf(session_id: SessionId, request: Request, user: CurrentUser,
         invalid(["body", "file"], str(exc))
     # Reads the session's ticks: off the event loop (the session is used by this
     # request only, one step at a time).
-    summary = await asyncio.to_thread(xdf_import.align, request.app.state.engine, db,
-                                      session_id, streams)
+    summary = await asyncio.to_thread(xdf_import.align, engine, db, session_id, streams)
     att = XdfAttachment(session_id=session_id, filename=(file.filename or "recording.xdf")[:255],
                         size_bytes=len(data), sha256=hashlib.sha256(data).hexdigest(),
                         content=data, streams=[s.model_dump() for s in summary],
@@ -243,14 +243,12 @@ def download_xdf(session_id: SessionId, attachment_id: AttachmentId, user: Curre
 
 
 # BIDS ----------------------------------------------------------------------------------------
-def bids_zip(request: Request, db: SessionDep, study_id: int) -> bytes:
+def bids_zip(engine: Engine, db: Session, study_id: int, site: str | None) -> bytes:
     """The study's BIDS dataset as a zip whose top folder is the dataset."""
     buf = io.BytesIO()
     root = f"study-{study_id}-bids/"
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-        site = getattr(getattr(request.state, "grant", None), "site", None)
-        for path, data in bids_export.dataset_files(request.app.state.engine, db, study_id,
-                                                    site):
+        for path, data in bids_export.dataset_files(engine, db, study_id, site):
             zf.writestr(root + path, data)
     return buf.getvalue()
 
@@ -259,14 +257,14 @@ def bids_zip(request: Request, db: SessionDep, study_id: int) -> bytes:
     200: {"content": {"application/zip": {}},
           "description": "a BIDS dataset (motion modality) of the study"}},
     openapi_extra=access("experimenter"))
-def export_bids(study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep,
-                runtime: RuntimeDep) -> Response:
+def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: CurrentUser,
+                db: SessionDep, runtime: RuntimeDep) -> Response:
     """The study as a BIDS-motion dataset: participants, one motion file per trial with
     channels and events (lifts, locks, markers), questionnaires as phenotype files,
     attached XDF files as source data. De-identified fields only."""
     one_or_404(db, Study, study_id, "study")
     runtime.recorder.flush()
-    data = bids_zip(request, db, study_id)
+    data = bids_zip(engine, db, study_id, site)
     audit.record(db, user, "export", "study", study_id, {"format": "bids", "bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

@@ -8,23 +8,27 @@ import contextlib
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
 
-from backend.api.deps import SESSION_COOKIE, login_from_token
-from backend.runtime import Runtime
+from backend.api.deps import (
+    SESSION_COOKIE,
+    RuntimeDep,
+    SessionFactoryDep,
+    login_from_token,
+)
 
 router = APIRouter(tags=["live"])
 
 
 @router.websocket("/ws/live")
-async def live(websocket: WebSocket) -> None:
+async def live(websocket: WebSocket, sessions: SessionFactoryDep,
+               runtime: RuntimeDep) -> None:
     """Stream `LiveTicks` and `LiveStatus` messages (see `backend.schemas.live`)."""
     # Browsers cannot set headers on a WebSocket, so the session cookie is the login;
     # closing before accepting refuses the handshake (HTTP 403).
-    login = await asyncio.to_thread(login_from_token, websocket.app.state.sessions,
+    login = await asyncio.to_thread(login_from_token, sessions,
                                     websocket.cookies.get(SESSION_COOKIE))
     if login is None:
         await websocket.close(code=status.WS_1008_POLICY_VIOLATION, reason="not logged in")
         return
-    runtime: Runtime = websocket.app.state.runtime
     await websocket.accept()
     client = runtime.stream.connect()
     client.offer(

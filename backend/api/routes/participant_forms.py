@@ -10,15 +10,13 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Request
+from fastapi import APIRouter, HTTPException, Path
 from fastapi.responses import FileResponse
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
-from backend import audit
-from backend.api.deps import SessionDep, access
+from backend.api.deps import SessionDep, SettingsDep, access
 from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
-from backend.blinding import labels_of
 from backend.core.security import token_digest
 from backend.db.models import (
     ParticipantLink,
@@ -36,6 +34,8 @@ from backend.schemas.questionnaires import (
     PreferenceView,
     SubmissionOut,
 )
+from backend.study import audit
+from backend.study.blinding import labels_of
 
 router = APIRouter(prefix="/api/participant-forms", tags=["participant forms"], responses={
     404: {"model": ErrorMessage, "description": "no such link"},
@@ -195,6 +195,6 @@ pages = APIRouter()
 
 
 @pages.get("/forms/{token}", include_in_schema=False)
-def form_page(token: Token, request: Request) -> FileResponse:
+def form_page(token: Token, settings: SettingsDep) -> FileResponse:
     """The participant's form page; it reads its token from the address."""
-    return FileResponse(request.app.state.settings.frontend_dir / "static" / "form.html")
+    return FileResponse(settings.frontend_dir / "static" / "form.html")

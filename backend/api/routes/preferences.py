@@ -5,13 +5,13 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from sqlalchemy import select
 
-from backend.access import may_unblind
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, INVALID, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId
-from backend.blinding import labels_of
 from backend.db.models import Participant, Preference
 from backend.schemas.questionnaires import PreferenceOut
+from backend.study.access import may_unblind
+from backend.study.blinding import labels_of
 
 router = APIRouter(tags=["preferences"], responses={**AUTH_RESPONSES, **NOT_FOUND, **INVALID})
 

@@ -13,8 +13,6 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Request
 from sqlalchemy import select
 
-from backend import audit
-from backend.access import may_unblind
 from backend.api.deps import CurrentUser, SessionDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
@@ -30,7 +28,6 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import ParticipantId
-from backend.blinding import labels_of
 from backend.core.security import new_token, token_digest
 from backend.db.models import (
     Participant,
@@ -52,6 +49,9 @@ from backend.schemas.questionnaires import (
     LinkOut,
     ResponseOut,
 )
+from backend.study import audit
+from backend.study.access import may_unblind
+from backend.study.blinding import labels_of
 
 router = APIRouter(tags=["questionnaires"], responses=AUTH_RESPONSES)
 

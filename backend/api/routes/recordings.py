@@ -6,16 +6,15 @@ from datetime import UTC, datetime
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Path, Request
+from fastapi import APIRouter, Path
 from sqlalchemy import select
-from sqlalchemy.exc import IntegrityError
 
-from backend import audit, tick_queries
-from backend.activity import close_recording, ensure_idle
-from backend.api.deps import CurrentUser, RuntimeDep, SessionDep
+from backend.analysis import tick_queries
+from backend.analysis.segmentation import SegmentationError, propose_lifts
+from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
 from backend.api.params import MAX_ID, SessionId
-from backend.db.evidence import LiftSegment, Recording
+from backend.db.evidence_tables import LiftSegment, Recording
 from backend.db.models import StudySession
 from backend.schemas.evidence import (
     RecordingAngles,
@@ -25,8 +24,7 @@ from backend.schemas.evidence import (
     SegmentOut,
     SegmentUpdate,
 )
-from controller.segmentation import bridge_gaps, segment_lifts
-from controller.tick import MODEL_NAMES
+from backend.study import audit, recordings
 
 router = APIRouter(tags=["recordings"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 
@@ -41,30 +39,7 @@ async def start_recording(session_id: SessionId, body: RecordingIn, user: Curren
     """Put the worker in recording mode (no locks) and start a recording. 409 while a
     trial or another recording runs (under the runtime's activity lock; the database's
     unique index refuses a second running recording in any case)."""
-    async with runtime.activity:
-        try:
-            return await _start_recording(session_id, body, user, db, runtime)
-        except IntegrityError:
-            db.rollback()
-            conflict("recording", "another recording is running: the database refused a "
-                     "second")
-
-
-async def _start_recording(session_id: int, body: RecordingIn, user: CurrentUser,
-                           db: SessionDep, runtime: RuntimeDep) -> Recording:
-    one_or_404(db, StudySession, session_id, "session")
-    ensure_idle(db)
-    try:
-        run_id = await runtime.switch_controller("none", runtime.controller_config("none"))
-    except RuntimeError as exc:
-        conflict("worker", str(exc))
-    rec = Recording(session_id=session_id, run_id=run_id, label=body.label, notes=body.notes,
-                    status="recording", created_by=user.id)
-    db.add(rec)
-    db.flush()
-    audit.record(db, user, "start", "recording", rec.id, {"run_id": run_id})
-    db.commit()
-    return rec
+    return await recordings.start(db, user, runtime, session_id, body)
 
 
 @router.post("/api/recordings/{recording_id}/stop", response_model=RecordingOut,
@@ -72,29 +47,7 @@ async def _start_recording(session_id: int, body: RecordingIn, user: CurrentUser
 async def stop_recording(recording_id: RecordingId, user: CurrentUser, db: SessionDep,
                          runtime: RuntimeDep) -> Recording:
     """End the recording: the worker starts a new idle run and the ticks are stored."""
-    async with runtime.activity:
-        return await _stop_recording(recording_id, user, db, runtime)
-
-
-async def _stop_recording(recording_id: int, user: CurrentUser, db: SessionDep,
-                          runtime: RuntimeDep) -> Recording:
-    rec = one_or_404(db, Recording, recording_id, "recording")
-    if rec.status != "recording":
-        conflict("status", f"recording {rec.id} is already {rec.status}")
-    if runtime.supervisor.state.alive:
-        try:
-            await runtime.switch_controller("none", runtime.controller_config("none"))
-        except RuntimeError:
-            pass  # the worker died: what it recorded is stored, the run closed with it
-    runtime.recorder.flush()
-    if not close_recording(db, runtime.recorder.engine, rec.id, "stopped"):
-        db.refresh(rec)  # closed meanwhile: its worker stopped
-        conflict("status", f"recording {rec.id} is already {rec.status}")
-    db.refresh(rec)
-    audit.record(db, user, "stop", "recording", rec.id,
-                 {"first_tick_id": rec.first_tick_id, "last_tick_id": rec.last_tick_id})
-    db.commit()
-    return rec
+    return await recordings.stop(db, user, runtime, recording_id)
 
 
 @router.get("/api/sessions/{session_id}/recordings", response_model=list[RecordingOut])
@@ -121,18 +74,17 @@ def _stopped(db: SessionDep, recording_id: int) -> Recording:
     return rec
 
 
-def _angles(request: Request, rec: Recording) -> dict[str, np.ndarray]:
+def _angles(engine: EngineDep, rec: Recording) -> dict[str, np.ndarray]:
     assert rec.run_id is not None
-    return tick_queries.columns(request.app.state.engine, rec.run_id, rec.first_tick_id,
-                                rec.last_tick_id)
+    return tick_queries.columns(engine, rec.run_id, rec.first_tick_id, rec.last_tick_id)
 
 
 @router.get("/api/recordings/{recording_id}/angles", response_model=RecordingAngles,
             responses=CONFLICT)
-def recording_angles(recording_id: RecordingId, request: Request, user: CurrentUser,
+def recording_angles(recording_id: RecordingId, engine: EngineDep, user: CurrentUser,
                      db: SessionDep) -> RecordingAngles:
     """Hip angles (rad) and device time (s) of a stopped recording."""
-    cols = _angles(request, _stopped(db, recording_id))
+    cols = _angles(engine, _stopped(db, recording_id))
 
     def clean(a: np.ndarray) -> list[float | None]:
         return [None if np.isnan(v) else float(v) for v in a]
@@ -144,7 +96,7 @@ def recording_angles(recording_id: RecordingId, request: Request, user: CurrentU
 
 @router.post("/api/recordings/{recording_id}/segment", response_model=list[SegmentOut],
              responses=CONFLICT)
-def auto_segment(recording_id: RecordingId, request: Request, user: CurrentUser,
+def auto_segment(recording_id: RecordingId, engine: EngineDep, user: CurrentUser,
                  db: SessionDep, replace: bool = False) -> list[LiftSegment]:
     """Find the lifts automatically. Segments the experimenter edited are kept unless
     `replace=true`. In simulation the ground truth suggests each segment's label."""
@@ -153,22 +105,16 @@ def auto_segment(recording_id: RecordingId, request: Request, user: CurrentUser,
     if any(s.source == "edited" for s in existing) and not replace:
         conflict("segments", "some segments were edited by hand; pass replace=true to "
                  "discard them")
-    cols = _angles(request, rec)
-    q = np.column_stack([cols["q_left"], cols["q_right"]])
-    if q.shape[0] < 100 or np.isnan(q).all():
+    try:
+        found = propose_lifts(_angles(engine, rec))
+    except SegmentationError:
         invalid(["recording_id"], "the recording is too short or has no valid angles")
-    q = bridge_gaps(q)
-    # Segments are sample indices; the sample clock (10 ms a sample) is used instead of
-    # the device's timestamps, which restart if the device restarts mid-recording.
-    found = segment_lifts(np.arange(q.shape[0], dtype=np.float64) * 0.01, q)
     for s in existing:
         db.delete(s)
     out = []
     for seg in found:
-        truth = str(cols["truth_activity"][seg.peak])
-        label = truth if truth in MODEL_NAMES else "unlabelled"
         row = LiftSegment(recording_id=rec.id, start=seg.start, peak=seg.peak, end=seg.end,
-                          label=label, source="auto")
+                          label=seg.label, source="auto")
         db.add(row)
         out.append(row)
     db.flush()

@@ -1,19 +1,25 @@
 """Results: the paper's tables and figures of a study, a trial's controller output, the
 what-if replay of a trial, and the leave-one-participant-out evaluation of motion models.
 
-Everything here only reads; the computation lives in `backend.results`.
+Everything here only reads; the computation lives in `backend.analysis.results`.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Path, Query, Request
+from fastapi import APIRouter, Path, Query
 from fastapi.responses import Response
-from pydantic import BaseModel, Field
 
-from backend import results
-from backend.api.deps import CurrentUser, SessionDep
+from backend.analysis import results
+from backend.api.deps import (
+    CurrentUser,
+    EngineDep,
+    ResultsCacheDep,
+    RuntimeDep,
+    SessionDep,
+    SiteDep,
+)
 from backend.api.errors import (
     AUTH_RESPONSES,
     CONFLICT,
@@ -24,8 +30,9 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import MAX_ID, StudyId
-from backend.db.evidence import ModelSetRecord, Trial
+from backend.db.evidence_tables import ModelSetRecord, Trial
 from backend.db.models import Study
+from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfIn, WhatIfOut
 from controller.factory import controller_names
 
 router = APIRouter(tags=["results"], responses={**AUTH_RESPONSES, **NOT_FOUND})
@@ -40,52 +47,25 @@ _MEDIA = {"png": "image/png", "svg": "image/svg+xml", "csv": "text/csv",
           "md": "text/markdown; charset=utf-8"}
 
 
-class WhatIfIn(BaseModel):
-    """Another configuration for a stored trial's angles."""
-
-    controller: str = Field(description="umc, eumc, pec or none")
-    model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID,
-                                     description="default: the trial's model set")
-    utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID,
-                                       description="default: the trial's utility set")
-    rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
-                                  description="every controller at this rate")
-    settings: dict[str, Any] = Field(default_factory=dict, description=(
-        "ControllerConfig fields to override (s_req, t_req, d_max, priors, "
-        "velocity_threshold, umc_rate_hz, ...)"))
-
-
-def _study_results(request: Request, db: SessionDep, study_id: int) -> results.StudyResults:
+def _study_results(db: SessionDep, runtime: RuntimeDep, engine: EngineDep,
+                   cache: ResultsCacheDep, site: SiteDep, study_id: int
+                   ) -> results.StudyResults:
     one_or_404(db, Study, study_id, "study")
-    runtime: Any = getattr(request.app.state, "runtime", None)
-    if runtime is not None:
-        runtime.recorder.flush()  # a trial stopped a moment ago has all its ticks stored
-    # The tables, figures and JSON of one study are often fetched together; evaluating
-    # reads every tick, so the last few evaluations are kept while nothing changed.
-    cache: dict[tuple[Any, ...], results.StudyResults] = getattr(
-        request.app.state, "results_cache", None) or {}
-    request.app.state.results_cache = cache
+    runtime.recorder.flush()  # a trial stopped a moment ago has all its ticks stored
     # A member limited to one site sees only that site's participants in the results.
-    grant = getattr(request.state, "grant", None)
-    site: str | None = getattr(grant, "site", None)
-    key = results.fingerprint(db, study_id, site)
-    hit = cache.get(key)
-    if hit is None:
-        hit = results.study_results(request.app.state.engine, db, study_id, site)
-        if len(cache) >= 4:
-            cache.pop(next(iter(cache)))
-        cache[key] = hit
-    return hit
+    return cache.get(engine, db, study_id, site)
 
 
-@router.get("/api/studies/{study_id}/results", response_model=dict[str, Any])
-def study_results(study_id: StudyId, request: Request, user: CurrentUser,
-                  db: SessionDep) -> dict[str, Any]:
+@router.get("/api/studies/{study_id}/results", response_model=StudyResultsOut)
+def study_results(study_id: StudyId, runtime: RuntimeDep, engine: EngineDep,
+                  cache: ResultsCacheDep, site: SiteDep, user: CurrentUser,
+                  db: SessionDep) -> StudyResultsOut:
     """The paper's tables for the study's completed trials: intent estimation and
     decision performance (UMC/E-UMC), false positives in walking and stair walking,
     questionnaires (unblinded through the condition labels), onset to lock; with the
     ground truth each trial was scored against."""
-    return results.results_document(_study_results(request, db, study_id))
+    return results.results_document(_study_results(db, runtime, engine, cache, site,
+                                                   study_id))
 
 
 @router.get("/api/studies/{study_id}/results/{table}.{fmt}", response_class=Response,
@@ -93,9 +73,10 @@ def study_results(study_id: StudyId, request: Request, user: CurrentUser,
                              "description": "the table"}})
 def study_table(study_id: StudyId, table: TableName,
                 fmt: Annotated[Literal["csv", "md"], Path(description="csv or md")],
-                request: Request, user: CurrentUser, db: SessionDep) -> Response:
+                runtime: RuntimeDep, engine: EngineDep, cache: ResultsCacheDep,
+                site: SiteDep, user: CurrentUser, db: SessionDep) -> Response:
     """One table: CSV in long form (every count), Markdown in the paper's layout."""
-    res = _study_results(request, db, study_id)
+    res = _study_results(db, runtime, engine, cache, site, study_id)
     body = res.csv(table) if fmt == "csv" else res.markdown(table)
     return Response(body, media_type=_MEDIA[fmt], headers={
         "Content-Disposition": f'inline; filename="study-{study_id}-{table}.{fmt}"'})
@@ -104,32 +85,33 @@ def study_table(study_id: StudyId, table: TableName,
 @router.get("/api/studies/{study_id}/figures/{name}.{fmt}", response_class=Response,
             responses={200: {"content": {"image/png": {}, "image/svg+xml": {}},
                              "description": "the figure"}})
-def study_figure(study_id: StudyId, name: FigureName, fmt: ImageFormat, request: Request,
+def study_figure(study_id: StudyId, name: FigureName, fmt: ImageFormat, runtime: RuntimeDep,
+                 engine: EngineDep, cache: ResultsCacheDep, site: SiteDep,
                  user: CurrentUser, db: SessionDep) -> Response:
     """Peak exoskeleton torques per lift, or the onset-to-lock histogram."""
-    fig = _study_results(request, db, study_id).figure(name)
+    fig = _study_results(db, runtime, engine, cache, site, study_id).figure(name)
     return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])
 
 
 @router.get("/api/trials/{trial_id}/figures/timeline.{fmt}", response_class=Response,
             responses={200: {"content": {"image/png": {}, "image/svg+xml": {}},
                              "description": "the five-panel figure"}, **CONFLICT})
-def trial_timeline(trial_id: TrialId, fmt: ImageFormat, request: Request, user: CurrentUser,
-                   db: SessionDep) -> Response:
+def trial_timeline(trial_id: TrialId, fmt: ImageFormat, engine: EngineDep,
+                   user: CurrentUser, db: SessionDep) -> Response:
     """The trial's controller output in five panels (hip angles against the trial's
     motion models, actions, posteriors, progress, lock commands)."""
     trial = one_or_404(db, Trial, trial_id, "trial")
     try:
-        fig = results.timeline_figure(request.app.state.engine, db, trial)
+        fig = results.timeline_figure(engine, db, trial)
     except results.ResultsError as exc:
         conflict(exc.field_name, exc.problem)
     return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])
 
 
-@router.post("/api/trials/{trial_id}/what-if", response_model=dict[str, Any],
+@router.post("/api/trials/{trial_id}/what-if", response_model=WhatIfOut,
              responses={**INVALID, **CONFLICT})
-def trial_what_if(trial_id: TrialId, body: WhatIfIn, request: Request, user: CurrentUser,
-                  db: SessionDep) -> dict[str, Any]:
+def trial_what_if(trial_id: TrialId, body: WhatIfIn, engine: EngineDep, user: CurrentUser,
+                  db: SessionDep) -> WhatIfOut:
     """Replay the trial's stored raw hip angles through another controller or settings
     (the live tick code) and return the original's and the replay's metrics side by
     side. The stored trial and its ticks are not changed."""
@@ -140,21 +122,21 @@ def trial_what_if(trial_id: TrialId, body: WhatIfIn, request: Request, user: Cur
     if trial.run_id is None:
         conflict("status", f"trial {trial.id} has not run")
     try:
-        return results.what_if(request.app.state.engine, db, trial, body.controller,
+        return results.what_if(engine, db, trial, body.controller,
                                body.model_set_id, body.utility_set_id, body.rate_hz,
                                body.settings)
     except results.ResultsError as exc:
         invalid(["body", exc.field_name], exc.problem)
 
 
-@router.get("/api/studies/{study_id}/model-evaluation", response_model=dict[str, Any],
+@router.get("/api/studies/{study_id}/model-evaluation", response_model=ModelEvaluationOut,
             responses=INVALID)
 def model_evaluation(
-    study_id: StudyId, request: Request, user: CurrentUser, db: SessionDep,
+    study_id: StudyId, engine: EngineDep, user: CurrentUser, db: SessionDep,
     model_set_id: Annotated[int, Query(ge=1, le=MAX_ID, description="whose segments")],
     utility_set_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
     rate_hz: Annotated[float | None, Query(gt=0.0, le=100.0)] = None,
-) -> dict[str, Any]:
+) -> ModelEvaluationOut:
     """Leave-one-participant-out: models fitted without each data-collection
     participant, that participant's segments replayed through the UMC; recognition and
     decision accuracy and confusion matrices."""
@@ -163,7 +145,7 @@ def model_evaluation(
     if ms.study_id != study_id:
         invalid(["query", "model_set_id"], f"model set {ms.id} belongs to another study")
     try:
-        return results.leave_one_participant_out(request.app.state.engine, db, model_set_id,
+        return results.leave_one_participant_out(engine, db, model_set_id,
                                                  utility_set_id, rate_hz)
     except results.ResultsError as exc:
         invalid(["query", exc.field_name], exc.problem)

@@ -7,12 +7,12 @@ from datetime import UTC, datetime
 from fastapi import APIRouter
 from sqlalchemy import select
 
-from backend import audit
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, BODY, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId, SessionId
 from backend.db.models import Participant, StudySession
 from backend.schemas.sessions import SessionIn, SessionOut, SessionUpdate
+from backend.study import audit
 
 router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 

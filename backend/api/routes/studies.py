@@ -4,13 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Response
 from fastapi import Path as PathParam
 from sqlalchemy import select
 
-from backend import access as access_rules
-from backend import audit
-from backend.api.deps import CurrentUser, SessionDep, access
+from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SiteDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -34,6 +32,8 @@ from backend.schemas.studies import (
     StudyOut,
     StudyUpdate,
 )
+from backend.study import access as access_rules
+from backend.study import audit
 
 router = APIRouter(prefix="/api/studies", tags=["studies"], responses=AUTH_RESPONSES)
 
@@ -180,16 +180,15 @@ def add_consent(study_id: StudyId, body: ConsentIn, user: CurrentUser, db: Sessi
                 "content": {"application/zip": {}},
                 "description": "the export without identifiers, dates shifted"}},
             openapi_extra=access("experimenter"))
-def export_deidentified(study_id: StudyId, request: Request, user: CurrentUser,
-                        db: SessionDep) -> Response:
+def export_deidentified(study_id: StudyId, engine: EngineDep, site: SiteDep,
+                        runtime: RuntimeDep, user: CurrentUser, db: SessionDep) -> Response:
     """The study's export for sharing: participants re-coded, free text and account ids
     removed, ages above 89 as 90, dates shifted per participant; `data_dictionary.csv`
     says what was done to each column. The full export needs the owner role."""
-    from backend.export import study_zip
+    from backend.analysis.export import study_zip
 
-    request.app.state.runtime.recorder.flush()
-    site = getattr(getattr(request.state, "grant", None), "site", None)
-    data = study_zip(request.app.state.engine, study_id, deidentified=True, site=site)
+    runtime.recorder.flush()
+    data = study_zip(engine, study_id, deidentified=True, site=site)
     audit.record(db, user, "export_deidentified", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

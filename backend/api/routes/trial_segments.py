@@ -11,12 +11,12 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated
 
-import numpy as np
-from fastapi import APIRouter, Path, Request
+from fastapi import APIRouter, Path
 from sqlalchemy import delete, select
 
-from backend import audit, tick_queries
-from backend.api.deps import CurrentUser, SessionDep
+from backend.analysis import tick_queries
+from backend.analysis.segmentation import SegmentationError, propose_lifts
+from backend.api.deps import CurrentUser, EngineDep, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
     CONFLICT,
@@ -27,10 +27,9 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import MAX_ID
-from backend.db.evidence import Trial, TrialSegment
+from backend.db.evidence_tables import Trial, TrialSegment
 from backend.schemas.evidence import SegmentIn, TrialSegmentOut
-from controller.segmentation import bridge_gaps, segment_lifts
-from controller.tick import MODEL_NAMES
+from backend.study import audit
 
 router = APIRouter(tags=["trials"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 
@@ -60,14 +59,14 @@ def list_trial_segments(trial_id: TrialId, user: CurrentUser, db: SessionDep
 
 @router.put("/api/trials/{trial_id}/segments", response_model=list[TrialSegmentOut],
             responses=CONFLICT)
-def replace_trial_segments(trial_id: TrialId, body: list[SegmentIn], request: Request,
+def replace_trial_segments(trial_id: TrialId, body: list[SegmentIn], engine: EngineDep,
                            user: CurrentUser, db: SessionDep) -> list[TrialSegment]:
     """Replace the trial's segments with this list (the experimenter's checked lifts).
     Each must lie inside the trial's ticks and none may overlap another; an empty list
     removes them all. Nothing changes if any segment is refused."""
     trial = _ran(db, trial_id)
     assert trial.run_id is not None
-    n = tick_queries.count(request.app.state.engine, trial.run_id)
+    n = tick_queries.count(engine, trial.run_id)
     problems: list[tuple[list[str | int], str]] = []
     ordered = sorted(enumerate(body), key=lambda x: x[1].start)
     for i, seg in enumerate(body):
@@ -93,7 +92,7 @@ def replace_trial_segments(trial_id: TrialId, body: list[SegmentIn], request: Re
 
 @router.post("/api/trials/{trial_id}/segment", response_model=list[TrialSegmentOut],
              responses=CONFLICT)
-def auto_segment_trial(trial_id: TrialId, request: Request, user: CurrentUser,
+def auto_segment_trial(trial_id: TrialId, engine: EngineDep, user: CurrentUser,
                        db: SessionDep, replace: bool = False) -> list[TrialSegment]:
     """Propose the trial's lifts with the automatic segmentation used for recordings.
     Segments the experimenter set are kept unless `replace=true`. Where the ticks carry
@@ -105,22 +104,14 @@ def auto_segment_trial(trial_id: TrialId, request: Request, user: CurrentUser,
     if any(s.source == "edited" for s in existing) and not replace:
         conflict("segments", "the experimenter set this trial's segments; pass replace=true "
                  "to discard them")
-    cols = tick_queries.columns(request.app.state.engine, trial.run_id)
-    q = np.column_stack([cols["q_left"], cols["q_right"]]).astype(np.float64)
-    if q.shape[0] < 100:
-        invalid(["trial_id"], f"the trial has {q.shape[0]} ticks: too short to segment")
     try:
-        q = bridge_gaps(q)
-    except ValueError:
-        invalid(["trial_id"], "the trial has no valid hip angles")
-    found = segment_lifts(np.arange(q.shape[0], dtype=np.float64) * 0.01, q)
+        found = propose_lifts(tick_queries.columns(engine, trial.run_id))
+    except SegmentationError as exc:
+        invalid(["trial_id"], f"the trial has {exc.samples} ticks: too short to segment"
+                if exc.reason == "too_short" else "the trial has no valid hip angles")
     db.execute(delete(TrialSegment).where(TrialSegment.trial_id == trial.id))
-    rows = []
-    for seg in found:
-        truth = str(cols["truth_activity"][seg.peak])
-        rows.append(TrialSegment(trial_id=trial.id, start=seg.start, peak=seg.peak,
-                                 end=seg.end, source="auto",
-                                 label=truth if truth in MODEL_NAMES else "unlabelled"))
+    rows = [TrialSegment(trial_id=trial.id, start=seg.start, peak=seg.peak, end=seg.end,
+                         source="auto", label=seg.label) for seg in found]
     db.add_all(rows)
     db.flush()
     audit.record(db, user, "segment", "trial", trial.id, {"segments": len(rows)})

@@ -5,26 +5,24 @@ from __future__ import annotations
 import asyncio
 
 from fastapi import APIRouter, Depends, HTTPException
-from pydantic import BaseModel, Field
 
-from backend import activity
 from backend.api.deps import RuntimeDep, SessionDep, access, current_user
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, MALFORMED, conflict, invalid
-from backend.device_process import DeviceStartError
-from backend.schemas.live import Health
+from backend.live.device_process import DeviceStartError
+from backend.schemas.live import (
+    CalibrationOutcome,
+    CalibrationRequest,
+    ControllerChoice,
+    Health,
+    SimulationChoice,
+)
+from backend.study import activity
 from controller.config import SettingError
 from controller.factory import controller_names
 
 # Every worker route needs a logged-in experimenter: they move a person's exoskeleton.
 router = APIRouter(prefix="/api/worker", tags=["worker"],
                    dependencies=[Depends(current_user)], responses=AUTH_RESPONSES)
-
-
-class ControllerChoice(BaseModel):
-    """Which controller the worker should run."""
-
-    name: str = Field(description="controller name, e.g. none, umc, eumc, pec")
-    config: dict[str, object] = Field(default_factory=dict)
 
 
 @router.post("/restart", response_model=Health, openapi_extra=access("worker"))
@@ -80,25 +78,6 @@ def _set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
     return runtime.health()
 
 
-class CalibrationRequest(BaseModel):
-    """Stand still for `seconds`; the wearer moving more than `max_std_deg` fails it."""
-
-    seconds: float = Field(default=3.0, ge=0.5, le=30.0)
-    max_std_deg: float = Field(default=1.0, gt=0.0, le=10.0)
-
-
-class CalibrationOutcome(BaseModel):
-    """The result of a calibration."""
-
-    ok: bool
-    message: str
-    offset_left_deg: float
-    offset_right_deg: float
-    std_left_deg: float | None
-    std_right_deg: float | None
-    samples: int
-
-
 @router.post("/calibrate", response_model=CalibrationOutcome, openapi_extra=access("worker"),
              responses={**MALFORMED, 409: {"description": "no worker running"},
                         422: {"description": "the wearer moved, or too few samples"}})
@@ -131,17 +110,6 @@ async def calibrate(req: CalibrationRequest, runtime: RuntimeDep,
     if not r.ok:
         raise HTTPException(422, out.model_dump())
     return out
-
-
-class SimulationChoice(BaseModel):
-    """The virtual participant and what they do."""
-
-    seed: int = Field(ge=0, le=2**31 - 1, description="virtual participant")
-    script: str = Field(description="squat-sequence, stoop-sequence, walking, stairs, "
-                        "paper-evaluation")
-    speed: float | None = Field(default=None, ge=0.1, le=100.0, description=(
-        "samples this many times faster than real time (in-process simulator only); "
-        "default: as before"))
 
 
 @router.post("/simulation", response_model=Health, openapi_extra=access("worker"),

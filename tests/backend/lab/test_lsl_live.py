@@ -23,25 +23,16 @@ from sqlalchemy import select
 
 from backend.core.config import Settings
 from backend.db.engine import make_engine
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.models import Run, ticks_table
-from backend.demo import DEMO_PASSWORD, DEMO_USER
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES
 from backend.main import create_app
+from backend.study.demo import DEMO_PASSWORD, DEMO_USER
 from tests.backend.lab.bids_validator import validate
 from tests.login import log_in
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
-
-
-def _wait(cond: Callable[[], Any], timeout: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        got = cond()
-        if got:
-            return got
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 def _independent_offset() -> float:
@@ -75,7 +66,7 @@ def test_lsl_streams_markers_and_bids_of_the_demo_study(
         f"test-forceplates-{name}"))
     with TestClient(create_app(settings)) as client:
         log_in(client, {"username": DEMO_USER, "password": DEMO_PASSWORD})
-        _wait(lambda: client.get("/api/health").json()["worker"]["ticks"] > 20, 90, "ticks")
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 20, 90, "ticks")
 
         # The server's streams are visible on this machine, with their description.
         found = pylsl.resolve_byprop("name", name, minimum=1, timeout=10.0)
@@ -115,15 +106,16 @@ def test_lsl_streams_markers_and_bids_of_the_demo_study(
         sub = client.post(f"/api/sessions/{sid}/marker-streams", json={
             "name": "ForcePlates", "source_id": f"test-forceplates-{name}"})
         assert sub.status_code == 201, sub.text
-        _wait(lambda: client.get(f"/api/sessions/{sid}/marker-streams").json()[0]["connected"],
+        wait_for(lambda: client.get(f"/api/sessions/{sid}/marker-streams").json()[0]["connected"],
               20, "the inlet to connect")
 
         # A PEC trial runs for a few seconds with a console marker and a foreign one.
         started = client.post(f"/api/trials/{pec.id}/start", json={})
         assert started.status_code == 200, started.text
-        _wait(lambda: client.get("/api/health").json()["worker"]["controller"] == "pec", 30,
+        wait_for(lambda: client.get("/api/health").json()["worker"]["controller"] == "pec", 30,
               "the trial's controller")
-        time.sleep(1.0)  # ticks of the trial before the markers
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] >= 100, 30,
+                 "1 s of the trial's ticks before the markers")
         offset = _independent_offset()
         outlet.push_sample(["heel strike"], pylsl.local_clock())
         r = client.post(f"/api/sessions/{sid}/markers",
@@ -131,19 +123,22 @@ def test_lsl_streams_markers_and_bids_of_the_demo_study(
         assert r.status_code == 201, r.text
         console = r.json()
         assert console["trial_id"] == pec.id and console["source"] == "console"
-        _wait(lambda: any(m["source"] == "lsl" for m in
+        wait_for(lambda: any(m["source"] == "lsl" for m in
                           client.get(f"/api/trials/{pec.id}/markers").json()),
               10, "the test outlet's marker")
-        t_end = time.monotonic() + 2.0
-        while time.monotonic() < t_end:
+
+        def drained(enough: Callable[[], bool]) -> bool:
             _drain(tick_inlet, ticks_in)
             _drain(marker_inlet, markers_in)
-            time.sleep(0.05)
+            return enough()
+
+        wait_for(lambda: drained(lambda: len(ticks_in) > 150
+                                 and any("box dropped" in s[0] for _, s in markers_in)),
+                 30, "150 ticks and the console marker on LSL")
         stopped = client.post(f"/api/trials/{pec.id}/stop", json={"outcome": "completed"})
         assert stopped.status_code == 200, stopped.text
-        time.sleep(0.5)
-        _drain(tick_inlet, ticks_in)
-        _drain(marker_inlet, markers_in)
+        wait_for(lambda: drained(lambda: any('"trial_stop"' in s[0] for _, s in markers_in)),
+                 30, "the trial_stop marker on LSL")
         correction = tick_inlet.time_correction(timeout=5.0)
 
         # Markers on LSL: trial start with id, blinded label and controller; the console

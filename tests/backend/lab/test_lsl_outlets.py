@@ -15,7 +15,7 @@ from backend.worker.messages import TickBatch
 from controller.tick import TickRecord
 
 
-class Recording(LabOutlets):
+class MarkerCapture(LabOutlets):
     """Keeps the markers it would send."""
 
     def __init__(self) -> None:
@@ -28,14 +28,14 @@ class Recording(LabOutlets):
 
 def _batch(token: int, start: int, locks: list[tuple[bool, bool]], t_host0: float
            ) -> TickBatch:
-    return TickBatch(token, tuple(
+    return TickBatch.from_records(token, tuple(
         TickRecord(seq=start + i, t=(start + i) / 100, t_host=t_host0 + i / 100,
                    lock_left=left, lock_right=right)
         for i, (left, right) in enumerate(locks)))
 
 
 def test_lock_edges_per_side_are_stamped_with_their_tick() -> None:
-    out = Recording()
+    out = MarkerCapture()
     out.run_started(7, 42)
     t0 = time.time()
     pattern = [(False, False)] * 3 + [(True, False)] * 2 + [(True, True)] + [(False, True)]
@@ -62,7 +62,7 @@ def test_tick_at_finds_the_nearest_tick(gaps: list[float], where: float) -> None
     hosts = 1.7e9 + np.cumsum(gaps)
     records = tuple(TickRecord(seq=i, t=float(i), t_host=float(h))
                     for i, h in enumerate(hosts))
-    out.on_ticks(TickBatch(1, records))
+    out.on_ticks(TickBatch.from_records(1, records))
     stamps = np.array(out._map_lsl)
     target = float(stamps[0] + where)
     found = out.tick_at(target)

@@ -17,7 +17,7 @@ from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
 from backend.db.engine import make_engine
-from backend.db.evidence import Trial
+from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, Run, Study, StudySession, ticks_table
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES

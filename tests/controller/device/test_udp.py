@@ -237,13 +237,16 @@ def test_no_command_before_the_device_session_is_known(
 
 
 def test_send_does_not_block(link: tuple[UdpDevice, FakeDevice]) -> None:
+    # Far more than the fake reads: every send returns, sent or dropped by the kernel
+    # and counted, never waiting. How long they take: bench/bench_device_calls.py.
     dev, fake = link
     fake.send_sample(1)
     _seqs(dev, 1)
-    t0 = time.perf_counter()
-    for _ in range(2000):  # far more than the fake reads; the kernel drops, we do not wait
+    errors = dev.stats.send_errors
+    for _ in range(2000):
         dev.send(NO_LOCK)
-    assert time.perf_counter() - t0 < 0.5
+    assert dev.stats.commands_sent + (dev.stats.send_errors - errors) == 2000
+    assert dev._sock is not None and not dev._sock.getblocking()
 
 
 def test_release_sends_unlock_and_never_raises(link: tuple[UdpDevice, FakeDevice]) -> None:
@@ -276,9 +279,11 @@ def test_outage_is_reported_when_it_starts_and_ends(link: tuple[UdpDevice, FakeD
 
 def test_read_timeout_is_respected(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, _ = link
+    # It waits the timeout out (a read that returned early would spin the loop); how
+    # little it overshoots is bench/bench_device_calls.py's.
     t0 = time.monotonic()
     assert dev.read(0.05) is None
-    assert 0.045 <= time.monotonic() - t0 < 0.2
+    assert time.monotonic() - t0 >= 0.045
     assert dev.read(0.0) is None
 
 

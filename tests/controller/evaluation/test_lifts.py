@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from controller.evaluation import (
+    GaitTrial,
     Lift,
     TickData,
-    Trial,
     lift_kind,
     lifts_from_segments,
     lifts_from_truth,
@@ -17,7 +17,7 @@ from controller.evaluation import (
     whole_recording_trial,
 )
 from controller.sim.recording import simulate_angles
-from controller.tick import columns_from_records
+from controller.tick_codec import columns_from_records
 
 from .tick_builder import TickBuilder, simulate_pec
 
@@ -101,8 +101,8 @@ def test_truth_validation() -> None:
 
 
 def test_whole_recording_trial() -> None:
-    assert whole_recording_trial(500, "walking") == Trial("walking", 0, 499)
-    assert whole_recording_trial({"t": np.zeros(7)}, "SW") == Trial("stair_walking", 0, 6)
+    assert whole_recording_trial(500, "walking") == GaitTrial("walking", 0, 499)
+    assert whole_recording_trial({"t": np.zeros(7)}, "SW") == GaitTrial("stair_walking", 0, 6)
     with pytest.raises(ValueError):
         whole_recording_trial(0, "walking")
 

@@ -9,8 +9,8 @@ import pytest
 
 from controller.evaluation import (
     DecisionOutcome,
+    GaitTrial,
     Lift,
-    Trial,
     count_false_positives,
     evaluate_lift,
     evaluate_lifts,
@@ -173,7 +173,7 @@ def test_lock_during_a_walking_trial_is_a_false_positive() -> None:
     b.run(1100, Action.LOCK_BOTH)  # after the trial
     cols = b.columns()
     trials = trials_from_truth(cols)
-    assert trials == [Trial("walking", 100, 999)]
+    assert trials == [GaitTrial("walking", 100, 999)]
     (fp,) = count_false_positives(cols, trials)
     assert fp.signals == 2
     assert (fp.edges_left, fp.edges_right) == (1, 2)
@@ -191,9 +191,9 @@ def test_stairs_make_a_stair_walking_trial_and_short_walks_are_no_trial() -> Non
     b.run(700, Action.LOCK_LEFT)
     cols = b.columns()
     trials = trials_from_truth(cols)
-    assert trials == [Trial("stair_walking", 300, 1499)]
+    assert trials == [GaitTrial("stair_walking", 300, 1499)]
     assert count_false_positives(cols, trials)[0].signals == 1
-    assert trials_from_truth(cols, min_duration_s=1.0)[0] == Trial("walking", 10, 160)
+    assert trials_from_truth(cols, min_duration_s=1.0)[0] == GaitTrial("walking", 10, 160)
 
 
 def test_no_locks_no_false_positives() -> None:
@@ -208,7 +208,7 @@ def test_no_locks_no_false_positives() -> None:
 def test_command_held_at_the_first_tick_is_a_rising_edge() -> None:
     b = TickBuilder(100)
     b.run(0, Action.LOCK_LEFT)
-    (fp,) = count_false_positives(b.columns(), [Trial("walking", 0, 99)])
+    (fp,) = count_false_positives(b.columns(), [GaitTrial("walking", 0, 99)])
     assert fp.signals == 1
 
 

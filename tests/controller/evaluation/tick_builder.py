@@ -1,7 +1,7 @@
 """Hand-made tick sequences with known answers, built the way the pipeline fills ticks.
 
 A decision sets `controller_ran`, makes `action` the held last decision from that tick
-on (as `PipelineController` records it) and holds the solenoid command 30 ticks (0.3 s
+on (as `KernelController` records it) and holds the solenoid command 30 ticks (0.3 s
 at 100 Hz, the low-level hold). Everything else keeps `TickRecord`'s defaults.
 """
 
@@ -13,10 +13,10 @@ import numpy as np
 
 from controller.device.base import LockCommand
 from controller.evaluation import (
+    GaitTrial,
     Lift,
     LiftKind,
     RecordingEvaluation,
-    Trial,
     evaluate_recording,
     lifts_from_truth,
 )
@@ -110,12 +110,12 @@ def gait_recording(participant: str, controller: str, locks: int, kind: str) -> 
     for j in range(locks):
         b.run(100 + 100 * j, Action.LOCK_RIGHT)
     return evaluate_recording(
-        b.columns(), participant, controller, trials=[Trial(kind, 0, 1999)]  # type: ignore[arg-type]
+        b.columns(), participant, controller, trials=[GaitTrial(kind, 0, 1999)]  # type: ignore[arg-type]
     )
 
 
 def simulate_pec(script: str, seed: int) -> list[TickRecord]:
-    """The PEC on a simulated wearer following `script` (the loop the brief gives)."""
+    """The PEC on a simulated wearer following `script`, tick by tick."""
     ctl = PEC()
     exo = SimulatedExoskeleton(seed=seed, script=script)
     cmd: LockCommand | None = None

@@ -6,8 +6,6 @@ solenoid is commanded, which is all the device server and the UDP link need to s
 
 from __future__ import annotations
 
-import socket
-
 from controller.device.base import GroundTruth, LockCommand, Sample, Status
 
 
@@ -43,13 +41,6 @@ class StubExoskeleton:
             status=status,
             truth=GroundTruth(activity="squat", lift_index=k // 100, progress=(k % 100) / 100),
         )
-
-
-def free_udp_port(host: str = "127.0.0.1") -> int:
-    """A UDP port that was free a moment ago (good enough on loopback in tests)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 #: The link key the device-server tests share between host and device.

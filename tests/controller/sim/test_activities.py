@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from controller.device.base import SAMPLE_PERIOD_S
 from controller.sim.activities import (
     ACTIVITY_CODE,
-    DT,
     GaitPiece,
     draw_lift,
     gait,
@@ -47,7 +47,7 @@ def test_lifts_start_and_end_standing_with_plausible_peaks(kind: str) -> None:
         assert seg.progress[0] == 0.0 and seg.progress[-1] == 1.0
         assert np.all(np.diff(seg.progress) > 0)
         peaks.append(deg(seg.theta.max(axis=0)))
-        vels.append(np.gradient(seg.theta, DT, axis=0).max())
+        vels.append(np.gradient(seg.theta, SAMPLE_PERIOD_S, axis=0).max())
         # The hip-flexion half is roughly the first half of the lift.
         k_peak = int(seg.theta.sum(axis=1).argmax())
         assert 0.3 < seg.progress[k_peak] < 0.6
@@ -98,7 +98,7 @@ def _steady(p: VirtualParticipant, kind: str, strides: float = 8.0) -> np.ndarra
               "stairs_down": 0.9 * p.stair_stride_s}[kind]
     amp = walk_amplitude(p) if kind == "walk" else 1.0
     seg = gait(p, [GaitPiece(kind, strides, stride, (amp, amp))])
-    cut = int(1.5 * stride / DT)
+    cut = int(1.5 * stride / SAMPLE_PERIOD_S)
     return seg.theta[cut:-cut]
 
 
@@ -114,8 +114,8 @@ def test_walking_range_antiphase_and_stride() -> None:
         ac = np.correlate(x, x, "full")[x.size - 1 :]
         lag = int(np.argmax(ac[50:200])) + 50
         # The autocorrelation's peak resolves the stride to a sample or two.
-        assert 1.0 - 0.02 <= lag * DT <= 1.2 + 0.02
-        assert lag * DT == pytest.approx(p.stride_s, abs=0.02)
+        assert 1.0 - 0.02 <= lag * SAMPLE_PERIOD_S <= 1.2 + 0.02
+        assert lag * SAMPLE_PERIOD_S == pytest.approx(p.stride_s, abs=0.02)
 
 
 def test_stairs_ranges_and_antiphase() -> None:
@@ -151,7 +151,7 @@ def test_gait_bout_is_smooth_and_labelled_by_piece() -> None:
     codes = [ACTIVITY_CODE[k] for k in ("walk", "turn", "stairs_up")]
     changes = seg.activity[np.flatnonzero(np.diff(seg.activity)) + 1]
     assert [int(seg.activity[0]), *changes.tolist()] == codes
-    acc = np.gradient(np.gradient(seg.theta, DT, axis=0), DT, axis=0)
+    acc = np.gradient(np.gradient(seg.theta, SAMPLE_PERIOD_S, axis=0), SAMPLE_PERIOD_S, axis=0)
     assert np.abs(acc).max() < 80.0  # rad/s^2, no jumps a Kalman filter would see
     with pytest.raises(ValueError):
         gait(p, [])
@@ -162,7 +162,7 @@ def test_gait_bout_is_smooth_and_labelled_by_piece() -> None:
 def test_either_leg_can_lead_a_gait_bout() -> None:
     p = PEOPLE[4]
     piece = [GaitPiece("walk", 4.0, p.stride_s)]
-    k = int(0.4 * p.stride_s / DT)  # the first swing
+    k = int(0.4 * p.stride_s / SAMPLE_PERIOD_S)  # the first swing
     left_first = gait(p, piece, lead="left").theta[k]
     right_first = gait(p, piece, lead="right").theta[k]
     assert left_first[0] > left_first[1]

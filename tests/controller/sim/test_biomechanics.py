@@ -13,21 +13,25 @@ from hypothesis import strategies as st
 
 from controller.sim.activities import LiftShape, lift
 from controller.sim.biomechanics import (
+    GRIP_HEIGHT_M,
+    SQUAT_LUMBAR_FLEXION_DEG,
     Anthropometrics,
     G,
     gait_moment,
     lift_hip_moment,
     split_moment,
+    squat_pose,
     stoop_leg_moments,
+    top_down_hip_moment,
 )
 from controller.sim.participant import VirtualParticipant
 
 
 def reference_wearer() -> VirtualParticipant:
-    """The spec's 75 kg, 1.75 m wearer with typical habits."""
+    """A 75 kg, 1.75 m reference wearer with typical habits."""
     p = VirtualParticipant.from_seed(0)
     return replace(
-        p, mass_kg=75.0, height_m=1.75, squat_trunk_ratio=0.42,
+        p, mass_kg=75.0, height_m=1.75, squat_pelvis_ratio=0.42,
         asymmetry=0.0, stand_flexion_deg=(3.0, 3.0), torque_scale=1.0,
     )
 
@@ -72,26 +76,70 @@ def test_lifting_moments_match_published_magnitudes() -> None:
     stoop10 = peak_both_hips("stoop_left", 10.0, (85.0, 60.0))
     # Nemeth et al. 1984: about 82 Nm (bent knees) and 124 Nm (straight knees) about
     # both hips with a 12.8 kg box, static; the dynamic peak per supporting hip is
-    # taken as 1.5-2 Nm/kg in the squat and the stoop's supporting hip carries the
-    # whole moment, so the ranges below are wide on purpose.
-    assert 1.7 < squat10 < 2.9
-    assert 1.5 < squat5 < squat10
+    # taken as 1.5-2 Nm/kg (an assumption, not a published band), and the stoop's
+    # supporting hip carries nearly the whole moment, so the ranges are wide on purpose.
+    assert 1.5 < squat10 / 2.0 < 2.0
+    assert 1.2 < squat5 / 2.0 < squat10 / 2.0
     assert 2.6 < stoop10 < 3.8
-    # No assertion on squat against stoop: Van der Have et al. 2019 (the paper's data
-    # source) report the squat higher, Nemeth 1984 and Hwang 2007 the stoop; this
-    # planar model gives the stoop higher (README, virtual study discussion).
+    # Van der Have et al. 2019 (the paper's data source): a higher peak hip moment in
+    # squat than in stoop lifting. Both hips share a symmetric lift's moment, so the
+    # totals compare; with the same box the squat is higher, if only by about 1 %.
+    assert squat10 > stoop10
 
 
-def test_squat_box_clears_the_knees() -> None:
+def test_squat_chain_balances_and_lowers_the_hips() -> None:
     body = Anthropometrics.from_body(75.0, 1.75)
-    trunk = np.radians(np.array([0.0, 40.0]))
-    hip = np.radians(np.array([0.0, 100.0]))
-    d = body.squat_box_distance(trunk, hip)
-    # Upright the box is held at the belly (0.114 H = 0.1995 m), already clear of
-    # straight knees (0.20 m): the larger wins.
-    assert d[0] == pytest.approx(max(0.114 * 1.75, 0.20))
-    knee_ahead = 0.245 * 1.75 * math.sin(math.radians(60.0))
-    assert d[1] == pytest.approx(knee_ahead + 0.20)
+    u = np.linspace(0.0, 1.0, 201)
+    flex = np.radians(97.0) * u * u * u * (10 - 15 * u + 6 * u * u)
+    pose = squat_pose(body, flex, 0.42, np.full(u.size, 10.0))
+    # Upright: hip nearly above the ankle at hip height (Winter: 0.530 H); the box
+    # held at the belly leans the body back by a few centimetres.
+    assert -0.04 < pose.hip[0, 0] < 0.0
+    assert pose.hip[0, 1] == pytest.approx(0.530 * 1.75, abs=2e-3)
+    # Bottom: thorax at the pelvis' tilt plus the sourced lumbar flexion.
+    assert pose.trunk[-1] == pytest.approx(
+        0.42 * flex[-1] + math.radians(SQUAT_LUMBAR_FLEXION_DEG)
+    )
+    assert pose.hip[-1, 1] < pose.hip[0, 1] - 0.15  # the hips go down
+    assert pose.hip[-1, 0] < 0.0  # and back, behind the ankles
+    # The whole body's centre of mass stays above the ankles (by hand, at the bottom).
+    thigh = pose.thigh[-1]
+    trunk = pose.trunk[-1]
+    hip_x = pose.hip[-1, 0]
+    masses_x = (
+        body.m_shanks * 0.567 * pose.knee_x[-1]
+        + body.m_thighs * (hip_x + 0.433 * body.thigh_length * math.sin(thigh))
+        + body.m_hat * (hip_x + body.r_com * math.sin(trunk))
+        + 10.0 * pose.box[-1, 0]
+    )
+    assert masses_x == pytest.approx(0.0, abs=1e-9)
+    # The box is clear of the knees and at the grip's height at the bottom.
+    assert pose.box[-1, 0] >= pose.knee_x[-1] + 0.2 - 1e-12
+    assert pose.box[-1, 1] == pytest.approx(GRIP_HEIGHT_M)
+
+
+def test_top_down_moment_is_the_fixed_hip_model_when_the_hip_stands_still() -> None:
+    body = Anthropometrics.from_body(75.0, 1.75)
+    u = np.linspace(0.0, 1.0, 301)
+    trunk = 1.3 * u * u * u * (10 - 15 * u + 6 * u * u)
+    hip = np.tile([0.0, 0.9], (u.size, 1))
+    moving = top_down_hip_moment(body, trunk, hip, hip, np.zeros(u.size), 0.01)
+    fixed = lift_hip_moment(body, trunk, np.zeros(u.size), 0.01)
+    assert moving[5:-5] == pytest.approx(fixed[5:-5], abs=0.02 * np.abs(fixed).max())
+
+
+def test_rising_hips_need_more_extension() -> None:
+    # The same trunk, once with the hips still and once accelerating upwards: the
+    # upper body's weight is effectively g + z'' (closed form at constant z'').
+    body = Anthropometrics.from_body(75.0, 1.75)
+    n = 101
+    trunk = np.full(n, math.radians(60.0))
+    t = np.arange(n) * 0.01
+    still = np.tile([0.0, 0.7], (n, 1))
+    rising = np.stack([np.zeros(n), 0.7 + 0.5 * 1.5 * t**2], axis=1)
+    m0 = top_down_hip_moment(body, trunk, still, still, np.zeros(n), 0.01)
+    m1 = top_down_hip_moment(body, trunk, rising, rising, np.zeros(n), 0.01)
+    assert m1[10:-10] == pytest.approx(m0[10:-10] * (G + 1.5) / G)
 
 
 def _stoop(box_kg: float, peak_deg: float = 80.0, n: int = 301):
@@ -195,3 +243,29 @@ def test_stoop_split_is_statics_for_any_body(
     assert (other >= 0.0).all()
     upper = G * (body.m_hat + box)
     assert (other <= 0.5 * upper * body.r_com).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    depth=st.floats(1.3, 1.95), ratio=st.floats(0.3, 0.55), box=st.floats(0.0, 15.0),
+    mass=st.floats(45.0, 120.0), height=st.floats(1.5, 2.0),
+)
+def test_squat_chain_keeps_its_segments_and_balance_for_any_body(
+    depth: float, ratio: float, box: float, mass: float, height: float
+) -> None:
+    """For any body and depth: the hip lies one thigh length from the knee, the knee one
+    shank length from the ankle, and the thorax at pelvis tilt plus lumbar flexion."""
+    body = Anthropometrics.from_body(mass, height)
+    u = np.linspace(0.0, 1.0, 121)
+    flex = depth * u * u * u * (10 - 15 * u + 6 * u * u)
+    pose = squat_pose(body, flex, ratio, np.full(u.size, box))
+    shank = np.arcsin(np.clip(pose.knee_x / body.shank_length, -1.0, 1.0))
+    knee_z = body.ankle_height + body.shank_length * np.cos(shank)
+    thigh = np.hypot(pose.hip[:, 0] - pose.knee_x, pose.hip[:, 1] - knee_z)
+    assert thigh == pytest.approx(np.full(u.size, body.thigh_length))
+    assert np.all(np.abs(pose.knee_x) < body.shank_length)  # balance reachable
+    lumbar = math.radians(SQUAT_LUMBAR_FLEXION_DEG) * flex / flex.max()
+    assert pose.trunk == pytest.approx(ratio * flex + lumbar)
+    # The hips never rise above standing (by more than the straightening of a shank
+    # that leaned back a little under the box held at the belly).
+    assert np.all(pose.hip[:, 1] <= pose.hip[0, 1] + 1e-3)

@@ -32,7 +32,8 @@ from controller.device.protocol import (
 )
 from controller.device.udp import UdpDevice
 from controller.sim.device_server import ServerStats, serve
-from tests.controller.sim.stub_model import KEY, StubExoskeleton, free_udp_port, serve_stub
+from tests.controller.sim.stub_model import KEY, StubExoskeleton, serve_stub
+from tests.polling import free_udp_port, wait_for
 
 ROOT = Path(__file__).resolve().parents[3]
 LOCK_BOTH = LockCommand(seq=0, lock_left=True, lock_right=True)
@@ -50,12 +51,8 @@ def _bound_ports() -> set[int]:
 
 def _wait_bound(port: int, timeout: float = 5.0) -> None:
     """Until the server has bound its port (so the host's first HELLO is not lost)."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if port in _bound_ports():
-            return
-        time.sleep(0.01)
-    raise TimeoutError(f"nothing bound to UDP port {port}")
+    wait_for(lambda: port in _bound_ports(), timeout, f"a server bound to UDP port {port}",
+             poll=0.01)
 
 
 @dataclass

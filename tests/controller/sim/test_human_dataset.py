@@ -56,8 +56,14 @@ def test_lifts_look_like_the_papers_mean_trajectories(data: HumanMotionData) -> 
         start, end = data.theta[m, :, 0], data.theta[m, :, -1]
         assert np.allclose(start, end, atol=1e-6)  # standing to standing
         assert 35 <= int(np.argmax(data.theta[m].sum(axis=0))) <= 60
-    assert 1.7 < data.tau[0].sum(axis=0).max() / mass < 2.8  # squat, 10 kg
-    assert 2.6 < data.tau[1].sum(axis=0).max() / mass < 3.8  # stoop, 10 kg
+    # 10 kg: 1.5-2 Nm/kg per loaded hip at the peak (an assumption, see
+    # test_biomechanics); the squat's two hips together above the stoop's total, the
+    # order Van der Have et al. 2019 (the paper's data source) report.
+    squat_total = data.tau[0].sum(axis=0).max() / mass
+    stoop_total = data.tau[1].sum(axis=0).max() / mass
+    assert 1.5 < squat_total / 2.0 < 2.0
+    assert 2.6 < stoop_total < 3.8
+    assert squat_total > stoop_total
 
 
 def test_walking_cycle(data: HumanMotionData) -> None:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controller.sim.activities import ACTIVITIES, DT
+from controller.device.base import SAMPLE_PERIOD_S
+from controller.sim.activities import ACTIVITIES
 from controller.sim.participant import VirtualParticipant
 from controller.sim.scripts import SCRIPT_NAMES, Trajectory, get_script, realise
 
@@ -38,7 +39,7 @@ def test_squat_sequence_has_ten_squat_lifts_with_one_second_holds() -> None:
     for i in range(0, 10, 2):
         end = np.flatnonzero(tr.lift == i)[-1]
         start = np.flatnonzero(tr.lift == i + 1)[0]
-        assert 0.7 <= (start - end) * DT <= 1.4
+        assert 0.7 <= (start - end) * SAMPLE_PERIOD_S <= 1.4
 
 
 def test_stoop_sequence_alternates_sides() -> None:
@@ -56,8 +57,8 @@ def test_walking_and_stairs_have_the_paper_structure() -> None:
     assert walk.n_lifts == 0 and np.all(walk.lift == -1)
     stairs = run("stairs")
     names = stairs.activity_names()
-    up = (names == "stairs_up").sum() * DT
-    down = (names == "stairs_down").sum() * DT
+    up = (names == "stairs_up").sum() * SAMPLE_PERIOD_S
+    down = (names == "stairs_down").sum() * SAMPLE_PERIOD_S
     assert up == pytest.approx(5.5 * P.stair_stride_s, rel=0.1)  # 11 steps
     assert down == pytest.approx(5.5 * 0.9 * P.stair_stride_s, rel=0.1)
     first_up = np.flatnonzero(names == "stairs_up")[0]
@@ -77,7 +78,7 @@ def test_paper_evaluation_covers_everything_with_truth() -> None:
     for i in range(20):
         pr = tr.progress[tr.lift == i]
         assert pr[0] == 0.0 and pr[-1] == 1.0 and np.all(np.diff(pr) > 0)
-    assert np.allclose(np.diff(tr.t), DT)
+    assert np.allclose(np.diff(tr.t), SAMPLE_PERIOD_S)
     assert 150.0 < tr.duration < 260.0
     # Smooth everywhere: no sample-to-sample jump beyond what 4 rad/s allows.
     assert np.abs(np.diff(tr.theta, axis=0)).max() < 0.045

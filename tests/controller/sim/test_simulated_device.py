@@ -12,9 +12,8 @@ def test_free_running_reads_and_commands() -> None:
     dev = SimulatedDevice(seed=1, script="walking", realtime=False, loop=False)
     assert dev.kind == "simulated"
     with dev:
-        start = time.monotonic()
+        # Free running: no pacing (its speed is bench/bench_device_calls.py's).
         first = [dev.read(1.0) for _ in range(200)]
-        assert time.monotonic() - start < 0.5
         assert [s.seq for s in first if s is not None] == list(range(200))
         dev.send(LockCommand(5, True, True))
         s = dev.read(1.0)

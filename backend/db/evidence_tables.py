@@ -1,0 +1,178 @@
+"""The study's chain of evidence around the control loop: recordings and their lift
+segments, model sets and utility sets with their provenance, controller configurations,
+evaluation trials with the exact configuration they ran, lock events, background jobs.
+
+A recording and a trial each own one worker `Run`: their ticks are that run's ticks.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import JSON, DateTime, Float, ForeignKey, Index, Integer, String, Text, text
+from sqlalchemy.orm import Mapped, mapped_column
+
+from backend.db.models import Base, utcnow
+
+
+class Recording(Base):
+    """A continuous 100 Hz stream recorded in data-collection mode (no locks)."""
+
+    __tablename__ = "recordings"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_id: Mapped[int] = mapped_column(
+        ForeignKey("study_sessions.id", ondelete="CASCADE"), index=True)
+    run_id: Mapped[int | None] = mapped_column(ForeignKey("runs.id", ondelete="SET NULL"))
+    label: Mapped[str] = mapped_column(String(200), default="")
+    status: Mapped[str] = mapped_column(String(16), default="recording")
+    started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    ended_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    first_tick_id: Mapped[int | None] = mapped_column(Integer)
+    last_tick_id: Mapped[int | None] = mapped_column(Integer)
+    notes: Mapped[str] = mapped_column(Text, default="")
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+    # At most one recording runs: the database refuses a second, whatever the server's
+    # own lock does (a partial unique index: SQLite and PostgreSQL both have them).
+    __table_args__ = (
+        Index("uq_recordings_one_running", "status", unique=True,
+              sqlite_where=text("status = 'recording'"),
+              postgresql_where=text("status = 'recording'")),
+    )
+
+
+class LiftSegment(Base):
+    """One lift in a recording: sample indices from its first tick, and a label."""
+
+    __tablename__ = "lift_segments"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    recording_id: Mapped[int] = mapped_column(
+        ForeignKey("recordings.id", ondelete="CASCADE"), index=True)
+    start: Mapped[int] = mapped_column(Integer)
+    peak: Mapped[int] = mapped_column(Integer)
+    end: Mapped[int] = mapped_column(Integer)
+    label: Mapped[str] = mapped_column(String(32), default="unlabelled")
+    source: Mapped[str] = mapped_column(String(16), default="auto")
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class TrialSegment(Base):
+    """One lift in a trial, marked by the experimenter: the ground truth of a trial on
+    hardware, where no simulation labels the ticks. Sample indices from the trial's
+    first tick."""
+
+    __tablename__ = "trial_segments"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(
+        ForeignKey("trials.id", ondelete="CASCADE"), index=True)
+    start: Mapped[int] = mapped_column(Integer)
+    peak: Mapped[int] = mapped_column(Integer)
+    end: Mapped[int] = mapped_column(Integer)
+    label: Mapped[str] = mapped_column(String(32), default="unlabelled")
+    source: Mapped[str] = mapped_column(String(16), default="auto")
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class ModelSetRecord(Base):
+    """A motion model set fitted from chosen segments; the JSON keeps its provenance."""
+
+    __tablename__ = "model_sets"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"),
+                                          index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    status: Mapped[str] = mapped_column(String(16), default="pending")
+    params: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    segment_ids: Mapped[list[int]] = mapped_column(JSON, default=list)
+    document: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    error: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+
+class UtilitySetRecord(Base):
+    """A utility table for one actuator setting and human dataset."""
+
+    __tablename__ = "utility_sets"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"),
+                                          index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    precompression_pct: Mapped[float] = mapped_column(Float)
+    human_source: Mapped[str] = mapped_column(String(200))
+    status: Mapped[str] = mapped_column(String(16), default="pending")
+    human_data: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    document: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    error: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+
+class Job(Base):
+    """A background computation (model fitting, utilities) with its progress."""
+
+    __tablename__ = "jobs"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    target_id: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="queued")
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    message: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+
+
+class Trial(Base):
+    """One evaluation trial: a controller on a task, in its planned order."""
+
+    __tablename__ = "trials"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_id: Mapped[int] = mapped_column(
+        ForeignKey("study_sessions.id", ondelete="CASCADE"), index=True)
+    controller: Mapped[str] = mapped_column(String(32))
+    task: Mapped[str] = mapped_column(String(32))
+    planned_order: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="planned")
+    model_set_id: Mapped[int | None] = mapped_column(
+        ForeignKey("model_sets.id", ondelete="SET NULL"))
+    utility_set_id: Mapped[int | None] = mapped_column(
+        ForeignKey("utility_sets.id", ondelete="SET NULL"))
+    run_id: Mapped[int | None] = mapped_column(ForeignKey("runs.id", ondelete="SET NULL"))
+    config_snapshot: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    ended_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    end_reason: Mapped[str] = mapped_column(Text, default="")
+    #: Ticks stored for the trial when it ended (its run's), also when interrupted.
+    tick_count: Mapped[int | None] = mapped_column(Integer)
+    #: What is wrong with the trial's data, e.g. device time gaps or going backwards:
+    #: `backend.live.trial_quality.QualityFlags` as JSON; empty when nothing is.
+    quality_flags: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+
+    # At most one trial runs: the database refuses a second (see Recording).
+    __table_args__ = (
+        Index("uq_trials_one_running", "status", unique=True,
+              sqlite_where=text("status = 'running'"),
+              postgresql_where=text("status = 'running'")),
+    )
+
+
+class LockEvent(Base):
+    """A change of the held lock command or of the mechanism, per side, in a trial."""
+
+    __tablename__ = "lock_events"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id", ondelete="CASCADE"),
+                                          index=True)
+    t: Mapped[float] = mapped_column(Float)
+    side: Mapped[str] = mapped_column(String(8))
+    kind: Mapped[str] = mapped_column(String(32))
+    torque_peak: Mapped[float | None] = mapped_column(Float)

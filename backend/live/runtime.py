@@ -1,0 +1,456 @@
+"""The live path on the server: worker supervisor -> tick recorder and live stream.
+
+Created by the app's lifespan; one per server process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import subprocess
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import Engine
+
+from backend import bootstrap
+from backend.core.config import Settings
+from backend.lab.hub import Lab
+from backend.live import device_process
+from backend.live.recorder import TickRecorder
+from backend.live.stream import LiveStream
+from backend.schemas.live import (
+    DatabaseHealth,
+    DeviceHealth,
+    DeviceReport,
+    Health,
+    LoopReport,
+    WorkerHealth,
+)
+from backend.study import activity
+from backend.worker.messages import (
+    CalibrationResult,
+    CommandResult,
+    RunStarted,
+    TickBatch,
+    WorkerConfig,
+)
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller.config import ControllerConfig
+from controller.device.auth import load_or_create_key
+from controller.factory import NEEDS_MODELS
+from controller.spec import ControllerSpec
+
+log = logging.getLogger(__name__)
+
+#: The longest a command to a live worker may go unanswered. Not a guess at how long
+#: the answer takes (every command is answered, in order with the ticks before it, and a
+#: sped-up simulation never runs ahead of what the server stores): only a hung worker
+#: reaches it. A worker that dies fails the wait at once, with its exit reason.
+COMMAND_TIMEOUT_S = 120.0
+#: A sped-up simulation waits while the recorder holds more ticks than this (a third of
+#: its default backlog limit), at most `RECORDER_WAIT_S` per batch.
+RECORDER_HOLD = 10_000
+RECORDER_WAIT_S = 30.0
+
+
+class Runtime:
+    """Owns the worker, the recorder and the stream, and answers health questions."""
+
+    def __init__(self, settings: Settings, engine: Engine) -> None:
+        self.settings = settings
+        host, port = settings.device_host_port
+        self.calibration: CalibrationResult | None = None
+        self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
+        self._command_waiters: dict[int, asyncio.Future[CommandResult]] = {}
+        self._run_ids: dict[int, int] = {}  # worker run token -> runs.id
+        self._runs_started = 0
+        self._last_run_token = 0
+        self.worker_config = WorkerConfig(
+            device_kind=settings.device_kind,
+            device_host=host,
+            device_port=port,
+            device_seed=settings.device_seed,
+            device_script=settings.device_script,
+            device_key_file=str(settings.device_key_file),
+            precompression_pct=settings.precompression_pct,
+            device_speed=settings.device_speed,
+            models_path=str(settings.models_path),
+        )
+        self.recorder = TickRecorder(engine, settings.db_flush_interval,
+                                     settings.db_backlog_limit)
+        #: Held by every route that starts, stops or switches what the worker runs for
+        #: the study (trials, recordings, controller, simulation, calibration): one at
+        #: a time, so "is anything running?" and "start it" are one step.
+        self.activity = asyncio.Lock()
+        self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
+        # LSL outlets and event markers: one more consumer of the tick batches.
+        self.lab = Lab(settings.lsl_enabled, settings.lsl_name, engine, self.stream)
+        self.supervisor = WorkerSupervisor(
+            self.worker_config,
+            WorkerCallbacks(
+                on_ticks=self._on_ticks,
+                on_run_started=self._on_run_started,
+                on_exit=self._on_exit,
+                on_event=self._on_event,
+                on_calibration=self._on_calibration,
+                on_command_result=self._on_command_result,
+            ),
+        )
+        self.device_process: subprocess.Popen[bytes] | None = None
+        self._status_task: asyncio.Task[None] | None = None
+
+    def utilities_path(self) -> Path:
+        """The default utility set for the configured precompression."""
+        return bootstrap.utilities_path(self.settings.utilities_dir,
+                                        self.settings.precompression_pct)
+
+    def prepare_defaults(self) -> None:
+        """Build the default model and utility sets if they are missing (first start),
+        and the demo study in an empty database when the demo is on."""
+        models = bootstrap.ensure_models(self.settings.models_path)
+        utilities = bootstrap.ensure_utilities(self.utilities_path(),
+                                               self.settings.precompression_pct)
+        if self.settings.demo:
+            from sqlalchemy.orm import Session
+
+            from backend.study.demo import ensure_demo
+
+            with Session(self.recorder.engine) as db:
+                ensure_demo(db, models, utilities, self.settings.precompression_pct)
+
+    def controller_spec(
+        self, name: str, overrides: dict[str, Any] | None = None
+    ) -> ControllerSpec:
+        """The one place the server builds a controller's configuration: defaults, the
+        server's settings, the E-UMC calibration if one was made, then `overrides`
+        (settings fields), with the default model and utility files. Raises SettingError
+        naming the field (refused here, not in the worker)."""
+        cfg = ControllerConfig(precompression_pct=self.settings.precompression_pct)
+        if self.settings.controller_rate_hz is not None:
+            cfg = cfg.at_rate(self.settings.controller_rate_hz)
+        settings: dict[str, Any] = cfg.to_json()
+        if name == "eumc" and self.calibration is not None and self.calibration.ok:
+            settings["calibration"] = [self.calibration.offset_left,
+                                       self.calibration.offset_right]
+        settings.update(overrides or {})
+        return ControllerSpec(
+            name, ControllerConfig.from_json(settings),
+            models_path=str(self.settings.models_path) if name in NEEDS_MODELS else None,
+            utilities_path=str(self.utilities_path()) if name in NEEDS_MODELS else None)
+
+    def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
+        """Switch the worker's controller (a new run starts)."""
+        self.supervisor.set_controller(name, self.controller_spec(name, overrides).to_config())
+
+    def release(self) -> None:
+        """Back to controller `none` without waiting: nothing locks until a new switch
+        (what a refused or failed start leaves the worker with)."""
+        self.supervisor.set_controller("none", self.controller_spec("none").to_config())
+
+    async def switch_controller(
+        self, spec: ControllerSpec, timeout: float = COMMAND_TIMEOUT_S,
+        max_ticks: int | None = None,
+    ) -> int:
+        """Switch to the validated `spec` and wait until the worker runs it; returns the
+        new run's id. With `max_ticks` the worker ends the run by itself after that many
+        samples. Raises RuntimeError if the worker is down or refuses (with the worker's
+        reason)."""
+        name = spec.name
+        if not self.supervisor.state.alive:
+            raise RuntimeError("the worker is not running: restart it first")
+        fut = self._command_future()
+        rid = self.supervisor.set_controller(name, spec.to_config(), max_ticks)
+        answer = await self._answer(rid, fut, f"start {name}", timeout)
+        if not answer.ok:
+            raise RuntimeError(answer.message)
+        return self._run_ids[answer.run_token]
+
+    async def idle(self) -> None:
+        """Back to controller `none` (a new run, no locks) if the worker is alive; a
+        worker that died meanwhile has already stored its ticks and closed its run."""
+        if not self.supervisor.state.alive:
+            return
+        try:
+            await self.switch_controller(self.controller_spec("none"))
+        except RuntimeError:
+            pass
+
+    def _command_future(self) -> asyncio.Future[CommandResult]:
+        return asyncio.get_running_loop().create_future()
+
+    async def _answer(self, rid: int, fut: asyncio.Future[CommandResult], what: str,
+                      timeout: float) -> CommandResult:
+        """The worker's answer to request `rid`; RuntimeError if it dies first."""
+        if not rid:
+            raise RuntimeError(f"the worker is not running: it cannot {what}")
+        self._command_waiters[rid] = fut
+        try:
+            return await self._until_answered(fut, what, timeout)
+        finally:
+            self._command_waiters.pop(rid, None)
+
+    async def _until_answered(self, fut: asyncio.Future[Any], what: str,
+                              timeout: float) -> Any:
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout
+        while not fut.done():
+            if not self.supervisor.state.alive:
+                reason = self.supervisor.state.exit_reason or "exited"
+                raise RuntimeError(f"the worker stopped ({reason}) before it could {what}")
+            if loop.time() > deadline:
+                raise RuntimeError(f"the worker did not answer within {timeout:.0f} s: "
+                                   f"it could not {what}")
+            await asyncio.wait([fut], timeout=0.1)
+        return fut.result()
+
+    def _on_command_result(self, result: CommandResult) -> None:
+        def resolve() -> None:
+            # Looked up on the event loop, where the waiter registers right after the
+            # send: an answer faster than that registration is still delivered.
+            fut = self._command_waiters.get(result.request_id)
+            if fut is not None and not fut.done():
+                fut.set_result(result)
+
+        self.stream.call_soon(resolve)
+
+    async def set_simulation(self, seed: int, script: str, speed: float | None = None) -> None:
+        """Put another virtual participant (seed) or script on the simulated device: the
+        worker swaps its in-process simulator (a new run, same process), or the device
+        process (UDP) restarts. The current controller is kept, with a fresh state."""
+        from controller.sim.scripts import get_script
+
+        try:
+            get_script(script)
+        except ValueError as exc:
+            raise ValueError(f"script: {exc}") from exc  # names the valid scripts
+        if speed is not None and self.settings.device_kind != "sim":
+            raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
+                             "faster than real time")
+        speed = self.supervisor.config.device_speed if speed is None else speed
+        self.settings = self.settings.model_copy(update={"device_seed": seed,
+                                                         "device_script": script,
+                                                         "device_speed": speed})
+        self.worker_config = replace(self.supervisor.config, device_seed=seed,
+                                     device_script=script, device_speed=speed)
+        self.supervisor.config = self.worker_config
+        runs_before = self._runs_started
+        if self.settings.device_kind == "sim":
+            # The running worker swaps its simulated device (no process start); a worker
+            # that is down picks the new configuration up when it starts.
+            fut = self._command_future()
+            rid = self.supervisor.set_simulation(seed, script, speed)
+            if rid is None:
+                await asyncio.to_thread(self.supervisor.restart)
+            else:
+                answer = await self._answer(rid, fut, "change the simulation",
+                                            COMMAND_TIMEOUT_S)
+                if not answer.ok:
+                    raise RuntimeError(answer.message)
+        elif self.settings.device_spawn_simulator:
+            if self.device_process is not None:
+                await asyncio.to_thread(device_process.stop, self.device_process,
+                                        self._device_pid_file())
+                self.device_process = None
+            await asyncio.to_thread(self.start_device_simulator)
+        else:
+            raise ValueError("device: the device is real hardware: there is no simulation "
+                             "to change")
+        # Return only once the new simulation streams: a recording or trial started
+        # before that would attach to a run that is about to be replaced.
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + 60.0
+        while loop.time() < deadline:
+            st = self.supervisor.state.status
+            restarted = (self.settings.device_kind != "sim"
+                         or self._runs_started > runs_before)
+            # A status of the run announced last is the new simulation's (the worker
+            # reports one at the new wearer's first sample, so this takes milliseconds,
+            # and a recording started next misses little of the script); the supervisor
+            # clears `status` when the device process restarts.
+            current = st is not None and (self.settings.device_kind != "sim"
+                                          or st.run_token == self._last_run_token)
+            if restarted and current and st is not None and st.device.alive \
+                    and self.supervisor.state.alive:
+                return
+            await asyncio.sleep(0.05)
+        raise RuntimeError("the simulated device did not start streaming again")
+
+    async def calibrate(self, seconds: float, max_std_deg: float) -> CalibrationResult:
+        """Ask the worker to calibrate and wait for the outcome."""
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[CalibrationResult] = loop.create_future()
+        rid = self.supervisor.request_calibration(seconds, max_std_deg)
+        self._calibration_waiters[rid] = fut
+        try:
+            # Answered after `seconds` of samples, or abandoned with a reason.
+            result: CalibrationResult = await self._until_answered(
+                fut, "calibrate", COMMAND_TIMEOUT_S + seconds)
+            return result
+        finally:
+            self._calibration_waiters.pop(rid, None)
+
+    def _on_calibration(self, result: CalibrationResult) -> None:
+        self.lab.on_calibration(result.ok, result.message)
+        if result.ok:
+            self.calibration = result
+
+        def resolve() -> None:
+            fut = self._calibration_waiters.get(result.request_id)
+            if fut is not None and not fut.done():
+                fut.set_result(result)
+
+        self.stream.call_soon(resolve)
+
+    async def start(self) -> None:
+        """Start recording, streaming and (if configured) the device simulator and worker."""
+        await asyncio.to_thread(self.prepare_defaults)
+        self.worker_config = replace(
+            self.worker_config,
+            controller=self.settings.controller,
+            controller_config=self.controller_spec(self.settings.controller).to_config(),
+        )
+        self.supervisor.config = self.worker_config
+        self.recorder.start()
+        await self.stream.start()
+        self.lab.start()
+        if self.settings.device_kind == "udp":
+            # First start: a new link key, private to this user (mode 0600).
+            load_or_create_key(self.settings.device_key_file)
+        if self.settings.device_kind == "udp" and self.settings.device_spawn_simulator:
+            try:
+                self.start_device_simulator()
+            except device_process.DeviceStartError as exc:
+                # The server still starts (health shows the device down and why); the
+                # worker retries the address until a device answers.
+                log.error("%s", exc)
+                self.supervisor.state.errors.append(str(exc))
+        if self.settings.start_worker:
+            self.supervisor.start()
+        self._status_task = asyncio.create_task(self._status_loop(), name="status-loop")
+
+    async def _status_loop(self) -> None:
+        # Consoles learn of a dead worker within 0.1 s through on_exit; this periodic
+        # message keeps their timing figures current.
+        while True:
+            await asyncio.sleep(1.0)
+            if self.stream.client_count:
+                self._on_event("tick", {})
+
+    async def stop(self) -> None:
+        """Stop the worker first (it releases the device), then flush and close."""
+        if self._status_task is not None:
+            self._status_task.cancel()
+        self.supervisor.stop("server shutdown")
+        self.recorder.worker_exited("server shutdown")
+        self.recorder.stop()
+        await self.stream.stop()
+        self.lab.stop()
+        if self.device_process is not None:
+            device_process.stop(self.device_process, self._device_pid_file())
+
+    def _device_pid_file(self) -> Path:
+        return self.settings.run_dir / f"device-sim-{self.settings.device_host_port[1]}.pid"
+
+    def start_device_simulator(self) -> None:
+        """Run the simulated exoskeleton as its own process on the device address, after
+        stopping one an earlier server left there; returns once it holds the port.
+        Raises `device_process.DeviceStartError` (with the reason) if it cannot."""
+        host, port = self.settings.device_host_port
+        pid_file = self._device_pid_file()
+        stale = device_process.reclaim(pid_file, port)
+        if stale is not None:
+            log.warning("stopped device simulator %d left by an earlier server", stale)
+        cmd = [
+            "--port", str(port), "--seed", str(self.settings.device_seed),
+            "--script", self.settings.device_script,
+            "--precompression", str(self.settings.precompression_pct),
+            "--bind", host,
+            # The only address the device takes commands from: this machine's worker.
+            "--host", "127.0.0.1" if host in ("127.0.0.1", "localhost") else host,
+            "--key-file", str(self.settings.device_key_file),
+        ]
+        self.device_process = device_process.spawn(
+            cmd, port, pid_file, self.settings.run_dir / f"device-sim-{port}.log")
+
+    # Supervisor callbacks (reader thread).
+    def _on_ticks(self, batch: TickBatch) -> None:
+        self.recorder.add(batch)
+        self.stream.push(batch.ticks)
+        self.lab.on_ticks(batch)
+        if self.supervisor.config.device_speed > 1.0:
+            self._wait_for_recorder()
+
+    def _wait_for_recorder(self) -> None:
+        """A sped-up simulation is paced by what the database stores: while the
+        recorder's backlog is high this (reader) thread waits, the pipe fills and the
+        worker holds its simulated device (see `backend.worker.process._hold`), so a
+        slow disk or a loaded machine slows the simulation instead of dropping ticks.
+        Bounded, so a database that refuses writes for long ends in the recorder's
+        counted drops, as for a real-time device."""
+        deadline = time.monotonic() + RECORDER_WAIT_S
+        while (self.recorder.backlog > RECORDER_HOLD and self.supervisor.state.alive
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
+
+    def _on_run_started(self, msg: RunStarted) -> None:
+        run_id = self.recorder.run_started(msg, msg.device_kind)
+        self.lab.on_run_started(msg.run_token, run_id)
+        self.stream.run_id = run_id
+        self._run_ids[msg.run_token] = run_id
+        self._runs_started += 1
+        self._last_run_token = msg.run_token
+        self._on_event("run", {"run_id": run_id, "controller": msg.controller})
+
+    def _on_exit(self, code: int | None, reason: str) -> None:
+        # Everything the worker sent is stored and its run closed first, so the trial
+        # it ran is closed with its real tick count.
+        try:
+            self.recorder.worker_exited(reason)
+        except Exception:
+            log.exception("closing the run of the exited worker failed")
+        try:
+            closed = activity.interrupt_running(self.recorder.engine,
+                                                f"the worker stopped: {reason}")
+        except Exception:
+            log.exception("closing what the exited worker ran failed")
+            return
+        if closed:
+            log.warning("worker stopped (%s): %s interrupted", reason, ", ".join(closed))
+
+    def _on_event(self, kind: str, data: dict[str, Any]) -> None:
+        self.stream.broadcast_json({"type": "status", "health": self.health().model_dump()})
+
+    def health(self) -> Health:
+        """The state of the live path, as `GET /api/health` reports it."""
+        st = self.supervisor.state
+        s = st.status
+        status_fresh = st.alive and st.status_at is not None and time.time() - st.status_at < 1.5
+        # The worker's own reports, shown as they arrived (one definition, no mapping).
+        loop = s.loop if s else LoopReport(controller=self.supervisor.config.controller)
+        worker = WorkerHealth(**loop.model_dump(), alive=st.alive,
+                              pid=st.pid if st.alive else None, restarts=st.restarts,
+                              exit_code=st.exit_code, exit_reason=st.exit_reason,
+                              errors=list(st.errors[-5:]))
+        report = s.device if s else DeviceReport(alive=False)
+        device = DeviceHealth(**report.model_dump(exclude={"alive"}),
+                              alive=bool(status_fresh and report.alive),
+                              kind=self.settings.device_kind)
+        db = DatabaseHealth(
+            ticks_written=self.recorder.written,
+            write_failures=self.recorder.failures,
+            last_error=self.recorder.last_error,
+            current_run_id=self.recorder.current_run_id,
+            backlog=self.recorder.backlog,
+            ticks_dropped=self.recorder.dropped,
+        )
+        ok = worker.alive and device.alive and not self.recorder.last_error
+        return Health(
+            status="ok" if ok else "degraded",
+            worker=worker,
+            device=device,
+            database=db,
+            clients=self.stream.client_count,
+        )

@@ -1,0 +1,57 @@
+"""The virtual cohorts' request and answer: what to simulate, and the cohort's record
+with its analysis once it is ready."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from controller.evaluation.cohort import COHORT_CONTROLLERS
+
+#: A console cohort runs on the server's job thread: bounded so one request cannot hold
+#: it for long (1,000 participants take a few minutes; the CLI has no such limit).
+MAX_API_PARTICIPANTS = 1000
+
+class CohortIn(BaseModel):
+    """What to simulate."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(default="", max_length=200)
+    participants: int = Field(default=100, ge=2, le=MAX_API_PARTICIPANTS)
+    seed: int = Field(default=1, ge=0, le=99_999)
+    controllers: list[str] = Field(default_factory=lambda: list(COHORT_CONTROLLERS),
+                                   min_length=1, max_length=3)
+    rate_hz: float | None = Field(default=None, ge=1.0, le=100.0, description=(
+        "every controller at this rate; null: the paper's rates"))
+
+    @field_validator("controllers")
+    @classmethod
+    def _known(cls, v: list[str]) -> list[str]:
+        unknown = [c for c in v if c not in COHORT_CONTROLLERS]
+        if unknown:
+            raise ValueError(f"unknown controller(s) {unknown}; choose from "
+                             f"{', '.join(COHORT_CONTROLLERS)}")
+        if len(set(v)) != len(v):
+            raise ValueError("each controller once")
+        return v
+
+
+class CohortOut(BaseModel):
+    """A cohort's record; `result` (the cohort.json document) once it is ready."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    name: str
+    config: dict[str, Any]
+    status: str
+    error: str
+    wall_s: float | None
+    created_at: datetime
+    finished_at: datetime | None
+    job_id: int | None = None
+    #: The job's progress, 0..1 (a cohort belongs to no study, so its job is followed
+    #: here rather than through `/api/jobs`, whose access is per study).
+    progress: float | None = None
+    result: dict[str, Any] | None = None

@@ -1,0 +1,195 @@
+"""Meaning and unit of every column ExoStudy exports. A test checks that every exported
+column is described here, so a new column cannot leave the dictionary silently."""
+
+from __future__ import annotations
+
+from controller.tick import TICK_FIELD_DOCS
+
+# (unit, meaning); "" unit for identifiers, text and categories.
+_COMMON: dict[str, tuple[str, str]] = {
+    "id": ("", "row identifier, unique within the file"),
+    "created_at": ("ISO 8601 UTC", "when the row was created"),
+    "created_by": ("", "experimenter account id that created it (users are not exported)"),
+    "notes": ("", "free text from the experimenter"),
+    "status": ("", "state of the row (see the file's description)"),
+    "name": ("", "name given by the experimenter"),
+}
+
+TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
+    "participants": ("One row per participant, under a pseudonymous code.", {
+        "study_id": ("", "study id"),
+        "code": ("", "pseudonymous participant code"),
+        "age": ("years", "age at enrolment"),
+        "sex": ("", "sex as recorded by the experimenter"),
+        "height_m": ("m", "body height"),
+        "mass_kg": ("kg", "body mass"),
+        "consent_date": ("ISO 8601 date", "date informed consent was given"),
+        "site": ("", "site that recruited the participant (empty: single-site study)"),
+        "consent_version": ("", "version of the study's consent document agreed to"),
+        "withdrawn_at": ("ISO 8601 UTC", "when the participant withdrew (kept, excluded "
+                         "from results); empty otherwise"),
+    }),
+    "study_sessions": ("One row per visit: data collection (demonstrations) or evaluation.", {
+        "participant_id": ("", "participant id"),
+        "kind": ("", "data_collection or evaluation"),
+        "precompression_pct": ("% of 22 mm", "spring precompression of the exoskeleton"),
+        "started_at": ("ISO 8601 UTC", "start of the session"),
+    }),
+    "condition_labels": ("The blinding key: which controller each label stood for.", {
+        "participant_id": ("", "participant id"),
+        "label": ("", "label the participant saw (A, B, C)"),
+        "controller": ("", "controller behind the label: umc, eumc or pec"),
+    }),
+    "recordings": ("Continuous 100 Hz recordings of demonstrations (no locks; status "
+                   "recording, stopped or interrupted); ticks in ticks/recording-<id>.csv.", {
+        "session_id": ("", "session id"),
+        "run_id": ("", "worker run that produced the ticks"),
+        "label": ("", "label given when recording"),
+        "started_at": ("ISO 8601 UTC", "start"),
+        "ended_at": ("ISO 8601 UTC", "end"),
+        "first_tick_id": ("", "first stored tick of the recording"),
+        "last_tick_id": ("", "last stored tick of the recording"),
+    }),
+    "lift_segments": ("Lifts in recordings: sample indices from the recording's first tick "
+                      "(row 0 of its ticks file).", {
+        "recording_id": ("", "recording id"),
+        "start": ("sample", "motion onset"),
+        "peak": ("sample", "peak hip flexion"),
+        "end": ("sample", "return to rest"),
+        "label": ("", "squat, stoop_left, stoop_right, other or unlabelled"),
+        "source": ("", "auto (segmentation) or edited (by the experimenter)"),
+        "updated_at": ("ISO 8601 UTC", "last change"),
+    }),
+    "trial_segments": ("Lifts in trials marked by the experimenter (the ground truth of "
+                       "trials without simulation labels): sample indices from the trial's "
+                       "first tick (row 0 of ticks/trial-<id>.csv).", {
+        "trial_id": ("", "trial id"),
+        "start": ("sample", "motion onset"),
+        "peak": ("sample", "peak hip flexion"),
+        "end": ("sample", "return to rest"),
+        "label": ("", "squat, stoop_left, stoop_right, other or unlabelled"),
+        "source": ("", "auto (segmentation) or edited (by the experimenter)"),
+        "updated_at": ("ISO 8601 UTC", "last change"),
+    }),
+    "model_sets": ("Fitted motion model sets; the models are in model_sets/<id>.json.", {
+        "study_id": ("", "study id"),
+        "params": ("JSON", "fit parameters: latent dimension, explained variance, counts"),
+        "segment_ids": ("JSON list", "segments the models were fitted from"),
+        "error": ("", "why fitting failed, if it did"),
+    }),
+    "utility_sets": ("Utility tables per precompression; the tables are in "
+                     "utility_sets/<id>.json.", {
+        "study_id": ("", "study id"),
+        "precompression_pct": ("% of 22 mm", "actuator setting the utilities are for"),
+        "human_source": ("", "human motion dataset used: simulated:<version> or imported:<file>"),
+        "error": ("", "why computing failed, if it did"),
+    }),
+    "trials": ("Evaluation trials (status planned, running, completed, aborted or "
+               "interrupted); ticks in ticks/trial-<id>.csv.", {
+        "session_id": ("", "session id"),
+        "controller": ("", "umc, eumc or pec"),
+        "task": ("", "task performed (script name in simulation)"),
+        "planned_order": ("", "position in the counterbalanced plan, from 0"),
+        "model_set_id": ("", "model set used (UMC, E-UMC)"),
+        "utility_set_id": ("", "utility set used (UMC, E-UMC)"),
+        "run_id": ("", "worker run that produced the ticks"),
+        "config_snapshot": ("JSON", "the exact controller configuration the trial ran with"),
+        "started_at": ("ISO 8601 UTC", "start"),
+        "ended_at": ("ISO 8601 UTC", "end"),
+        "end_reason": ("", "reason given when it ended, or why it was interrupted (its "
+                       "worker or the server stopped)"),
+        "tick_count": ("", "ticks stored for the trial when it ended"),
+        "quality_flags": ("JSON", "device clock faults in the ticks: time_gaps (count), "
+                          "missing_s, largest_gap_s, time_backwards (count), "
+                          "largest_backstep_s; {} when none"),
+    }),
+    "lock_events": ("Lock commands and mechanism changes per trial, derived from the ticks.", {
+        "trial_id": ("", "trial id"),
+        "t": ("s", "device time of the event"),
+        "side": ("", "left or right"),
+        "kind": ("", "command_on, command_off, engaged or released"),
+        "torque_peak": ("Nm", "peak exoskeleton torque of the engagement (engaged rows)"),
+    }),
+    "questionnaire_responses": ("Questionnaire answers with their scores.", {
+        "participant_id": ("", "participant id"),
+        "link_id": ("", "participant link the answers came through"),
+        "instrument_id": ("", "instrument id"),
+        "instrument_key": ("", "instrument key, e.g. sus, eus"),
+        "instrument_version": ("", "instrument version the score was computed with"),
+        "condition_label": ("", "blinded controller label the answers are about"),
+        "answers": ("JSON", "item id -> answer on the instrument's scale"),
+        "link_form": ("", "position of the form in its link's list (from 0); empty when "
+                      "not entered through a link"),
+        "score": ("instrument's range", "total score (SUS 0-100, EUS 0-10)"),
+        "subscale_scores": ("JSON", "subscale -> score"),
+        "submitted_at": ("ISO 8601 UTC", "when submitted"),
+    }),
+    "preferences": ("Stated preference after the controllers.", {
+        "participant_id": ("", "participant id"),
+        "link_id": ("", "participant link it came through"),
+        "choice": ("", "blinded label preferred, or no_preference"),
+        "submitted_at": ("ISO 8601 UTC", "when submitted"),
+    }),
+    "markers": ("Event markers: from the console, from other software's LSL marker "
+                "streams, and the system's trial start and stop.", {
+        "session_id": ("", "session id"),
+        "trial_id": ("", "trial whose run produced the marker's tick; empty between trials"),
+        "run_id": ("", "worker run of the marker's tick"),
+        "t": ("s", "device time of the tick the marker is placed at"),
+        "lsl_time": ("s", "the same instant on the Lab Streaming Layer clock"),
+        "label": ("", "marker label (console button, LSL sample text, trial_start/stop)"),
+        "note": ("", "free text typed with the marker"),
+        "source": ("", "console, lsl or system"),
+        "stream_id": ("", "the LSL marker stream subscription it came from"),
+    }),
+    "xdf_attachments": ("LabRecorder XDF files attached to a session (the files "
+                        "themselves are in the BIDS export's sourcedata).", {
+        "session_id": ("", "session id"),
+        "filename": ("", "file name as uploaded"),
+        "size_bytes": ("bytes", "file size"),
+        "sha256": ("", "SHA-256 of the file"),
+        "streams": ("JSON", "each stream: name, type, channels, samples, LSL time span, "
+                    "trials covered, clock offset of ExoStudy's own stream (ms)"),
+    }),
+}
+
+TICK_FILE = ("One row per 10 ms control tick. Empty cells: not computed at that tick "
+             "(for example DTW outputs when a 10 Hz controller did not run).")
+
+
+def describe(table: str, column: str) -> tuple[str, str]:
+    """(unit, meaning) of an exported column; KeyError if undocumented."""
+    if table == "ticks":
+        return TICK_FIELD_DOCS[column]
+    cols = TABLES[table][1]
+    if column in cols:
+        return cols[column]
+    return _COMMON[column]
+
+
+def markdown() -> str:
+    """The dictionary as a README for the export."""
+    lines = ["# ExoStudy export: data dictionary", "",
+             "Every CSV file has a header row. Angles are in radians, torques in Nm, times "
+             "in seconds unless stated. Units below.", ""]
+    for table, (about, _cols) in TABLES.items():
+        lines += [f"## {table}.csv", "", about, "", "| column | unit | meaning |",
+                  "|---|---|---|"]
+        for col in _columns_of(table):
+            unit, meaning = describe(table, col)
+            lines.append(f"| {col} | {unit} | {meaning} |")
+        lines.append("")
+    lines += ["## ticks/trial-<id>.csv, ticks/recording-<id>.csv", "", TICK_FILE, "",
+              "| column | unit | meaning |", "|---|---|---|"]
+    from controller.tick import TickRecord
+
+    for col in TickRecord.field_names():
+        unit, meaning = TICK_FIELD_DOCS[col]
+        lines.append(f"| {col} | {unit} | {meaning} |")
+    return "\n".join(lines) + "\n"
+
+
+def _columns_of(table: str) -> list[str]:
+    from backend.analysis.export import EXPORTED_COLUMNS
+
+    return EXPORTED_COLUMNS[table]

@@ -1,0 +1,20 @@
+"""The compiled control tick shared by every controller, live and in replay.
+
+- `records`: the typed state records (`SETTINGS`, `REFERENCE`, `PHASE`), the named
+  output row (`ROW`, fields `ROW_FIELDS`) and `TickState`, which groups them.
+- `check`: the plausibility check of a decoded sample.
+- `tick`: the tick itself, `begin` and `finish` around a controller's decision step,
+  and `replay_sample`, the mechanism's sample in a batch replay.
+- `core`: `Kernel`, one controller's state and compiled tick, and `Compiled`, the two
+  entry points a controller module compiles with its decision step.
+- `controller`: `KernelController`, the `Controller` a decision module subclasses.
+
+How a tick flows and how to add a controller: `docs/controller-kernel.md` and
+`docs/adding-a-controller.md`.
+"""
+
+from controller.kernel.controller import KernelController
+from controller.kernel.core import Compiled, Kernel
+from controller.kernel.records import ROW, ROW_FIELDS, TickState
+
+__all__ = ["ROW", "ROW_FIELDS", "Compiled", "Kernel", "KernelController", "TickState"]

@@ -1,0 +1,68 @@
+// Lookups over the server's vocabulary (/static/vocabulary.js, generated from the Python
+// definitions): the lists and labels every page shows. No page spells a column, model,
+// action or controller name of its own; what is missing here belongs in the vocabulary.
+import VOCABULARY from "/static/vocabulary.js";
+
+export { VOCABULARY };
+const names = (list) => list.map((x) => x.name);
+const byName = (list) => new Map(list.map((x) => [x.name, x]));
+
+export const MODEL_NAMES = names(VOCABULARY.models);
+export const CATEGORY_NAMES = names(VOCABULARY.categories);
+export const SEGMENT_LABELS = names(VOCABULARY.segment_labels);
+export const CONTROLLER_NAMES = names(VOCABULARY.controllers);
+// The controllers a study compares (every one but "none", which never locks).
+export const STUDY_CONTROLLERS = VOCABULARY.controllers.filter((c) => c.name !== "none").map((c) => c.name);
+export const SCRIPTS = VOCABULARY.scripts;
+
+const controllers = byName(VOCABULARY.controllers);
+const models = byName([...VOCABULARY.categories, ...VOCABULARY.segment_labels]);
+const actionsByValue = new Map(VOCABULARY.actions.map((a) => [a.value, a]));
+const actionsByName = byName(VOCABULARY.actions);
+
+// "eumc" -> "E-UMC"; a name the vocabulary does not know is shown as given.
+export function controllerLabel(name) {
+  return controllers.get(name)?.label ?? name;
+}
+
+// Controller cells read "UMC", "E-UMC", "umc", "eumc": one key for all of them.
+export function controllerKey(cell) {
+  return String(cell ?? "").toLowerCase().replace(/[^a-z]/g, "");
+}
+
+// "stoop_left" -> "stoop left" (models, categories and segment labels).
+export function modelLabel(name) {
+  return models.get(name)?.label ?? String(name).replaceAll("_", " ");
+}
+
+// Action by its tick value (1..4) or its name ("lock_both").
+export function action(valueOrName) {
+  return actionsByValue.get(valueOrName) ?? actionsByName.get(valueOrName) ?? null;
+}
+
+export function actionLabel(value) {
+  return action(value)?.label ?? String(value);
+}
+
+// The action a lift of this model should get first ("squat" -> "lock_both").
+export function correctAction(model) {
+  return VOCABULARY.models.find((m) => m.name === model)?.correct_action ?? null;
+}
+
+// The labels of the bits set in a `plausibility` value, lowest bit first.
+export function plausibilityReasons(bits) {
+  return VOCABULARY.plausibility.filter((p) => bits & p.bit).map((p) => p.label);
+}
+
+// A tick column's name, checked against the Python record: a misspelt or removed
+// column fails when the page loads, not silently as an empty plot.
+const TICK_FIELDS = new Set(VOCABULARY.tick_fields);
+export function tickColumn(name) {
+  if (!TICK_FIELDS.has(name)) throw new Error(`no tick column ${name}`);
+  return name;
+}
+
+// `prefix` + each model name: the per-model tick columns ("post_" -> post_squat, ...).
+export function modelColumns(prefix, list = MODEL_NAMES) {
+  return list.map((m) => `${prefix}${m}`);
+}

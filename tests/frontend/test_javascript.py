@@ -1,0 +1,70 @@
+"""The console's JavaScript: its unit tests (`node --test`) and its linter (ESLint).
+
+Both run from here so that `make test` (pytest) runs them. The vocabulary module the
+scripts import is written from the server's own definitions first, as the server would
+serve it; numpy's standard deviation gives the stillness test an independent oracle.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from backend.schemas.vocabulary import javascript_module
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+ESLINT = ROOT / "frontend" / "node_modules" / ".bin" / "eslint"
+
+
+def _node() -> str:
+    node = shutil.which("node")
+    if node is None:
+        pytest.fail("node is not installed: `make install` installs it (Debian's npm)")
+    return node
+
+
+def _std_cases(path: Path) -> None:
+    """Random hip-angle windows (rad) and numpy's population standard deviation."""
+    rng = np.random.default_rng(16)
+    cases = []
+    for n in (2, 3, 20, 100, 101, 250, 1000):
+        for scale in (1e-4, 0.01, 0.3):
+            values = rng.normal(0.2, scale, n)
+            cases.append({"values": values.tolist(), "std": float(values.std())})
+    path.write_text(json.dumps(cases))
+
+
+def test_node_unit_tests_pass(tmp_path: Path) -> None:
+    vocabulary = tmp_path / "vocabulary.js"
+    vocabulary.write_text(javascript_module())
+    cases = tmp_path / "std_cases.json"
+    _std_cases(cases)
+    files = sorted(str(p) for p in HERE.glob("*.test.mjs"))
+    assert len(files) >= 4, files
+    env = {**os.environ, "EXOSTUDY_VOCABULARY": str(vocabulary),
+           "EXOSTUDY_STD_CASES": str(cases), "NODE_NO_WARNINGS": "1"}
+    run = subprocess.run(
+        [_node(), "--import", str(HERE / "register.mjs"), "--test", "--test-reporter=tap", *files],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    failed = [block for block in run.stdout.split("# Subtest:") if "not ok" in block]
+    assert run.returncode == 0, "".join(failed)[-6000:] + run.stderr[-3000:]
+    # Every test file ran and none was skipped or left to do.
+    assert "# fail 0" in run.stdout and "# skipped 0" in run.stdout and "# todo 0" in run.stdout
+    assert f"# pass {run.stdout.count(chr(10) + 'ok ')}" in run.stdout
+
+
+def test_eslint_finds_nothing() -> None:
+    if not ESLINT.is_file():
+        pytest.fail(f"{ESLINT} missing: `make install` runs npm ci in frontend/")
+    run = subprocess.run(
+        [_node(), str(ESLINT), "--max-warnings", "0", "-c", "frontend/eslint.config.mjs",
+         "frontend", "tests/frontend"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-6000:] + run.stderr[-3000:]
