@@ -18,10 +18,10 @@ from typing import Any
 from controller import registry
 from controller.base import Controller
 from controller.motion_model import ModelSet
-from controller.spec import NEEDS_MODELS, ControllerSpec
+from controller.spec import ControllerSpec
 from controller.utilities import UtilitySet
 
-__all__ = ["NEEDS_MODELS", "ControllerSpec", "controller_names", "load_models",
+__all__ = ["ControllerSpec", "controller_names", "load_models",
            "load_utilities", "make_controller", "make_from_spec", "needs_models"]
 
 

@@ -20,11 +20,6 @@ from typing import Any
 from controller import registry
 from controller.config import ControllerConfig, SettingError
 
-#: The controllers that ship with ExoStudy, and which of them need a model and utility
-#: set. Controllers a researcher adds register in `controller.registry`, which is what
-#: validation consults.
-CONTROLLER_NAMES: tuple[str, ...] = ("eumc", "none", "pec", "umc")
-NEEDS_MODELS: frozenset[str] = frozenset({"umc", "eumc"})
 _KEYS = frozenset({"settings", "models", "models_path", "utilities", "utilities_path"})
 
 

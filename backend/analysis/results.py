@@ -81,7 +81,7 @@ from controller.evaluation import (
     whole_recording_trial,
 )
 from controller.evaluation.rendering import RenderedFigure
-from controller.factory import NEEDS_MODELS, make_from_spec
+from controller.factory import make_from_spec, needs_models
 from controller.motion_model import ModelSet, fit_model_set
 from controller.replay import AngleRecording, replay_columns
 from controller.spec import ControllerSpec
@@ -544,7 +544,7 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
             config = config.at_rate(rate_hz)
         except SettingError as exc:
             raise ResultsError("rate_hz", exc.problem) from exc
-    sets = controller in NEEDS_MODELS
+    sets = needs_models(controller)
     if controller == "eumc" and config.calibration is None:
         raise ResultsError("settings", "the E-UMC needs a calibration: the trial has none; "
                            "give settings.calibration [offset_left, offset_right] (rad)")

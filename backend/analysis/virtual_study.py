@@ -55,14 +55,15 @@ import numpy as np
 from backend.analysis import tick_queries
 from backend.analysis.results import FIGURE_NAMES
 from backend.live.local_server import ApiClient, Response, serving
-from controller.device.base import SAMPLE_PERIOD_S
+from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
-#: Requested simulator speed-up during the evaluation trials: the simulator's maximum.
+#: Requested simulator speed-up during the evaluation trials: the simulator's maximum
+#: (`controller.device.simulated.MAX_SPEED`).
 #: The worker never runs ahead of what the server stores (it holds a sped-up simulation
 #: while ticks queue, `backend.worker.process._hold`), so asking for more than a loaded
 #: machine delivers costs nothing and loses nothing; on a quiet 2-core machine 80x gave a
 #: median of 6,200 ticks/s. See README "Results and the virtual study".
-DEFAULT_SPEED = 100.0
+DEFAULT_SPEED = MAX_SPEED
 #: Speed-up while demonstrations are recorded: a recording starts a moment after the new
 #: wearer does, and at 80x that moment costs a lift or two per recording (103 instead
 #: of 126 segments in the default study); at 30x it costs none of the lifts measured.
@@ -103,10 +104,11 @@ class VirtualStudyConfig:
             raise ValueError("data_participants: need at least 2 to fit and cross-validate")
         if not 0 <= self.eumc <= self.participants:
             raise ValueError(f"eumc: must be within 0..{self.participants}")
-        if not 1.0 <= self.speed <= 100.0:
-            raise ValueError("speed: must be within 1..100 times real time")
-        if not 1.0 <= self.collection_speed <= 100.0:
-            raise ValueError("collection_speed: must be within 1..100 times real time")
+        if not 1.0 <= self.speed <= MAX_SPEED:
+            raise ValueError(f"speed: must be within 1..{MAX_SPEED:g} times real time")
+        if not 1.0 <= self.collection_speed <= MAX_SPEED:
+            raise ValueError(
+                f"collection_speed: must be within 1..{MAX_SPEED:g} times real time")
         unknown = [r for r in self.rates if r not in RATE_SETTINGS]
         if unknown or not self.rates:
             raise ValueError(f"rates: choose from {', '.join(RATE_SETTINGS)}")

@@ -13,6 +13,8 @@ from typing import Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from controller.device.base import MAX_SPEED
+
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -40,7 +42,7 @@ class Settings(BaseSettings):
     device_key_file: Path = PROJECT_ROOT / "var" / "device.key"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
     #: With `sim`: run the simulated wearer this many times faster than real time.
-    device_speed: float = Field(default=1.0, ge=0.1, le=100.0)
+    device_speed: float = Field(default=1.0, ge=0.1, le=MAX_SPEED)
 
     #: Controller the worker starts with: none, umc, eumc or pec.
     controller: str = "none"

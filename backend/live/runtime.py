@@ -40,7 +40,7 @@ from backend.worker.messages import (
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
 from controller.device.auth import load_or_create_key
-from controller.factory import NEEDS_MODELS
+from controller.factory import needs_models
 from controller.spec import ControllerSpec
 
 log = logging.getLogger(__name__)
@@ -138,8 +138,8 @@ class Runtime:
         settings.update(overrides or {})
         return ControllerSpec(
             name, ControllerConfig.from_json(settings),
-            models_path=str(self.settings.models_path) if name in NEEDS_MODELS else None,
-            utilities_path=str(self.utilities_path()) if name in NEEDS_MODELS else None)
+            models_path=str(self.settings.models_path) if needs_models(name) else None,
+            utilities_path=str(self.utilities_path()) if needs_models(name) else None)
 
     def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
         """Switch the worker's controller (a new run starts)."""

@@ -12,6 +12,8 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, Field
 
+from controller.device.base import MAX_SPEED
+
 #: Tick fields sent to consoles, in column order.
 STREAM_FIELDS: tuple[str, ...] = (
     "seq",
@@ -176,6 +178,6 @@ class SimulationChoice(BaseModel):
     seed: int = Field(ge=0, le=2**31 - 1, description="virtual participant")
     script: str = Field(description="squat-sequence, stoop-sequence, walking, stairs, "
                         "paper-evaluation")
-    speed: float | None = Field(default=None, ge=0.1, le=100.0, description=(
+    speed: float | None = Field(default=None, ge=0.1, le=MAX_SPEED, description=(
         "samples this many times faster than real time (in-process simulator only); "
         "default: as before"))

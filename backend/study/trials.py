@@ -23,7 +23,8 @@ from backend.study import activity, audit
 from backend.study.counterbalance import blinded_labels, controller_order
 from controller.config import SettingError
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.spec import NEEDS_MODELS, ControllerSpec
+from controller.factory import needs_models
+from controller.spec import ControllerSpec
 
 
 def _get(db: Session, model: Any, key: int, entity: str) -> Any:
@@ -65,7 +66,7 @@ def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Tr
                                   controller=controller))
     trials: list[Trial] = []
     for controller in order:
-        sets = controller in NEEDS_MODELS
+        sets = needs_models(controller)
         for task in body.tasks:
             trials.append(Trial(session_id=session_id, controller=controller, task=task,
                                 planned_order=len(trials), status="planned",
@@ -98,7 +99,7 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
                                 "device": {"kind": runtime.settings.device_kind,
                                            "seed": runtime.settings.device_seed,
                                            "script": runtime.settings.device_script}}
-    if trial.controller in NEEDS_MODELS:
+    if needs_models(trial.controller):
         ms = db.get(ModelSetRecord, trial.model_set_id) if trial.model_set_id else None
         us = db.get(UtilitySetRecord, trial.utility_set_id) if trial.utility_set_id else None
         if ms is None or ms.document is None:

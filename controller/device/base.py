@@ -20,6 +20,13 @@ SAMPLE_PERIOD_S = 0.01
 #: The same rate in samples per second (100 Hz), derived so that the two cannot disagree.
 SAMPLE_RATE_HZ = 1.0 / SAMPLE_PERIOD_S
 
+#: The fastest a simulated device may be asked to run: 400 times real time, 40,000
+#: samples/s requested. That is above what one core makes of the simulator and the
+#: control loop (about 10,000-20,000 ticks/s here), so at this setting a sped-up
+#: simulation runs as fast as the worker and the server's recorder allow (the worker
+#: holds it while ticks queue); the bound only keeps a typo from asking for 10^6.
+MAX_SPEED = 400.0
+
 
 class Status(enum.IntFlag):
     """Status bits a device reports with each sample (same bit values on the wire)."""

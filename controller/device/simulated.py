@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from controller.device.base import Device, DeviceError, LockCommand, Sample
+from controller.device.base import MAX_SPEED, Device, DeviceError, LockCommand, Sample
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.sim.exoskeleton import SimulatedExoskeleton
 
@@ -30,8 +30,9 @@ class SimulatedDevice(Device):
         layout: EncoderLayout = DEFAULT_LAYOUT,
         speed: float = 1.0,
     ) -> None:
-        if not 0.1 <= speed <= 100.0:
-            raise ValueError(f"speed must be within 0.1..100 times real time, got {speed}")
+        if not 0.1 <= speed <= MAX_SPEED:
+            raise ValueError(
+                f"speed must be within 0.1..{MAX_SPEED:g} times real time, got {speed}")
         #: Samples come `speed` times faster than real time (device time still steps
         #: 10 ms): rehearsals and tests of long protocols in less wall time.
         self.speed = speed
