@@ -14,15 +14,15 @@ import pytest
 
 from controller.base import Controller
 from controller.config import ControllerConfig
-from controller.device.base import LockCommand, Sample, Status
+from controller.device.base import Sample, Status
 from controller.eumc import EUMC
 from controller.factory import make_controller
 from controller.motion_model import ModelSet
 from controller.pec import PEC
-from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.tick import Action, TickFlag, TickRecord
 from controller.umc import UMC
 from controller.utilities import UtilitySet
+from tests.controller.evaluation.tick_builder import closed_loop
 
 
 @pytest.fixture(scope="module")
@@ -33,16 +33,7 @@ def sets(default_sets: tuple[Path, Path]) -> tuple[ModelSet, UtilitySet]:
 
 
 def run(ctl: Controller, script: str, seed: int = 11) -> list[TickRecord]:
-    ctl.warm_up()
-    exo = SimulatedExoskeleton(seed=seed, script=script)
-    cmd: LockCommand | None = None
-    out = []
-    while not exo.finished:
-        s = exo.tick(cmd)
-        r = ctl.step(s)
-        out.append(r)
-        cmd = LockCommand(s.seq, r.lock_left, r.lock_right)
-    return out
+    return closed_loop(ctl, script, seed)
 
 
 def calibrated(sets: tuple[ModelSet, UtilitySet], script: str, seed: int) -> EUMC:

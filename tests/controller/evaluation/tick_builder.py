@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from controller.base import Controller
 from controller.device.base import LockCommand
 from controller.evaluation import (
     GaitTrial,
@@ -116,7 +117,13 @@ def gait_recording(participant: str, controller: str, locks: int, kind: str) -> 
 
 def simulate_pec(script: str, seed: int) -> list[TickRecord]:
     """The PEC on a simulated wearer following `script`, tick by tick."""
-    ctl = PEC()
+    return closed_loop(PEC(), script, seed)
+
+
+def closed_loop(ctl: Controller, script: str, seed: int) -> list[TickRecord]:
+    """`ctl` on a simulated wearer following `script`, each tick's lock command fed
+    back to the exoskeleton before the next sample."""
+    ctl.warm_up()
     exo = SimulatedExoskeleton(seed=seed, script=script)
     cmd: LockCommand | None = None
     out = []
