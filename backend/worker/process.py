@@ -48,6 +48,7 @@ from controller.device.base import SAMPLE_PERIOD_S, Device
 from controller.factory import load_models, make_controller, make_from_spec
 from controller.loop import ControlLoop
 from controller.spec import ControllerSpec
+from controller.stop_flag import SignalSafeFlag
 from controller.tick import TickRecord
 
 #: Records kept for the server if it stops reading: one minute at 100 Hz.
@@ -167,7 +168,7 @@ def worker_main(
     config: WorkerConfig, out_conn: Connection, cmd_conn: Connection, parent_pid: int
 ) -> None:
     """Entry point of the worker process."""
-    stopping = threading.Event()
+    stopping = SignalSafeFlag()  # set by the signal handler below: no lock
 
     def _on_signal(signum: int, _frame: FrameType | None) -> None:
         stopping.set()

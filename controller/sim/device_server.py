@@ -42,6 +42,7 @@ from controller.device.protocol import (
     encode_sample,
     seq_diff,
 )
+from controller.stop_flag import SignalSafeFlag
 
 WATCHDOG_S = 0.100  # no valid command for this long: solenoids off, WATCHDOG_RELEASED
 LATE_S = 0.002  # a sample sent more than this after its due time counts as late
@@ -380,7 +381,7 @@ def serve(
             seed=seed, script=script, precompression_pct=precompression_pct, loop=loop
         )
     _warm_up(model)
-    signalled = threading.Event()
+    signalled = SignalSafeFlag()
     stop: StopFlag = signalled if stop_event is None else _Either(signalled, stop_event)
     previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():
