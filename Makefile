@@ -11,18 +11,42 @@ NODE_STAMP := frontend/node_modules/.package-lock.json
 # The official BIDS validator (npm), used by the tests of the BIDS-motion export.
 BIDS_STAMP := tools/bids/node_modules/.package-lock.json
 
-.PHONY: run test test-js install lint bench clean-db system-npm system-chromium system-postgresql
+.PHONY: run test test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware
 
 run: install
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-test: install $(BIDS_STAMP) system-chromium system-postgresql
+test: install $(BIDS_STAMP) system-chromium system-postgresql firmware-check
 	$(BIN)/ruff check controller backend tests bench migrations
 	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
-install: $(VENV)/.installed $(NODE_STAMP)
+# The C device firmware core on Linux against the simulated wearer (gcc, warnings as
+# errors); its own Makefile decides what is out of date. docs/device-firmware.md.
+C_DEVICE := firmware/build/exostudy-device
+
+install: $(VENV)/.installed $(NODE_STAMP) $(C_DEVICE)
+
+$(C_DEVICE): FORCE | system-gcc
+	$(MAKE) -s -C firmware/ports/linux-sim
+
+FORCE:
+
+system-gcc:
+	@command -v gcc >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y gcc; }
+
+# Firmware for real boards (docs/hardware-bringup-lab.md): the core and the
+# Nucleo-F767ZI port cross-compiled for the Cortex-M7 (ELF linked, size printed), the
+# Linux single-board-computer port with the host gcc, and both ports' own tests under
+# the sanitizers (each prints "N passed, 0 failed").
+firmware-check: system-firmware system-gcc
+	$(MAKE) -C firmware/ports/nucleo-f767zi check
+	$(MAKE) -C firmware/ports/linux-sbc check
+
+system-firmware:
+	@command -v arm-none-eabi-gcc >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y gcc-arm-none-eabi libnewlib-arm-none-eabi; }
+	@test -f /usr/include/gpiod.h || { $(SUDO) apt-get update && $(SUDO) apt-get install -y libgpiod-dev; }
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian, apt-get install python3-venv"; exit 1; }

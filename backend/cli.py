@@ -13,6 +13,7 @@
     exostudy cohort --participants N --seed S --out DIR   power and sample size, simulated
     exostudy results --study ID --out DIR [--db URL]   a study's tables and figures
     exostudy export --study ID --bids DIR [--db URL]   a study as a BIDS-motion dataset
+    exostudy replicate --out DIR [--seeds N] [--from-db PATHS...]   the paper, claim by claim
 """
 
 from __future__ import annotations
@@ -235,7 +236,7 @@ def _export(args: argparse.Namespace) -> int:
     n = 0
     try:
         with make_session_factory(engine)() as db:
-            for rel, data in dataset_files(engine, db, args.study):
+            for rel, data in dataset_files(engine, db, args.study, unblind=not args.blind):
                 path = out / rel
                 path.parent.mkdir(parents=True, exist_ok=True)
                 path.write_bytes(data)
@@ -246,10 +247,27 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replicate(args: argparse.Namespace) -> int:
+    from backend.analysis.replication import ReplicationConfig, run
+
+    cfg = ReplicationConfig(
+        out=Path(args.out), seeds=args.seeds, first_seed=args.first_seed, engine=args.engine,
+        from_db=tuple(Path(p) for p in args.from_db or ()), participants=args.participants,
+        eumc=args.eumc, data_participants=args.data_participants,
+        offset_participants=args.offset_participants,
+        stair_participants=args.stair_participants)
+    rep = run(cfg, log=lambda m: print(m, flush=True))
+    print(f"replication done in {rep.wall_s:.0f} s: {args.out}/report.html")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    from backend.core.resources import version
+
+    p.add_argument("--version", action="version", version=f"exostudy {version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("serve", help="start the server")
@@ -264,7 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_db)
 
     sub.add_parser("device-sim", help="run the simulated exoskeleton on the wire (UDP); "
-                   "see `exostudy device-sim --help`")
+                   "see `exostudy device-sim --help`; `--implementation c` runs the C "
+                   "firmware core instead (firmware/build/exostudy-device)")
 
     sim = sub.add_parser("simulate", help="write a simulated recording as CSV")
     sim.add_argument("--seed", type=int, required=True)
@@ -339,13 +358,72 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export", help="write a study as a BIDS-motion dataset")
     e.add_argument("--study", type=int, required=True, help="the study's id")
     e.add_argument("--bids", required=True, help="a new or empty folder to write into")
+    e.add_argument("--blind", action="store_true",
+                   help="leave the blinding key out, as in an experimenter's download: "
+                   "files named by blinded label, no controller column")
     e.add_argument("--db", default=None, help="SQLite file or database URL (default: "
                    "EXOSTUDY_DATABASE_URL, i.e. the server's database)")
     e.set_defaults(func=_export)
 
+    rp = sub.add_parser("replicate", help="the paper's claims one by one over several "
+                        "virtual studies: an HTML report with figures (docs/replication.md)")
+    rp.add_argument("--out", required=True, help="folder for the report and the seeds")
+    rp.add_argument("--seeds", type=int, default=5, help="virtual studies (default 5)")
+    rp.add_argument("--first-seed", type=int, default=1)
+    rp.add_argument("--engine", choices=["study", "cohort"], default="study",
+                    help="study: the live virtual study per seed (reused when finished); "
+                    "cohort: the same protocol replayed in this process")
+    rp.add_argument("--from-db", nargs="+", default=None,
+                    help="read these study.db files instead of running seeds")
+    rp.add_argument("--participants", type=int, default=8)
+    rp.add_argument("--eumc", type=int, default=3)
+    rp.add_argument("--data-participants", type=int, default=6)
+    rp.add_argument("--offset-participants", type=int, default=60,
+                    help="virtual cohort for the donning-offset regression")
+    rp.add_argument("--stair-participants", type=int, default=20)
+    rp.set_defaults(func=_replicate)
+
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")
     return p
+
+
+def _device_implementation(argv: list[str]) -> tuple[str, list[str]]:
+    """`--implementation python|c` taken out of a device-sim command line (default:
+    `python`); the rest goes to the device unchanged."""
+    out: list[str] = []
+    implementation = "python"
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--implementation" and i + 1 < len(argv):
+            implementation = argv[i + 1]
+            i += 2
+            continue
+        if arg.startswith("--implementation="):
+            implementation = arg.split("=", 1)[1]
+        else:
+            out.append(arg)
+        i += 1
+    return implementation, out
+
+
+def _exec_c_device(implementation: str, args: list[str]) -> int:
+    """`exostudy device-sim --implementation c ARGS`: become the C device (same pid, so
+    the server's bookkeeping and signals reach it), its wearer on this interpreter."""
+    import os
+
+    from backend.live.device_process import DeviceStartError, device_command
+
+    try:
+        command = device_command(args, implementation)
+    except DeviceStartError as exc:
+        print(f"exostudy device-sim: error: {exc}", file=sys.stderr)
+        return 2
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execv(command[0], command)
+    return 0  # not reached
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -360,6 +438,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             from backend.live.device_process import die_with_parent
 
             die_with_parent()  # a server-spawned simulator never outlives its server
+            implementation, argv = _device_implementation(argv)
+            if implementation != "python":
+                return _exec_c_device(implementation, argv[1:])
         module = importlib.import_module(passthrough[argv[0]])
         code: int = module.main(argv[1:])
         return code

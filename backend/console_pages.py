@@ -42,6 +42,7 @@ NAVIGATION: tuple[tuple[str, str], ...] = (
     ("/console/cohorts", "Cohorts"),
     ("/viewer/", "3D view"),
     ("/admin", "Accounts"),
+    ("/guide/index.html", "Guide"),
 )
 ICON = "/static/favicon.svg"
 

@@ -12,9 +12,9 @@ from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
-from backend import console_pages
+from backend import console_pages, guide
 from backend.analysis.jobs import JobRunner
-from backend.api import docs_assets, web_surface
+from backend.api import docs_assets, json_text, web_surface
 from backend.api.deps import authorize, document_access
 from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors
@@ -22,6 +22,7 @@ from backend.api.routes import (
     audit,
     auth,
     cohorts,
+    hardware,
     health,
     lab,
     live,
@@ -40,6 +41,7 @@ from backend.api.routes import (
     worker,
 )
 from backend.core.config import Settings, get_settings
+from backend.core.resources import version
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
 from backend.live import viewer
@@ -103,7 +105,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     app = FastAPI(
         title="ExoStudy",
-        version="0.1.0",
+        version=version(),
         summary="Intent estimation and decision-theoretic control for a quasi-passive hip "
         "exoskeleton, and the studies around it.",
         lifespan=lifespan,
@@ -113,6 +115,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
         redoc_url=None,
     )
+    # Inside the body limit (middleware added later wraps the earlier ones).
+    app.add_middleware(json_text.StorableJsonText)
     app.add_middleware(web_surface.BodyLimit, limit=settings.max_body_bytes,
                        limits={"/utility-sets/import": settings.max_upload_bytes})
     app.add_middleware(web_surface.SecurityHeaders)
@@ -120,6 +124,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_handlers(app)
     app.include_router(health.router)
     app.include_router(worker.router)
+    app.include_router(hardware.router)
     app.include_router(live.router)
     app.include_router(auth.router)
     app.include_router(auth.users)
@@ -140,6 +145,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(cohorts.router)
     app.include_router(vocabulary.router)
     app.include_router(console_pages.router)
+    app.include_router(guide.router)
     app.include_router(viewer.router)
     document_framework_errors(app)
     document_access(app)

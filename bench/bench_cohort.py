@@ -21,6 +21,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench.record import load_average, record  # noqa: E402
 from controller.evaluation.cohort import (  # noqa: E402
     CohortConfig,
     default_model_set,
@@ -45,6 +46,8 @@ def main() -> int:
     # Warm-up: numba loads its compiled kernels in the first replay.
     simulate_cohort(CohortConfig(participants=2, seed=99), models, utilities)
     print(f"load average before: {os.getloadavg()[0]:.1f}; {os.cpu_count()} cores")
+    load_before = load_average()
+    rows: list[list[object]] = []
     print("| participants | processes | simulation (s) | per participant (ms) | "
           "statistics (s) | total (s) |")
     print("| --- | --- | --- | --- | --- | --- |")
@@ -60,6 +63,13 @@ def main() -> int:
                 stats_s = time.perf_counter() - b
             print(f"| {n} | {procs} | {b - a:.1f} | {1000 * (b - a) / n:.0f} | "
                   f"{stats_s:.1f} | {b - a + stats_s:.1f} |", flush=True)
+            rows.append([n, procs, f"{b - a:.1f}", f"{1000 * (b - a) / n:.0f}",
+                         f"{stats_s:.1f}", f"{b - a + stats_s:.1f}"])
+    record("cohort", "bench/bench_cohort.py " + " ".join(sys.argv[1:]),
+           ["participants", "processes", "simulation (s)", "per participant (ms)",
+            "statistics (s)", "total (s)"], rows, load_before,
+           note=f"Model set fitted in {t1 - t0:.1f} s and utilities in {t2 - t1:.1f} s, "
+           "once, beforehand.")
     return 0
 
 

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.record import load_average, record
 from controller.decision import decide_fast, warm_up
 from controller.kalman import HipVelocityFilter
 
@@ -66,6 +67,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     args = parser.parse_args()
+    load_before = load_average()
 
     kalman, store = HipVelocityFilter(), _Store()
     k_us = _per_call_us(lambda k: kalman.step(k * 1e-4, k * 1e-4), args.repeats)
@@ -85,6 +87,16 @@ def main() -> int:
           f"{s_us:.2f} us; ratio {k_us / s_us:.1f}x")
     print(f"decide_fast (4x4x101):   {d_us:.2f} us per call; baseline compiled call "
           f"{t_us:.2f} us; ratio {d_us / t_us:.1f}x")
+    record("step_costs", f"bench/bench_step_costs.py --repeats {args.repeats}",
+           ["call", "per call (us)", "baseline", "baseline per call (us)", "ratio"],
+           [["Kalman velocity filter step (both hips)", f"{k_us:.2f}",
+             "a method call that only stores its two arguments", f"{s_us:.2f}",
+             f"{k_us / s_us:.1f}x"],
+            ["compiled expected-utility decision (4 x 4 x 101)", f"{d_us:.2f}",
+             "a compiled call with the same arguments", f"{t_us:.2f}",
+             f"{d_us / t_us:.1f}x"]],
+           load_before, note="Median of the repeats; both calls against a tick budget "
+           "of 10 ms.")
     return 0
 
 

@@ -31,6 +31,7 @@ DATABASE_FACING = {
     "test_migrations", "test_study_records_migration", "test_recorder", "test_studies",
     "test_participants", "test_sessions", "test_questionnaires", "test_preferences",
     "test_audit", "test_auth", "test_access", "test_data_protection", "test_export",
+    "test_instrument_ownership_migration",
 }
 
 

@@ -4,7 +4,6 @@ nothing that identifies a person or an account secret."""
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import secrets
@@ -15,11 +14,14 @@ from typing import Any
 from sqlalchemy import Engine, Table, select
 
 from backend.analysis import tick_queries
+from backend.core.resources import version
 from backend.db.tables import Base
 from backend.study import data_dictionary
+from controller import spreadsheet
 
-#: Columns left out of the CSVs: large documents (written as JSON files instead).
-_OMIT = {"document", "human_data", "content"}
+#: Columns left out of the CSVs: large documents (written as JSON files instead), and
+#: the de-identified export's stored date shifts (which would undo it).
+_OMIT = {"document", "human_data", "content", "date_shift_days"}
 
 _TABLE_ORDER = ("participants", "study_sessions", "condition_labels", "recordings",
                 "lift_segments", "model_sets", "utility_sets", "trials", "trial_segments",
@@ -61,15 +63,23 @@ def _ids(conn: Any, table: str, column: str, keys: list[int]) -> list[int]:
 DEID_BLANK = {"notes", "created_by", "end_reason", "message", "error"}
 #: Free text that only some tables have under a common name.
 DEID_BLANK_IN = {("recordings", "label"), ("markers", "note")}
+#: Marker labels the de-identified export keeps: the system's own; any other label is
+#: kept only if it is one of the study's marker buttons (a vocabulary fixed before any
+#: participant came), else it may be free text (an LSL sample, a typed label) and is
+#: replaced by `MARKER_OTHER`.
+SYSTEM_MARKER_LABELS = frozenset({"trial_start", "trial_stop"})
+MARKER_OTHER = "other"
 DEID_NOTE = {
     "code": "replaced by a new pseudonym (R001, R002, ...) that no key links back",
     "age": "ages above 89 are reported as 90",
     **{c: "removed (free text or account id)" for c in DEID_BLANK},
 }
 _DATE_SHIFT_NOTE = ("shifted by a random whole number of days (1-364) earlier, the same "
-                    "for all of one participant's rows (intervals stay true)")
-#: Largest date shift in days.
-MAX_SHIFT_DAYS = 364
+                    "for all of one participant's rows (intervals stay true) and at every "
+                    "download (drawn once and stored with the participant)")
+_MARKER_LABEL_NOTE = ("kept if trial_start, trial_stop or one of the study's marker buttons; "
+                      f"any other text replaced by \"{MARKER_OTHER}\"")
+_BLINDING_NOTE = "the blinding key: empty unless the download was made by the study's owner"
 
 
 def _parent_maps(conn: Any, sessions: list[int], recordings: list[int], trials: list[int]
@@ -92,11 +102,13 @@ def _shift(v: Any, days: int) -> Any:
 
 
 def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
-              site: str | None = None) -> bytes:
+              site: str | None = None, unblind: bool = False) -> bytes:
     """The export archive of one study (withdrawn-and-excluded participants are left
     out). `deidentified`: without direct identifiers and free text, participants
-    re-coded, dates shifted per participant (see `DEID_NOTE`). `site`: only that site's
-    participants, for a member limited to it."""
+    re-coded, dates shifted by each participant's stored shift (see `DEID_NOTE`).
+    `site`: only that site's participants, for a member limited to it. `unblind`: the
+    blinding key (which controller each label stands for) is written; only an owner's
+    export may set it, anyone else's leaves the `controller` of condition_labels empty."""
     rng = secrets.SystemRandom()
     buf = io.BytesIO()
     with engine.connect() as conn, zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -109,8 +121,12 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
         recordings = _ids(conn, "recordings", "session_id", sessions)
         trials = _ids(conn, "trials", "session_id", sessions)
         parents = _parent_maps(conn, sessions, recordings, trials)
-        shift = {pid: rng.randint(1, MAX_SHIFT_DAYS) for pid in participants}
-        study_shift = rng.randint(1, MAX_SHIFT_DAYS)
+        shift = {r[0]: r[1] for r in conn.execute(
+            select(pt.c.id, pt.c.date_shift_days).where(pt.c.id.in_(participants or [-1])))}
+        st = _table("studies")
+        study_shift = conn.execute(select(st.c.date_shift_days)
+                                   .where(st.c.id == study_id)).scalar_one_or_none() or 0
+        buttons = _marker_buttons(conn, study_id)
         recode = {pid: f"R{i:03d}" for i, pid in enumerate(rng.sample(participants,
                                                                         len(participants)), 1)}
         scope: dict[str, tuple[str, list[int]]] = {
@@ -134,7 +150,7 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
             t = _table(name)
             cols = EXPORTED_COLUMNS[name]
             out = io.StringIO()
-            w = csv.writer(out, lineterminator="\n")
+            w = spreadsheet.writer(out)
             w.writerow(cols)
             if keys:
                 q = select(*(t.c[c] for c in cols), t.c[column]).where(
@@ -142,7 +158,9 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
                 for *row, key in conn.execute(q):
                     if deidentified:
                         row = _deidentify(name, cols, row, key, column, parents, shift,
-                                          study_shift, recode)
+                                          study_shift, recode, buttons)
+                    if not unblind and name == "condition_labels":
+                        row[cols.index("controller")] = None
                     w.writerow([_cell(v) for v in row])
             zf.writestr(f"{name}.csv", out.getvalue())
         for name in ("model_sets", "utility_sets"):
@@ -169,14 +187,21 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
                       "and account ids removed, ages above 89 reported as 90, and every date "
                       "shifted per participant; `data_dictionary.csv` says what was done to "
                       "each column (column `deidentified`).\n\n" + readme)
-        zf.writestr("README.md", readme)
+        zf.writestr("README.md", readme + f"\nExported by ExoStudy {version()}.\n")
         zf.writestr("data_dictionary.csv", _dictionary_csv(deidentified))
     return buf.getvalue()
 
 
+def _marker_buttons(conn: Any, study_id: int) -> frozenset[str]:
+    """The study's marker buttons (labels fixed for the whole study)."""
+    t = _table("study_marker_labels")
+    labels = conn.execute(select(t.c.labels).where(t.c.study_id == study_id)).scalar()
+    return frozenset(str(x) for x in labels or [])
+
+
 def _deidentify(table: str, cols: list[str], row: list[Any], key: int, column: str,
                 parents: dict[str, dict[int, int]], shift: dict[int, int], study_shift: int,
-                recode: dict[int, str]) -> list[Any]:
+                recode: dict[int, str], buttons: frozenset[str] = frozenset()) -> list[Any]:
     """One row as the de-identified export writes it."""
     if column in ("id", "participant_id"):
         pid: int | None = key
@@ -189,6 +214,8 @@ def _deidentify(table: str, cols: list[str], row: list[Any], key: int, column: s
             v = None
         elif table == "participants" and c == "code" and pid is not None:
             v = recode[pid]
+        elif table == "markers" and c == "label":
+            v = v if v in SYSTEM_MARKER_LABELS or v in buttons else MARKER_OTHER
         elif c == "age" and isinstance(v, int) and v > 89:
             v = 90
         else:
@@ -201,7 +228,7 @@ def _dictionary_csv(deidentified: bool = False) -> str:
     from controller.tick import TICK_FIELD_DOCS, TickRecord
 
     out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
+    w = spreadsheet.writer(out)
     w.writerow(["file", "column", "unit", "meaning"] + (["deidentified"] if deidentified
                                                         else []))
     for name in _TABLE_ORDER:
@@ -213,6 +240,10 @@ def _dictionary_csv(deidentified: bool = False) -> str:
                 note = DEID_NOTE.get(col, "")
                 if (name, col) in DEID_BLANK_IN:
                     note = "removed (free text)"
+                if (name, col) == ("markers", "label"):
+                    note = _MARKER_LABEL_NOTE
+                if (f"{name}.csv", col) in data_dictionary.BLINDING_KEY:
+                    note = _BLINDING_NOTE
                 if not note and types.get(col) in (date, datetime):
                     note = _DATE_SHIFT_NOTE
                 if name != "participants" and col == "code":

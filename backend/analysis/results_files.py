@@ -14,6 +14,7 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import results
+from backend.core.resources import version
 from backend.db.evidence_tables import Trial
 from backend.db.models import Study
 from controller.evaluation.output_folder import OutputFolder
@@ -31,8 +32,13 @@ def write_study_results(engine: Engine, db: Session, study_id: int, folder: Path
     files = OutputFolder(folder)
     put = files.put
 
-    put("results.json", json.dumps(results.results_document(res).model_dump(mode="json"),
-                                   indent=1))
+    document = results.results_document(res).model_dump(mode="json")
+    # The hardware profile in effect for each evaluated trial (data dictionary:
+    # trials.hardware_profile_id), beside the document the results routes also serve.
+    profiles = {str(tr.trial_id): getattr(db.get(Trial, tr.trial_id), "hardware_profile_id",
+                                          None) for tr in res.trials}
+    put("results.json", json.dumps({"exostudy_version": version(), **document,
+                                    "hardware_profile_id": profiles}, indent=1))
     for table in results.TABLE_NAMES:
         put(f"{table}.csv", res.csv(table))
         put(f"{table}.md", res.markdown(table))

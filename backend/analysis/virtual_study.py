@@ -54,6 +54,7 @@ import numpy as np
 
 from backend.analysis import tick_queries
 from backend.analysis.results import FIGURE_NAMES
+from backend.core.resources import version
 from backend.live.local_server import ApiClient, Response, serving
 from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
@@ -72,6 +73,16 @@ RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}
 #: A wait on the worker fails only after this many seconds without progress (ticks,
 #: job progress): a loaded machine makes the study slower, never wrong.
 STALL_S = 120.0
+#: What the virtual studies' exports say about themselves (BIDS' dataset description):
+#: simulated data made by this software, free of any right (CC0).
+DATASET_INFO: dict[str, Any] = {
+    "authors": ["ExoStudy virtual study", "ExoStudy contributors"],
+    "license": "CC0-1.0",
+    "institution_name": "none (simulated participants)",
+    "institution_address": "none (simulated participants)",
+    "institution_department": "none (simulated participants)",
+    "instructions": "none: virtual participants follow the simulator's script",
+}
 #: Tables written per rate setting (questionnaires are left out, see the docstring).
 WRITTEN_TABLES = ("performance", "performance_by_kind", "false_positives", "onset_to_lock",
                   "lifts")
@@ -500,7 +511,8 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
                         "100 Hz" if RATE_SETTINGS[label] else
                         "Virtual participants through the live server; the paper's rates")
                 studies[label] = _ok(client.post("/api/studies", json={
-                    "name": name, "description": desc}), 201)["id"]
+                    "name": name, "description": desc, "dataset_info": DATASET_INFO}),
+                    201)["id"]
             report.studies = studies
             first = next(iter(studies.values()))
             t0 = time.monotonic()
@@ -533,7 +545,8 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
     report.wall_s = round(report.wall_s, 1)
     (cfg.out / "README.md").write_text(_readme(cfg, report))
     report.files.append("README.md")
-    (cfg.out / "summary.json").write_text(json.dumps(report.as_json(), indent=1))
+    (cfg.out / "summary.json").write_text(json.dumps(
+        {"exostudy_version": version(), **report.as_json()}, indent=1))
     report.files.append("summary.json")
     return report
 

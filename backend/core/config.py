@@ -13,9 +13,13 @@ from typing import Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from backend.core import resources
 from controller.device.base import MAX_SPEED
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
+#: Default home of the database, keys, models and pid files: `var/` in a clone, the
+#: platform data folder when installed from a wheel (backend/core/resources.py).
+DATA_DIR = resources.data_dir()
 
 
 class Settings(BaseSettings):
@@ -23,7 +27,7 @@ class Settings(BaseSettings):
 
     model_config = SettingsConfigDict(env_prefix="EXOSTUDY_", env_file=".env", extra="ignore")
 
-    database_url: str = f"sqlite:///{PROJECT_ROOT / 'var' / 'exostudy.db'}"
+    database_url: str = f"sqlite:///{DATA_DIR / 'exostudy.db'}"
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=0, le=65535)
 
@@ -34,12 +38,16 @@ class Settings(BaseSettings):
     #: With `udp`, start the simulated exoskeleton as its own process on that address.
     #: Set it to false for a real exoskeleton.
     device_spawn_simulator: bool = True
+    #: Which simulated device is spawned: the Python reference (`python`) or the C
+    #: firmware core built for Linux against the same simulated wearer (`c`:
+    #: firmware/build/exostudy-device, built by `make install`; docs/device-firmware.md).
+    device_implementation: Literal["python", "c"] = "python"
     device_seed: int = 1
     device_script: str = "paper-evaluation"
     #: The key that authenticates every packet of the device link (HMAC-SHA256): 64 hex
     #: digits, created at first start with mode 0600, given to the spawned simulator.
     #: For real hardware, the firmware is provisioned with the same key.
-    device_key_file: Path = PROJECT_ROOT / "var" / "device.key"
+    device_key_file: Path = DATA_DIR / "device.key"
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
     #: With `sim`: run the simulated wearer this many times faster than real time.
     device_speed: float = Field(default=1.0, ge=0.1, le=MAX_SPEED)
@@ -49,9 +57,9 @@ class Settings(BaseSettings):
     #: Run every controller at this rate (Hz) instead of the paper's rates.
     controller_rate_hz: float | None = Field(default=None, gt=0.0, le=100.0)
     #: Model set for UMC and E-UMC; built from simulated demonstrations if missing.
-    models_path: Path = PROJECT_ROOT / "var" / "models" / "sim-default.json"
+    models_path: Path = DATA_DIR / "models" / "sim-default.json"
     #: Folder of default utility sets (one per precompression), built if missing.
-    utilities_dir: Path = PROJECT_ROOT / "var" / "utilities"
+    utilities_dir: Path = DATA_DIR / "utilities"
 
     #: Messages per second sent to each browser (each carries every tick since the last).
     # 60: above the worker's 50 batches a second, so the budget never holds a batch back
@@ -89,10 +97,10 @@ class Settings(BaseSettings):
 
     #: Start the control worker with the server (tests switch it off).
     start_worker: bool = True
-    frontend_dir: Path = PROJECT_ROOT / "frontend"
+    frontend_dir: Path = resources.frontend_dir()
     #: Pid and log files of the spawned device simulator (a restarted server stops a
     #: simulator its predecessor left behind, found through the pid file).
-    run_dir: Path = PROJECT_ROOT / "var"
+    run_dir: Path = DATA_DIR
     #: Most ticks kept in memory while the database refuses writes: 5 min at 100 Hz,
     #: about 40 MB (1.3 kB a received tick, measured with tracemalloc). Beyond it the
     #: oldest are dropped and counted in health; the worker keeps controlling.

@@ -155,6 +155,9 @@ class Trial(Base):
     #: What is wrong with the trial's data, e.g. device time gaps or going backwards:
     #: `backend.live.trial_quality.QualityFlags` as JSON; empty when nothing is.
     quality_flags: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    #: The hardware profile in effect when the trial started (backend/db/hardware.py).
+    hardware_profile_id: Mapped[int | None] = mapped_column(ForeignKey(
+        "hardware_profiles.id", ondelete="SET NULL", name="fk_trials_hardware_profile_id"))
 
     # At most one trial runs: the database refuses a second (see Recording).
     __table_args__ = (

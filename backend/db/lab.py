@@ -52,6 +52,10 @@ class MarkerStream(Base):
     hostname: Mapped[str] = mapped_column(String(200), default="")
     active: Mapped[bool] = mapped_column(Boolean, default=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: Why the subscription was closed by the server (empty: it was not): a name the
+    #: resolver cannot search for, or an inlet that failed. A failed subscription is
+    #: inactive and is not resumed at start.
+    error: Mapped[str] = mapped_column(Text, default="", server_default="")
 
 
 class Marker(Base):

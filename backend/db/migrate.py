@@ -5,13 +5,13 @@ from __future__ import annotations
 from alembic import command
 from alembic.config import Config
 
-from backend.core.config import PROJECT_ROOT
+from backend.core import resources
 
 
 def alembic_config(database_url: str) -> Config:
     """An Alembic config pointing at the project's migrations and `database_url`."""
     cfg = Config()
-    cfg.set_main_option("script_location", str(PROJECT_ROOT / "migrations"))
+    cfg.set_main_option("script_location", str(resources.migrations_dir()))
     # ConfigParser interpolation would choke on '%' in passwords.
     cfg.set_main_option("sqlalchemy.url", database_url.replace("%", "%%"))
     return cfg

@@ -5,6 +5,7 @@ definition of a tick, so the stored row and the worker's record cannot drift apa
 from __future__ import annotations
 
 import dataclasses
+import secrets
 from datetime import UTC, date, datetime
 from typing import Any
 
@@ -24,6 +25,7 @@ from sqlalchemy import (
     Text,
     UniqueConstraint,
     false,
+    text as sql_text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeEngine
@@ -34,6 +36,17 @@ from controller.tick import TickRecord
 def utcnow() -> datetime:
     """Timezone-aware now; stored as UTC."""
     return datetime.now(UTC)
+
+
+#: Largest date shift of the de-identified export, in days (under a year, so seasons
+#: and weekdays may move but intervals within a participant stay true).
+MAX_SHIFT_DAYS = 364
+
+
+def draw_date_shift() -> int:
+    """A date shift in days, 1..MAX_SHIFT_DAYS, from the system's secure random source
+    (a predictable shift would undo the de-identification)."""
+    return secrets.randbelow(MAX_SHIFT_DAYS) + 1
 
 
 class Base(DeclarativeBase):
@@ -148,6 +161,12 @@ class Study(Base):
     #: study's approved protocol says.
     withdrawal_policy: Mapped[str] = mapped_column(String(16), default="erase",
                                                    server_default="erase")
+    #: Days every date of the study's own rows (model and utility sets) moves back in
+    #: the de-identified export; drawn once, so every download shifts the same way.
+    date_shift_days: Mapped[int] = mapped_column(Integer, default=draw_date_shift)
+    #: The dataset description of its exports (authors, licence, institution, ...;
+    #: `backend.schemas.studies.DatasetInfo`).
+    dataset_info: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
 
 
 class StudyMember(Base):
@@ -216,6 +235,10 @@ class Participant(Base):
     consent_version: Mapped[str | None] = mapped_column(String(32))
     #: Set when a participant of an "exclude" study withdraws; erased ones are deleted.
     withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    #: Days this participant's dates move back in the de-identified export: drawn once
+    #: (1..MAX_SHIFT_DAYS) and kept, so that two downloads cannot be compared to narrow
+    #: the true dates down.
+    date_shift_days: Mapped[int] = mapped_column(Integer, default=draw_date_shift)
 
 
 class ConditionLabel(Base):
@@ -252,19 +275,37 @@ class StudySession(Base):
     started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     notes: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: The hardware profile in effect when the session was created (backend/db/hardware.py).
+    hardware_profile_id: Mapped[int | None] = mapped_column(ForeignKey(
+        "hardware_profiles.id", ondelete="SET NULL",
+        name="fk_study_sessions_hardware_profile_id"))
 
 
 class QuestionnaireInstrument(Base):
     """A questionnaire definition (items, scale, scoring), stored whole as JSON.
 
-    Key and version identify it; a response points at the exact version it was scored
-    with, so changing an instrument means adding a version, never editing one.
+    Built-in instruments (`built_in`, no study) ship with ExoStudy, are shared by every
+    study and never change. Every other instrument belongs to the study that imported
+    it (`study_id`) and is offered to that study's participants only, so one study's
+    experimenter cannot change what another study's participants are shown. A custom
+    instrument whose study could not be told when 0011 migrated it keeps `study_id`
+    NULL: it stays stored (its responses point at it) but no link can use it.
+    Key and version identify an instrument within its study (or among the built-ins); a
+    response points at the exact row it was scored with, so changing an instrument
+    means adding a version, never editing one.
     """
 
     __tablename__ = "questionnaire_instruments"
-    __table_args__ = (UniqueConstraint("key", "version", name="uq_instruments_key_version"),)
+    __table_args__ = (
+        UniqueConstraint("study_id", "key", "version", name="uq_instruments_study_key_version"),
+        # Built-ins have no study, and NULLs never collide in a unique constraint.
+        Index("uq_instruments_builtin_key_version", "key", "version", unique=True,
+              sqlite_where=sql_text("built_in"), postgresql_where=sql_text("built_in")),
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int | None] = mapped_column(
+        ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     key: Mapped[str] = mapped_column(String(64))
     version: Mapped[str] = mapped_column(String(32))
     title: Mapped[str] = mapped_column(String(200))
@@ -278,7 +319,8 @@ class ParticipantLink(Base):
     """An unguessable link for one participant and the forms due.
 
     Only a SHA-256 of the token is stored. `forms_due` is a list of
-    `{"instrument_key", "instrument_version", "condition_label"}`; each form can be
+    `{"instrument_id", "instrument_key", "instrument_version", "condition_label"}`: the
+    id pins the exact instrument row the link was made with; each form can be
     submitted once, and the link closes (`used_at`) when everything due is in.
     """
 

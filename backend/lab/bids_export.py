@@ -3,7 +3,7 @@
 Layout (entities as BIDS defines them):
 
     dataset_description.json, README, participants.tsv/.json
-    sub-<code>/ses-<session id>/motion/
+    sub-<code>/ses-<kind><n>/motion/
         sub-<code>_ses-<n>_task-<task>_tracksys-exo_acq-<controller>_run-<k>_motion.tsv
         ... _motion.json, _channels.tsv
         sub-<code>_ses-<n>_task-<task>_acq-<controller>_run-<k>_events.tsv/.json
@@ -16,12 +16,17 @@ tick (motion files have no header; `_channels.tsv` names the columns). Events ar
 experimenter's lifts (trial segments), each side's lock command and mechanism edges,
 and the markers. Only de-identified fields leave: the participant's code, age, sex,
 height and mass; no consent date, no notes, no account.
+
+Sessions are named by kind and order (`ses-evaluation1`, `ses-datacollection1`), so one
+visit has the same name for every subject. The blinding key leaves only in an owner's
+export (`unblind`): otherwise files are named by the blinded label (`acq-A`) and
+`*_scans.tsv` has neither `controller` nor `trial_id`. The sidecars of the tabular
+files come from `backend.study.data_dictionary`, the definition the export's README is
+written from.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import re
@@ -33,15 +38,19 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import tick_queries
+from backend.core.resources import version
 from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
 from backend.db.lab import Marker, XdfAttachment
 from backend.db.models import (
     ConditionLabel,
     Participant,
     QuestionnaireResponse,
+    Run,
     Study,
     StudySession,
 )
+from backend.study import data_dictionary
+from controller import spreadsheet
 from controller.device.base import SAMPLE_RATE_HZ
 
 #: The BIDS version the layout follows (motion entered the specification in 1.9.0).
@@ -102,14 +111,30 @@ def label(text: str) -> str:
     return out or "x"
 
 
+#: The HED schema the events' `trial_type` annotations use (the validator ships it).
+HED_VERSION = "8.3.0"
+#: HED tags of each event type (Hierarchical Event Descriptors: what kind of event it
+#: is, in words a search across datasets understands). Each row's `HED` cell groups them
+#: with the side, so two events at one instant (both hips locking) stay two events.
+EVENT_HED = {
+    "lift": "Agent-action, Lift",
+    "command_on": "Data-feature, Label/Lock-command-on",
+    "command_off": "Data-feature, Label/Lock-command-off",
+    "engaged": "Data-feature, Label/Ratchet-engaged",
+    "released": "Data-feature, Label/Ratchet-released",
+    "marker": "Data-marker",
+}
+#: Session labels per session kind (letters only, as BIDS labels must be).
+SESSION_KIND = {"evaluation": "evaluation", "data_collection": "datacollection"}
+
+
+class NothingToExportError(ValueError):
+    """The study has nothing a BIDS dataset could hold (no trial with ticks)."""
+
+
 def _tsv(header: list[str] | None, rows: list[list[Any]]) -> str:
-    out = io.StringIO()
-    w = csv.writer(out, delimiter="\t", lineterminator="\n")
-    if header is not None:
-        w.writerow(header)
-    for row in rows:
-        w.writerow([_cell(v) for v in row])
-    return out.getvalue()
+    return spreadsheet.table_text(header, ([_cell(v) for v in row] for row in rows),
+                                  delimiter="\t")
 
 
 def _cell(v: Any) -> Any:
@@ -126,20 +151,61 @@ def _json(doc: dict[str, Any]) -> str:
     return json.dumps(doc, indent=2) + "\n"
 
 
-def dataset_files(engine: Engine, db: Session, study_id: int,
-                  site: str | None = None) -> Iterator[tuple[str, bytes]]:
-    """Every file of the study's BIDS dataset as (relative path, content).
+def _description(study: Study) -> dict[str, Any]:
+    """dataset_description.json: the study's name and its dataset description (empty
+    fields left out)."""
+    info: dict[str, Any] = study.dataset_info or {}
+    doc: dict[str, Any] = {"Name": study.name, "BIDSVersion": BIDS_VERSION,
+                           "DatasetType": "raw", "HEDVersion": HED_VERSION}
+    if info.get("license"):
+        doc["License"] = info["license"]
+    if info.get("authors"):
+        doc["Authors"] = list(info["authors"])
+    if info.get("funding"):
+        doc["Funding"] = list(info["funding"])
+    doc["GeneratedBy"] = [{"Name": "ExoStudy", "Version": version(),
+                           "Description": "quasi-passive hip exoskeleton study manager"}]
+    # The dataset is made from the study's records in ExoStudy (and the attached XDF
+    # files, which are under sourcedata/).
+    doc["SourceDatasets"] = [{"URL": "bids::sourcedata/",
+                              "Version": f"ExoStudy {version()}, study {study.id}"}]
+    return doc
 
-    Withdrawn participants are left out, and with `site` everyone of another site (a
-    member limited to one site exports only that site)."""
+
+def check_exportable(engine: Engine, db: Session, study_id: int,
+                     site: str | None = None) -> None:
+    """Raise `NothingToExportError` (saying why) unless the study has a trial with ticks."""
     study = db.get(Study, study_id)
     if study is None:
         raise ValueError(f"study {study_id} does not exist")
-    yield "dataset_description.json", _json({
-        "Name": study.name, "BIDSVersion": BIDS_VERSION, "DatasetType": "raw",
-        "GeneratedBy": [{"Name": "ExoStudy", "Version": "0.1.0",
-                         "Description": "quasi-passive hip exoskeleton study manager"}],
-    }).encode()
+    chosen = (Participant.study_id == study_id) & Participant.withdrawn_at.is_(None)
+    if site is not None:
+        chosen = chosen & (Participant.site == site)
+    runs = db.scalars(select(Trial.run_id).join(StudySession,
+                                                StudySession.id == Trial.session_id)
+                      .join(Participant, Participant.id == StudySession.participant_id)
+                      .where(chosen, Trial.run_id.is_not(None)))
+    for run_id in runs:
+        if run_id is not None and tick_queries.columns(engine, run_id, fields=("t",))["t"].size:
+            return
+    where = f" at site {site}" if site is not None else ""
+    raise NothingToExportError(
+        f"study {study_id} has no trial with recorded ticks{where}: a BIDS motion "
+        "dataset needs at least one (run a trial first)")
+
+
+def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None = None,
+                  unblind: bool = False) -> Iterator[tuple[str, bytes]]:
+    """Every file of the study's BIDS dataset as (relative path, content).
+
+    Withdrawn participants are left out, and with `site` everyone of another site (a
+    member limited to one site exports only that site). `unblind`: name controllers
+    (only the study's owner may). Raises `NothingToExportError` before the first file if
+    the study has no trial with ticks."""
+    check_exportable(engine, db, study_id, site)
+    study = db.get(Study, study_id)
+    assert study is not None
+    yield "dataset_description.json", _json(_description(study)).encode()
     yield "README", (f"{study.name}\n\n{study.description}\n\nExported by ExoStudy: one "
                      "motion file per evaluation trial (the exoskeleton's hip encoders, "
                      "its torque model, lock commands and states, and the intent "
@@ -156,26 +222,70 @@ def dataset_files(engine: Engine, db: Session, study_id: int,
         ["participant_id", "age", "sex", "height", "weight"],
         [[f"sub-{subs[p.id]}", p.age, p.sex, p.height_m, p.mass_kg]
          for p in participants]).encode()
-    yield "participants.json", _json({
-        "participant_id": {"Description": "pseudonymous participant code"},
-        "age": {"Description": "age", "Units": "year"},
-        "sex": {"Description": "sex as stated by the participant"},
-        "height": {"Description": "body height", "Units": "m"},
-        "weight": {"Description": "body mass", "Units": "kg"},
-    }).encode()
+    yield "participants.json", _json(data_dictionary.bids_sidecar("participants.tsv")).encode()
+    info: dict[str, Any] = study.dataset_info or {}
     for p in participants:
         sessions = list(db.scalars(select(StudySession).where(
-            StudySession.participant_id == p.id).order_by(StudySession.id)))
+            StudySession.participant_id == p.id).order_by(StudySession.started_at,
+                                                          StudySession.id)))
         blinded = {c.controller: c.label for c in db.scalars(
             select(ConditionLabel).where(ConditionLabel.participant_id == p.id))}
+        seen: dict[str, int] = {}
         for sess in sessions:
-            yield from _session_files(engine, db, subs[p.id], sess, blinded)
+            kind = SESSION_KIND.get(sess.kind, label(sess.kind).lower())
+            seen[kind] = seen.get(kind, 0) + 1
+            yield from _session_files(engine, db, subs[p.id], sess, f"{kind}{seen[kind]}",
+                                      blinded, unblind, info)
     yield from _phenotype(db, subs)
 
 
-def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession,
-                   blinded: dict[str, str]) -> Iterator[tuple[str, bytes]]:
-    ses = f"ses-{sess.id}"
+def _motion_sidecar(trial: Trial, device: str, t: Any, info: dict[str, Any],
+                    unblind: bool, blinded_label: str | None) -> dict[str, Any]:
+    """The `*_motion.json` of one trial."""
+    duration = float(t[-1] - t[0]) + 1.0 / SAMPLE_RATE_HZ
+    about = (f"under the {trial.controller} controller (blinded label "
+             f"{blinded_label or 'n/a'})" if unblind else
+             f"under the controller the participant knew as {blinded_label or 'n/a'}")
+    counts = {f"{kind}ChannelCount": sum(1 for c in CHANNELS if c.type == kind)
+              for kind in ("ACCEL", "ANGACCEL", "GYRO", "JNTANG", "LATENCY", "MAGN", "MISC",
+                           "ORNT", "POS", "VEL")}
+    flags: dict[str, Any] = trial.quality_flags or {}
+    faults = {k: v for k, v in flags.items() if v}
+    doc: dict[str, Any] = {
+        "TaskName": trial.task,
+        "TaskDescription": f"{trial.task} with the exoskeleton {about}",
+        "SamplingFrequency": SAMPLE_RATE_HZ,
+        "SamplingFrequencyEffective": (t.size - 1) / float(t[-1] - t[0])
+        if t.size > 1 and t[-1] > t[0] else SAMPLE_RATE_HZ,
+        "RecordingDuration": duration,
+        "TrackingSystemName": "quasi-passive hip exoskeleton encoders (component x: "
+                              "rotation about the medio-lateral axis, flexion positive)",
+        "Manufacturer": "ExoStudy",
+        "ManufacturersModelName": "quasi-passive hip exoskeleton",
+        # The device the ticks came from ("sim": the simulated exoskeleton).
+        "DeviceSerialNumber": device,
+        "SoftwareVersions": f"ExoStudy {version()}",
+        "TrackedPointsCount": 2,
+        **counts,
+        "MotionChannelCount": len(CHANNELS),
+        "MissingValues": "n/a",
+        "SubjectArtefactDescription": (
+            "device clock faults: " + ", ".join(f"{k} {v}" for k, v in sorted(faults.items()))
+            if faults else "none detected (no device time gaps or steps backwards)"),
+    }
+    for key, field in (("InstitutionName", "institution_name"),
+                       ("InstitutionAddress", "institution_address"),
+                       ("InstitutionalDepartmentName", "institution_department"),
+                       ("Instructions", "instructions")):
+        if info.get(field):
+            doc[key] = info[field]
+    return doc
+
+
+def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, ses_label: str,
+                   blinded: dict[str, str], unblind: bool, info: dict[str, Any]
+                   ) -> Iterator[tuple[str, bytes]]:
+    ses = f"ses-{ses_label}"
     trials = list(db.scalars(select(Trial).where(Trial.session_id == sess.id,
                                                  Trial.run_id.is_not(None))
                              .order_by(Trial.planned_order, Trial.id)))
@@ -186,7 +296,9 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession,
         cols = tick_queries.columns(engine, trial.run_id)
         if cols["t"].size == 0:
             continue
-        task, acq = label(trial.task), label(trial.controller)
+        blinded_label = blinded.get(trial.controller)
+        task = label(trial.task)
+        acq = label(trial.controller if unblind else blinded_label or "unlabelled")
         counts[(task, acq)] = k = counts.get((task, acq), 0) + 1
         # BIDS' entity order: task, tracksys, acq, run.
         folder = f"sub-{sub}/{ses}/motion/"
@@ -200,62 +312,31 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession,
             [[c.field, c.component, c.type, c.tracked_point, c.units, c.description]
              for c in CHANNELS]).encode()
         t = cols["t"]
-        duration = float(t[-1] - t[0]) + 1.0 / SAMPLE_RATE_HZ
-        yield f"{stem}_motion.json", _json({
-            "TaskName": trial.task,
-            "TaskDescription": f"{trial.task} with the exoskeleton under the "
-                               f"{trial.controller} controller (blinded label "
-                               f"{blinded.get(trial.controller, 'n/a')})",
-            "SamplingFrequency": SAMPLE_RATE_HZ,
-            "SamplingFrequencyEffective": (t.size - 1) / float(t[-1] - t[0])
-            if t.size > 1 and t[-1] > t[0] else SAMPLE_RATE_HZ,
-            "RecordingDuration": duration,
-            "TrackingSystemName": "quasi-passive hip exoskeleton encoders (component x: "
-                                  "rotation about the medio-lateral axis, flexion positive)",
-            "Manufacturer": "ExoStudy",
-            "ManufacturersModelName": "quasi-passive hip exoskeleton",
-            "SoftwareVersions": "ExoStudy 0.1.0",
-            "TrackedPointsCount": 2,
-            "JNTANGChannelCount": 4, "LATENCYChannelCount": 1, "MISCChannelCount": 12,
-            "MotionChannelCount": len(CHANNELS),
-            "MissingValues": "n/a",
-        }).encode()
-        scans.append([f"motion/{stem.rsplit('/', 1)[1]}_motion.tsv", trial.id, trial.controller,
-                      blinded.get(trial.controller), trial.status,
-                      trial.started_at.isoformat() if trial.started_at else None])
+        run = db.get(Run, trial.run_id)
+        yield f"{stem}_motion.json", _json(_motion_sidecar(
+            trial, run.device_kind if run is not None else "n/a", t, info, unblind,
+            blinded_label)).encode()
+        started = (trial.started_at.replace(tzinfo=None).isoformat(timespec="seconds")
+                   if trial.started_at else None)
+        scans.append([f"motion/{stem.rsplit('/', 1)[1]}_motion.tsv", started,
+                      *([trial.id, trial.controller] if unblind else []), blinded_label,
+                      trial.status, trial.hardware_profile_id])
         ev_rows = _events(db, trial, float(t[0]), cols)
-        yield f"{folder}{base}_acq-{acq}_run-{k}_events.tsv", _tsv(
-            ["onset", "duration", "trial_type", "side", "value", "source"], ev_rows).encode()
-        yield f"{folder}{base}_acq-{acq}_run-{k}_events.json", _json({
-            "onset": {"Description": "seconds from the first sample of the motion file",
-                      "Units": "s"},
-            "duration": {"Description": "lift duration; 0 for instantaneous events",
-                         "Units": "s"},
-            "trial_type": {"Description": "lift (experimenter's segment), lock command "
-                           "and mechanism edges per side, markers",
-                           "Levels": {"lift": "a lift marked by the experimenter",
-                                      "command_on": "solenoid command on",
-                                      "command_off": "solenoid command off",
-                                      "engaged": "ratchet engaged",
-                                      "released": "ratchet released",
-                                      "marker": "an event marker (console, LSL or system)"}},
-            "side": {"Description": "left or right hip, n/a for both"},
-            "value": {"Description": "lift label, peak torque (N.m) of an engagement, or "
-                      "the marker's label"},
-            "source": {"Description": "segment, lock_events, console, lsl or system"},
-        }).encode()
+        ev_cols = list(data_dictionary.BIDS_FILES["*_events.tsv"][1])
+        yield f"{folder}{base}_acq-{acq}_run-{k}_events.tsv", _tsv(ev_cols, ev_rows).encode()
+        events_doc: dict[str, Any] = data_dictionary.bids_sidecar("*_events.tsv")
+        events_doc["StimulusPresentation"] = {
+            "SoftwareName": "ExoStudy", "SoftwareVersion": version(),
+            "Code": "no stimuli are presented; events are the experimenter's lifts, the "
+                    "exoskeleton's lock commands and states, and markers"}
+        yield f"{folder}{base}_acq-{acq}_run-{k}_events.json", _json(events_doc).encode()
     if scans:
         prefix = f"sub-{sub}/{ses}/sub-{sub}_{ses}_scans"
-        yield f"{prefix}.tsv", _tsv(["filename", "trial_id", "controller", "blinded_label",
-                                     "outcome", "started"], scans).encode()
-        yield f"{prefix}.json", _json({
-            "filename": {"Description": "the trial's motion file"},
-            "trial_id": {"Description": "ExoStudy's trial id"},
-            "controller": {"Description": "the exoskeleton controller of the trial"},
-            "blinded_label": {"Description": "the label the participant knew it by"},
-            "outcome": {"Description": "completed or aborted"},
-            "started": {"Description": "when the trial started (UTC, ISO 8601)"},
-        }).encode()
+        scan_cols = [c for c in data_dictionary.BIDS_FILES["*_scans.tsv"][1]
+                     if unblind or ("*_scans.tsv", c) not in data_dictionary.BLINDING_KEY]
+        yield f"{prefix}.tsv", _tsv(scan_cols, scans).encode()
+        yield f"{prefix}.json", _json(data_dictionary.bids_sidecar("*_scans.tsv", scan_cols)
+                                      ).encode()
     for att in db.scalars(select(XdfAttachment).where(XdfAttachment.session_id == sess.id)
                           .order_by(XdfAttachment.id)):
         yield (f"sourcedata/sub-{sub}/{ses}/{att.id}_{label(att.filename.removesuffix('.xdf'))}"
@@ -276,6 +357,14 @@ def _events(db: Session, trial: Trial, t0: float, cols: dict[str, Any]) -> list[
             rows.append([max(m.t - t0, 0.0), 0.0, "marker", "n/a",
                          m.label + (f": {m.note}" if m.note else ""), m.source])
     rows.sort(key=lambda r: (r[0], str(r[2])))
+    # HED joins the annotations of all rows at one onset; a repeated group is an error,
+    # so a row identical to one before it at the same onset carries none.
+    seen: set[tuple[float, str]] = set()
+    for r in rows:
+        side = f", Label/{r[3]}-hip" if r[3] in ("left", "right") else ""
+        hed = f"({EVENT_HED[r[2]]}{side})"
+        r.append("n/a" if (r[0], hed) in seen else hed)
+        seen.add((r[0], hed))
     return rows
 
 

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream
-from backend.lab import markers
+from backend.lab import lsl_names, markers
 from backend.lab.lsl_outlets import LabOutlets, TickTime, marker_text
 from backend.lab.marker_inlet import MarkerInlet
 from backend.live.stream import LiveStream
@@ -45,13 +45,28 @@ class Lab:
         return self.outlets.enabled
 
     def start(self) -> None:
-        """Open the outlets and resume the active subscriptions."""
+        """Open the outlets and resume the active subscriptions. A stored subscription
+        whose name the resolver cannot search for (stored before names were checked)
+        is closed as failed instead of resumed."""
         self.outlets.start()
+        with Session(self.engine) as db:
+            resume = []
+            for sub in db.scalars(select(MarkerStream).where(MarkerStream.active)):
+                why = lsl_names.problem(sub.source_id or sub.name)
+                if why is None and sub.source_id:
+                    why = lsl_names.problem(sub.name)
+                if why is not None:
+                    sub.active = False
+                    sub.error = why
+                    log.warning("marker stream subscription %d closed at start: %s",
+                                sub.id, why)
+                else:
+                    resume.append((sub.id, sub.name, sub.source_id))
+            db.commit()
         if not self.enabled:
             return
-        with Session(self.engine) as db:
-            for sub in db.scalars(select(MarkerStream).where(MarkerStream.active)):
-                self.subscribe(sub.id, sub.name, sub.source_id)
+        for sub_id, name, source_id in resume:
+            self.subscribe(sub_id, name, source_id)
 
     def stop(self) -> None:
         """Stop every inlet, then close the outlets."""
@@ -153,9 +168,21 @@ class Lab:
         """Start reading a marker stream for subscription `sub_id`."""
         if not self.enabled or sub_id in self.inlets:
             return
-        inlet = MarkerInlet(sub_id, name, source_id, self._store_inlet_marker)
+        inlet = MarkerInlet(sub_id, name, source_id, self._store_inlet_marker,
+                            self._inlet_failed)
         self.inlets[sub_id] = inlet
         inlet.start()
+
+    def _inlet_failed(self, sub_id: int, why: str) -> None:
+        """An inlet gave up (its thread ends): the subscription is closed and says why,
+        so it is neither shown as listening nor resumed at the next start."""
+        self.inlets.pop(sub_id, None)
+        with Session(self.engine) as db:
+            sub = db.get(MarkerStream, sub_id)
+            if sub is not None:
+                sub.active = False
+                sub.error = why[:1000]
+                db.commit()
 
     def unsubscribe(self, sub_id: int) -> None:
         """Stop reading a marker stream."""

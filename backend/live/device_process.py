@@ -12,12 +12,17 @@ measures prevent it:
   hit) before it binds the port again;
 - a start counts only once the child holds the port: a child that exits first (the port
   taken by someone else, a bad script) is an error with the child's own message.
+
+The child is the Python reference device (`exostudy device-sim`) or, with setting
+`device_implementation = "c"`, the C firmware core built for Linux
+(`firmware/build/exostudy-device`, same arguments): both do the same three things.
 """
 
 from __future__ import annotations
 
 import ctypes
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -33,8 +38,49 @@ PR_SET_PDEATHSIG = 1
 START_TIMEOUT_S = 20.0
 
 
+#: The C device's executable (firmware/ports/linux-sim), as `make install` builds it.
+C_DEVICE_NAME = "exostudy-device"
+#: Environment variable naming the C device's executable explicitly (another build).
+C_DEVICE_ENV = "EXOSTUDY_DEVICE_BINARY"
+_CHECKOUT = Path(__file__).resolve().parents[2]
+C_DEVICE_BUILD = _CHECKOUT / "firmware" / "build" / C_DEVICE_NAME
+
+
 class DeviceStartError(RuntimeError):
     """The simulated device could not be started; the message says why."""
+
+
+def c_device_binary() -> Path:
+    """The C device's executable: `EXOSTUDY_DEVICE_BINARY` if set, else the checkout's
+    build (firmware/build/exostudy-device), else one on PATH. Raises DeviceStartError
+    saying how to build it when there is none."""
+    explicit = os.environ.get(C_DEVICE_ENV)
+    if explicit:
+        path = Path(explicit)
+        if path.is_file() and os.access(path, os.X_OK):
+            return path
+        raise DeviceStartError(f"{C_DEVICE_ENV}={explicit}: no executable there")
+    if C_DEVICE_BUILD.is_file() and os.access(C_DEVICE_BUILD, os.X_OK):
+        return C_DEVICE_BUILD
+    found = shutil.which(C_DEVICE_NAME)
+    if found:
+        return Path(found)
+    raise DeviceStartError(
+        f"the C device is not built ({C_DEVICE_BUILD} is missing): run "
+        f"`make -C {_CHECKOUT / 'firmware' / 'ports' / 'linux-sim'}` (or `make install`), "
+        f"or set device_implementation to 'python'")
+
+
+def device_command(args: list[str], implementation: str = "python") -> list[str]:
+    """The command line of a device simulator with `exostudy device-sim` arguments:
+    the Python reference device, or the C device running its simulated wearer on this
+    interpreter (`--python`)."""
+    if implementation == "c":
+        return [str(c_device_binary()), *args, "--python", sys.executable]
+    if implementation != "python":
+        raise DeviceStartError(f"device implementation {implementation!r}: expected "
+                               "'python' or 'c'")
+    return [sys.executable, "-m", "backend.cli", "device-sim", *args]
 
 
 def die_with_parent() -> None:
@@ -73,7 +119,8 @@ def _is_simulator(pid: int, port: int) -> bool:
         argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
     except OSError:
         return False
-    return b"device-sim" in argv and str(port).encode() in argv
+    is_device = b"device-sim" in argv or Path(os.fsdecode(argv[0])).name == C_DEVICE_NAME
+    return is_device and str(port).encode() in argv
 
 
 def reclaim(pid_file: Path, port: int, timeout: float = 3.0) -> int | None:
@@ -101,19 +148,22 @@ def reclaim(pid_file: Path, port: int, timeout: float = 3.0) -> int | None:
     return pid
 
 
-def spawn(args: list[str], port: int, pid_file: Path, log_file: Path) -> subprocess.Popen[bytes]:
-    """Start `exostudy device-sim ARGS` and return once it holds `port`.
+def spawn(args: list[str], port: int, pid_file: Path, log_file: Path,
+          implementation: str = "python") -> subprocess.Popen[bytes]:
+    """Start `exostudy device-sim ARGS` (or the C device with the same ARGS) and return
+    once it holds `port`.
 
-    Raises DeviceStartError if the port is taken by another process, or the child exits
-    (or does not bind) first; the child's last output is in the message."""
+    Raises DeviceStartError if the port is taken by another process, the C device is
+    not built, or the child exits (or does not bind) first; the child's last output is
+    in the message."""
+    command = device_command(args, implementation)
     if udp_port_bound(port):
         raise DeviceStartError(f"UDP port {port} is in use by another process; stop it or "
                                "set EXOSTUDY_DEVICE_ADDRESS to a free port")
     pid_file.parent.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, **{PARENT_ENV: str(os.getpid())})
     with open(log_file, "wb") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "backend.cli", "device-sim", *args],
-                                stdout=log, stderr=subprocess.STDOUT, env=env)
+        proc = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env)
     pid_file.write_text(f"{proc.pid}\n")
     deadline = time.monotonic() + START_TIMEOUT_S
     while True:

@@ -22,6 +22,7 @@ from datetime import UTC, datetime
 
 from sqlalchemy import Connection, Engine, insert, update
 
+from backend.core.resources import version
 from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
 from backend.worker.messages import RunStarted, TickBatch
 from controller.tick_codec import TickBlock, db_rows
@@ -33,6 +34,7 @@ def _summarise(config: dict[str, object]) -> dict[str, object]:
     """The run's configuration without inline model and utility documents (the trial
     keeps those by reference); their versions are kept."""
     out = dict(config)
+    out["exostudy_version"] = version()
     for key in ("models", "utilities"):
         doc = out.get(key)
         if isinstance(doc, dict):

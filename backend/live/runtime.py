@@ -31,6 +31,8 @@ from backend.schemas.live import (
 )
 from backend.study import activity
 from backend.worker.messages import (
+    BringupCommand,
+    BringupResult,
     CalibrationResult,
     CommandResult,
     RunStarted,
@@ -40,6 +42,7 @@ from backend.worker.messages import (
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
 from controller.device.auth import load_or_create_key
+from controller.encoders import EncoderLayout
 from controller.factory import needs_models
 from controller.spec import ControllerSpec
 
@@ -65,6 +68,11 @@ class Runtime:
         self.calibration: CalibrationResult | None = None
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self._command_waiters: dict[int, asyncio.Future[CommandResult]] = {}
+        self._bringup_waiters: dict[int, asyncio.Future[BringupResult]] = {}
+        #: The encoder layout of the hardware profile in effect, which every controller
+        #: decodes counts with; None keeps `ControllerConfig`'s default, the simulator's
+        #: own mounting (see `hardware_is_simulated` and docs/hardware-bringup.md).
+        self.encoder_layout: EncoderLayout | None = None
         self._run_ids: dict[int, int] = {}  # worker run token -> runs.id
         self._runs_started = 0
         self._last_run_token = 0
@@ -97,10 +105,38 @@ class Runtime:
                 on_event=self._on_event,
                 on_calibration=self._on_calibration,
                 on_command_result=self._on_command_result,
+                on_bringup=self._on_bringup,
             ),
         )
         self.device_process: subprocess.Popen[bytes] | None = None
         self._status_task: asyncio.Task[None] | None = None
+
+    @property
+    def hardware_is_simulated(self) -> bool:
+        """Whether the device is one of the simulators (in process, or the device
+        process this server spawns) rather than an exoskeleton on the network."""
+        return self.settings.device_kind == "sim" or self.settings.device_spawn_simulator
+
+    def load_hardware_layout(self) -> None:
+        """Take the encoder layout of the hardware profile in effect (the latest one
+        completed), for real hardware only: a simulator keeps its own mounting, which a
+        bring-up on a simulated wearer would otherwise shift by the wearer's standing
+        posture (docs/hardware-bringup.md)."""
+        from sqlalchemy import select
+        from sqlalchemy.orm import Session
+
+        from backend.db.hardware import HardwareProfile
+
+        self.encoder_layout = None
+        if self.hardware_is_simulated:
+            return
+        with Session(self.recorder.engine) as db:
+            profile = db.scalars(select(HardwareProfile)
+                                 .where(HardwareProfile.status == "complete")
+                                 .order_by(HardwareProfile.id.desc()).limit(1)).first()
+            if profile is not None:
+                self.encoder_layout = EncoderLayout(tuple(profile.encoder_offsets),  # type: ignore[arg-type]
+                                                    tuple(profile.encoder_directions))  # type: ignore[arg-type]
 
     def utilities_path(self) -> Path:
         """The default utility set for the configured precompression."""
@@ -132,6 +168,9 @@ class Runtime:
         if self.settings.controller_rate_hz is not None:
             cfg = cfg.at_rate(self.settings.controller_rate_hz)
         settings: dict[str, Any] = cfg.to_json()
+        if self.encoder_layout is not None:
+            settings["encoder_offsets"] = list(self.encoder_layout.offsets)
+            settings["encoder_directions"] = list(self.encoder_layout.directions)
         if name == "eumc" and self.calibration is not None and self.calibration.ok:
             settings["calibration"] = [self.calibration.offset_left,
                                        self.calibration.offset_right]
@@ -292,6 +331,29 @@ class Runtime:
         finally:
             self._calibration_waiters.pop(rid, None)
 
+    async def bringup(self, cmd: BringupCommand) -> BringupResult:
+        """Send a hardware bring-up command to the worker and wait for its answer
+        (RuntimeError if the worker is down or dies first)."""
+        if not self.supervisor.state.alive:
+            raise RuntimeError("the worker is not running: restart it first")
+        fut: asyncio.Future[BringupResult] = asyncio.get_running_loop().create_future()
+        rid = self.supervisor.request_bringup(cmd)
+        self._bringup_waiters[rid] = fut
+        try:
+            result: BringupResult = await self._until_answered(
+                fut, "run the bring-up step", COMMAND_TIMEOUT_S)
+            return result
+        finally:
+            self._bringup_waiters.pop(rid, None)
+
+    def _on_bringup(self, result: BringupResult) -> None:
+        def resolve() -> None:
+            fut = self._bringup_waiters.get(result.request_id)
+            if fut is not None and not fut.done():
+                fut.set_result(result)
+
+        self.stream.call_soon(resolve)
+
     def _on_calibration(self, result: CalibrationResult) -> None:
         self.lab.on_calibration(result.ok, result.message)
         if result.ok:
@@ -307,6 +369,7 @@ class Runtime:
     async def start(self) -> None:
         """Start recording, streaming and (if configured) the device simulator and worker."""
         await asyncio.to_thread(self.prepare_defaults)
+        await asyncio.to_thread(self.load_hardware_layout)
         self.worker_config = replace(
             self.worker_config,
             controller=self.settings.controller,
@@ -355,8 +418,9 @@ class Runtime:
         return self.settings.run_dir / f"device-sim-{self.settings.device_host_port[1]}.pid"
 
     def start_device_simulator(self) -> None:
-        """Run the simulated exoskeleton as its own process on the device address, after
-        stopping one an earlier server left there; returns once it holds the port.
+        """Run the simulated exoskeleton as its own process on the device address (the
+        Python or the C device, setting `device_implementation`), after stopping one an
+        earlier server left there; returns once it holds the port.
         Raises `device_process.DeviceStartError` (with the reason) if it cannot."""
         host, port = self.settings.device_host_port
         pid_file = self._device_pid_file()
@@ -373,7 +437,8 @@ class Runtime:
             "--key-file", str(self.settings.device_key_file),
         ]
         self.device_process = device_process.spawn(
-            cmd, port, pid_file, self.settings.run_dir / f"device-sim-{port}.log")
+            cmd, port, pid_file, self.settings.run_dir / f"device-sim-{port}.log",
+            implementation=self.settings.device_implementation)
 
     # Supervisor callbacks (reader thread).
     def _on_ticks(self, batch: TickBatch) -> None:

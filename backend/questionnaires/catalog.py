@@ -41,6 +41,7 @@ def ensure_built_ins(session: Session) -> int:
     added = 0
     for definition in built_in_definitions():
         row = session.scalars(select(QuestionnaireInstrument).where(
+            QuestionnaireInstrument.built_in.is_(True),
             QuestionnaireInstrument.key == definition.key,
             QuestionnaireInstrument.version == definition.version)).first()
         data = definition.model_dump(mode="json")
@@ -54,3 +55,9 @@ def ensure_built_ins(session: Session) -> int:
                         "version instead of editing it", definition.key, definition.version)
     session.commit()
     return added
+
+
+def built_in_keys() -> frozenset[str]:
+    """Keys a study's own instrument may not use: a participant shown "sus" must get
+    the shipped SUS, never a study's file that only borrows its name."""
+    return frozenset(d.key for d in built_in_definitions())

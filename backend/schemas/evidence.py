@@ -218,6 +218,8 @@ class TrialOut(BaseModel):
     tick_count: int | None = None
     #: Device time gaps or time going backwards in the trial's ticks ({} when none).
     quality_flags: dict[str, Any] | None = None
+    #: The hardware profile in effect when the trial started (None: none, or not started).
+    hardware_profile_id: int | None = None
 
 
 class LockEventOut(BaseModel):

@@ -8,6 +8,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from backend.lab.lsl_names import LSL_TEXT_PATTERN
+
 #: The marker buttons a study starts with; a study can change them.
 DEFAULT_MARKER_LABELS: tuple[str, ...] = ("box dropped", "participant paused",
                                           "adverse event", "note")
@@ -89,8 +91,10 @@ class MarkerStreamIn(BaseModel):
     """Subscribe the session to an LSL marker stream, by source id (or name if the
     stream has no source id)."""
 
-    name: str = Field(min_length=1, max_length=200)
-    source_id: str = Field(default="", max_length=200)
+    name: str = Field(pattern=LSL_TEXT_PATTERN, max_length=200,
+                      description="letters, digits, space and . _ - : @ # + / ( )")
+    source_id: str = Field(default="", pattern=LSL_TEXT_PATTERN + "|^$", max_length=200,
+                           description="as `name`, or empty")
 
 
 class MarkerStreamOut(BaseModel):
@@ -106,6 +110,7 @@ class MarkerStreamOut(BaseModel):
     active: bool
     created_at: datetime
     connected: bool = False
+    error: str = Field(default="", description="why the server closed the subscription")
 
 
 class XdfStreamSummary(BaseModel):

@@ -12,6 +12,7 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, Field
 
+from backend.core.resources import version
 from controller.device.base import MAX_SPEED
 
 #: Tick fields sent to consoles, in column order.
@@ -137,6 +138,8 @@ class Health(BaseModel):
     device: DeviceHealth
     database: DatabaseHealth
     clients: int
+    #: The running ExoStudy (the package version), so a report names what produced it.
+    version: str = Field(default_factory=version)
 
 
 class LiveStatus(BaseModel):

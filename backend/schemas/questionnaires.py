@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictInt
 
 from backend.questionnaires.definition import (
     KEY_PATTERN,
@@ -26,6 +26,8 @@ class InstrumentSummary(BaseModel):
     version: str
     title: str
     built_in: bool
+    study_id: int | None = Field(
+        description="the study the instrument belongs to; null for a built-in")
     wording: str = Field(description="standard, project (ExoStudy's own) or study")
     wording_note: str
     created_at: UtcDatetime
@@ -45,14 +47,16 @@ class FormDueIn(BaseModel):
     instrument_key: str = Field(pattern=KEY_PATTERN, examples=["sus"])
     instrument_version: str | None = Field(
         default=None, pattern=VERSION_PATTERN,
-        description="default: the newest version of the instrument")
+        description="default: the only version the study may use (422 if it has several)")
     condition_label: Label | None = Field(
         default=None, description="the blinded condition the form is about, if any")
 
 
 class FormDue(BaseModel):
-    """A form due, as stored on the link."""
+    """A form due, as stored on the link (`instrument_id`: the instrument row the link
+    was made with, which is what the participant is shown)."""
 
+    instrument_id: int | None = None
     instrument_key: str
     instrument_version: str
     condition_label: str | None
@@ -154,8 +158,10 @@ class AnswersIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    form: int = Field(ge=0, le=100, description="index of the form in `forms`")
-    answers: dict[str, int | None] = Field(max_length=200)
+    # Strict: JSON `true` is not the answer 1, nor `3.0` or "3" an answer (pydantic's lax
+    # mode would turn them into integers and score them).
+    form: StrictInt = Field(ge=0, le=100, description="index of the form in `forms`")
+    answers: dict[str, StrictInt | None] = Field(max_length=200)
 
 
 class PreferenceIn(BaseModel):

@@ -44,3 +44,5 @@ class SessionOut(BaseModel):
     started_at: UtcDatetime
     notes: str
     created_at: UtcDatetime
+    #: The hardware profile in effect when the session was created (None: none).
+    hardware_profile_id: int | None = None

@@ -13,6 +13,9 @@ _COMMON: dict[str, tuple[str, str]] = {
     "notes": ("", "free text from the experimenter"),
     "status": ("", "state of the row (see the file's description)"),
     "name": ("", "name given by the experimenter"),
+    "hardware_profile_id": ("", "hardware profile in effect (the last completed hardware "
+                            "bring-up: encoder zeros and directions, cam offset, firmware "
+                            "version, link key id; docs/hardware-bringup.md); empty: none"),
 }
 
 TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
@@ -38,7 +41,9 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
     "condition_labels": ("The blinding key: which controller each label stood for.", {
         "participant_id": ("", "participant id"),
         "label": ("", "label the participant saw (A, B, C)"),
-        "controller": ("", "controller behind the label: umc, eumc or pec"),
+        "controller": ("", "controller behind the label: umc, eumc or pec; the blinding "
+                       "key, so filled in only in exports made by the study's owner (empty "
+                       "in an experimenter's de-identified export)"),
     }),
     "recordings": ("Continuous 100 Hz recordings of demonstrations (no locks; status "
                    "recording, stopped or interrupted); ticks in ticks/recording-<id>.csv.", {
@@ -137,7 +142,9 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "run_id": ("", "worker run of the marker's tick"),
         "t": ("s", "device time of the tick the marker is placed at"),
         "lsl_time": ("s", "the same instant on the Lab Streaming Layer clock"),
-        "label": ("", "marker label (console button, LSL sample text, trial_start/stop)"),
+        "label": ("", "marker label (console button, LSL sample text, trial_start/stop); "
+                  "the de-identified export keeps the system's labels and the study's "
+                  "marker buttons and replaces any other text with \"other\""),
         "note": ("", "free text typed with the marker"),
         "source": ("", "console, lsl or system"),
         "stream_id": ("", "the LSL marker stream subscription it came from"),
@@ -186,6 +193,7 @@ def markdown() -> str:
     for col in TickRecord.field_names():
         unit, meaning = TICK_FIELD_DOCS[col]
         lines.append(f"| {col} | {unit} | {meaning} |")
+    lines += ["", *bids_markdown(), "", *exports_markdown()]
     return "\n".join(lines) + "\n"
 
 
@@ -193,3 +201,123 @@ def _columns_of(table: str) -> list[str]:
     from backend.analysis.export import EXPORTED_COLUMNS
 
     return EXPORTED_COLUMNS[table]
+
+
+# BIDS export ---------------------------------------------------------------------------
+# The BIDS export's tabular files and their sidecars (`*.json` next to each `*.tsv`) are
+# generated from these entries, and so is the section of the README above: one
+# definition, so the dictionary and the sidecars cannot say different things.
+
+#: file -> (what it holds, column -> (BIDS unit or "", meaning)).
+BIDS_FILES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
+    "participants.tsv": ("One row per participant (withdrawn ones left out), de-identified "
+                         "fields only.", {
+        "participant_id": ("", "pseudonymous participant code"),
+        "age": ("year", "age at enrolment"),
+        "sex": ("", "sex as recorded by the experimenter"),
+        "height": ("m", "body height"),
+        "weight": ("kg", "body mass"),
+    }),
+    "*_scans.tsv": ("One row per motion file of a session.", {
+        "filename": ("", "the trial's motion file"),
+        "acq_time": ("", "when the trial started (UTC)"),
+        "trial_id": ("", "ExoStudy's trial id (only in an owner's export: ExoStudy shows "
+                     "each trial's controller, so the id would unblind the label)"),
+        "controller": ("", "the exoskeleton controller of the trial: umc, eumc or pec (only "
+                       "in an owner's export: with blinded_label it is the blinding key)"),
+        "blinded_label": ("", "the label the participant knew the controller by"),
+        "outcome": ("", "completed or aborted"),
+        "hardware_profile_id": ("", "hardware profile in effect during the trial (as in "
+                                "trials.csv); n/a: none"),
+    }),
+    "*_events.tsv": ("Events of one motion file: lifts, lock commands and mechanism "
+                     "edges, markers.", {
+        "onset": ("s", "seconds from the first sample of the motion file"),
+        "duration": ("s", "lift duration; 0 for instantaneous events"),
+        "trial_type": ("", "what happened"),
+        "side": ("", "left or right hip; n/a for both"),
+        "value": ("", "lift label, peak torque (N.m) of an engagement, or the marker's "
+                  "label and note"),
+        "source": ("", "where the event comes from: segment (the experimenter's lifts), "
+                   "lock_events (derived from the ticks), console, lsl or system"),
+        "HED": ("", "the event in Hierarchical Event Descriptors (HED 8.3.0): its kind and "
+                "side; n/a for a repeat of the row before it at the same onset"),
+    }),
+}
+
+#: Levels of categorical BIDS columns, for the sidecars.
+BIDS_LEVELS: dict[tuple[str, str], dict[str, str]] = {
+    ("*_events.tsv", "trial_type"): {
+        "lift": "a lift marked by the experimenter",
+        "command_on": "solenoid command on",
+        "command_off": "solenoid command off",
+        "engaged": "ratchet engaged",
+        "released": "ratchet released",
+        "marker": "an event marker (console, LSL or system)",
+    },
+    ("*_scans.tsv", "outcome"): {"completed": "the trial ran to its end",
+                                 "aborted": "the experimenter ended it early"},
+}
+
+#: Columns that together with a blinded label unblind a condition: written only in an
+#: export made by the study's owner (empty, or left out, in anyone else's).
+BLINDING_KEY: frozenset[tuple[str, str]] = frozenset({
+    ("condition_labels.csv", "controller"), ("*_scans.tsv", "controller"),
+    ("*_scans.tsv", "trial_id")})
+
+
+def bids_sidecar(file: str, columns: list[str] | None = None) -> dict[str, dict[str, object]]:
+    """The JSON sidecar describing `file`'s columns (only `columns`, if given)."""
+    cols = BIDS_FILES[file][1]
+    out: dict[str, dict[str, object]] = {}
+    for name in columns if columns is not None else list(cols):
+        if name == "HED":  # HED's own column: a sidecar may not describe it
+            continue
+        unit, meaning = cols[name]
+        entry: dict[str, object] = {"Description": meaning}
+        if unit:
+            entry["Units"] = unit
+        levels = BIDS_LEVELS.get((file, name))
+        if levels:
+            entry["Levels"] = dict(levels)
+        out[name] = entry
+    return out
+
+
+def bids_markdown() -> list[str]:
+    """The BIDS export's tabular files, as README lines."""
+    lines = ["## BIDS export (export.bids.zip)", "",
+             "Motion files have no header (`*_channels.tsv` names their columns); the "
+             "other tables are described below and, in the dataset itself, by the JSON "
+             "sidecar next to each file.", ""]
+    for file, (about, cols) in BIDS_FILES.items():
+        lines += [f"### {file}", "", about, "", "| column | unit | meaning |", "|---|---|---|"]
+        lines += [f"| {c} | {u} | {m} |" for c, (u, m) in cols.items()]
+        lines.append("")
+    return lines
+
+
+#: Which export holds what, and who may download it.
+EXPORTS: tuple[tuple[str, str, str], ...] = (
+    ("export.zip", "owner",
+     "every table above with the study's own codes, dates and free text, the blinding "
+     "key (condition_labels.csv `controller`), every trial's and recording's ticks"),
+    ("export-deidentified.zip", "experimenter or owner",
+     "the same files; participants re-coded, free text and account ids removed, marker "
+     "labels other than the system's and the study's marker buttons replaced by "
+     "\"other\", ages above 89 as 90, dates moved back by each participant's own stored "
+     "shift (the same at every download); the blinding key only in an owner's download"),
+    ("export.bids.zip", "experimenter or owner",
+     "the evaluation trials as BIDS motion files with events, participants' de-identified "
+     "fields, questionnaires as phenotype files, attached XDF files as source data; "
+     "motion files are named by blinded label (`acq-A`) and `*_scans.tsv` has neither "
+     "`controller` nor `trial_id`, except in an owner's download (`acq-umc`, both)"),
+)
+
+
+def exports_markdown() -> list[str]:
+    """The table of exports, as README lines."""
+    lines = ["## Which export holds what", "", "| export | who may download it | holds |",
+             "|---|---|---|"]
+    lines += [f"| {name} | {who} | {what} |" for name, who, what in EXPORTS]
+    return lines

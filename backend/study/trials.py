@@ -15,11 +15,12 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError, NotFoundError
+from backend.core.resources import version
 from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, StudySession, User
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
-from backend.study import activity, audit
+from backend.study import activity, audit, hardware_profiles
 from backend.study.counterbalance import blinded_labels, controller_order
 from controller.config import SettingError
 from controller.device.base import SAMPLE_PERIOD_S
@@ -152,6 +153,7 @@ async def _start(db: Session, user: User, runtime: Runtime, trial_id: int,
     spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz)
     if body.duration_s is not None:
         snapshot["duration_s"] = body.duration_s
+    snapshot["exostudy_version"] = version()
     try:
         run_id = await runtime.switch_controller(
             spec, max_ticks=None if body.duration_s is None
@@ -165,6 +167,7 @@ async def _start(db: Session, user: User, runtime: Runtime, trial_id: int,
     trial.status = "running"
     trial.started_at = datetime.now(UTC)
     trial.config_snapshot = snapshot
+    trial.hardware_profile_id = hardware_profiles.active_id(db)
     audit.record(db, user, "start", "trial", trial.id, {"run_id": run_id})
     db.commit()
     await runtime.lab.trial_marker(db, trial, "trial_start")  # LSL marker, stored

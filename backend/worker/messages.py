@@ -168,5 +168,74 @@ class CommandResult:
     run_token: int = 0
 
 
+@dataclass(frozen=True, slots=True)
+class BringupCapture:
+    """Hardware bring-up: read `seconds` of raw samples with both solenoids off (encoder
+    zero, direction, cam-to-output offset). Only with controller `none`."""
+
+    seconds: float
+    request_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class BringupPulse:
+    """Hardware bring-up: energise one solenoid for `seconds` (capped by the worker at
+    `backend.worker.bringup.PULSE_MAX_S`) on an unloaded device, then release.
+
+    `offsets` and `directions` are the encoder layout used to judge the spring
+    deflection (no load: |alpha| at most `max_alpha_deg` on both sides)."""
+
+    side: str
+    seconds: float
+    offsets: tuple[int, int, int, int]
+    directions: tuple[int, int, int, int]
+    max_alpha_deg: float
+    request_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class BringupWatchdog:
+    """Hardware bring-up: energise one solenoid of an unloaded device, then send nothing
+    and time the device's command watchdog (see `BringupPulse` for the layout)."""
+
+    side: str
+    offsets: tuple[int, int, int, int]
+    directions: tuple[int, int, int, int]
+    max_alpha_deg: float
+    request_id: int = 0
+
+
+#: One raw sample seen during a bring-up step: (seconds since the step began, on the
+#: worker's monotonic clock, when the sample arrived; device sequence; device time (s);
+#: the four counts; the status word).
+RawSample = tuple[float, int, float, int, int, int, int, int]
+
+
+@dataclass(frozen=True, slots=True)
+class BringupResult:
+    """The worker's answer to a bring-up command: what it saw, and for a pulse or the
+    watchdog test what the device reported back. `ok` False means the step was refused
+    or failed; `message` says why (the server judges the captured samples itself)."""
+
+    request_id: int
+    ok: bool
+    message: str
+    samples: tuple[RawSample, ...] = ()
+    #: Pulse and watchdog: the device reported the solenoid energised.
+    solenoid_seen: bool = False
+    #: Pulse and watchdog: the device reported the solenoid off again afterwards.
+    released_seen: bool = False
+    #: Watchdog: seconds from the last command sent to the first sample with
+    #: WATCHDOG_RELEASED and the solenoid off (NaN if it never came).
+    release_s: float = float("nan")
+    #: Seconds (step clock, as in `samples`) of the last command sent (NaN: none).
+    last_command_s: float = float("nan")
+    #: The step did not start: controller not `none`, or the device showed a load or
+    #: fault before a pulse (nothing was energised).
+    refused: bool = False
+
+
+BringupCommand = BringupCapture | BringupPulse | BringupWatchdog
+
 WorkerMessage = (TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
-                 | CommandResult)
+                 | CommandResult | BringupResult)

@@ -28,8 +28,12 @@ from typing import Any
 import numpy as np
 
 from backend.schemas.live import DeviceReport, LoopReport
+from backend.worker import bringup
 from backend.worker.devices import make_device
 from backend.worker.messages import (
+    BringupCapture,
+    BringupPulse,
+    BringupWatchdog,
     Calibrate,
     CalibrationResult,
     CommandResult,
@@ -245,6 +249,13 @@ def worker_main(
                     _answer(outbox, rid, refused, token)
                 elif isinstance(cmd, Calibrate):
                     calibration = _CalibrationJob(cmd, config, runs.config)
+                elif isinstance(cmd, BringupCapture | BringupPulse | BringupWatchdog):
+                    # The step owns the device for its few seconds (the loop pauses;
+                    # the step answers samples itself) and always releases after it.
+                    outbox.put(bringup.handle(cmd, device, loop.controller.name))
+                    _abandon(outbox, calibration, "a hardware bring-up step ran")
+                    calibration = None
+                    loop = ControlLoop(device, loop.controller)  # fresh timing after it
                 elif isinstance(cmd, SetSimulation):
                     if config.device_kind != "sim":
                         refused = ("the device is not the in-process simulator: there is no "

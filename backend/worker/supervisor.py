@@ -19,6 +19,8 @@ from multiprocessing.process import BaseProcess
 from typing import Any
 
 from backend.worker.messages import (
+    BringupCommand,
+    BringupResult,
     Calibrate,
     CalibrationResult,
     CommandResult,
@@ -48,6 +50,7 @@ class WorkerCallbacks:
     on_event: Callable[[str, dict[str, Any]], None] = lambda kind, data: None
     on_calibration: Callable[[CalibrationResult], None] = lambda result: None
     on_command_result: Callable[[CommandResult], None] = lambda result: None
+    on_bringup: Callable[[BringupResult], None] = lambda result: None
 
 
 @dataclass
@@ -201,6 +204,16 @@ class WorkerSupervisor:
             self._cmd.send(Calibrate(seconds, max_std_deg, rid))
             return rid
 
+    def request_bringup(self, cmd: BringupCommand) -> int:
+        """Send a hardware bring-up command; returns the request id its
+        `BringupResult` (through `callbacks.on_bringup`) will carry."""
+        with self._lock:
+            if self._cmd is None or not self.state.alive:
+                raise RuntimeError("the worker is not running")
+            rid = self._next_request_id()
+            self._cmd.send(replace(cmd, request_id=rid))
+            return rid
+
     def _read(self, proc: BaseProcess, conn: Connection) -> None:
         while True:
             ready = wait([conn, proc.sentinel], timeout=POLL_S)
@@ -235,6 +248,8 @@ class WorkerSupervisor:
                 self.callbacks.on_calibration(msg)
             elif isinstance(msg, CommandResult):
                 self.callbacks.on_command_result(msg)
+            elif isinstance(msg, BringupResult):
+                self.callbacks.on_bringup(msg)
             elif isinstance(msg, WorkerError):
                 self.state.errors = [*self.state.errors[-19:], msg.message]
                 log.warning("worker: %s", msg.message)

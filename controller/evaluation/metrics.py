@@ -16,10 +16,28 @@ The paper's rules, and the choices this module makes where the paper leaves room
   (`controller_ran`) and decided a locking action (`action` 2, 3 or 4). The `action`
   column holds the last decision between runs, so ticks where the controller did not
   run are not decisions. A 100 Hz "no lock" (the idle E-UMC) is not a lock decision.
-- **Decision outcome**: the first lock decision in the first half is correct if it is
-  the lift's correct action (squat: lock both; stoop left: lock left; stoop right:
-  lock right), else wrong; no lock decision in the first half is missed, even if a
-  lock follows later.
+- **Decision outcome** (`LiftOutcome.decision`, the paper's counting rule). The paper
+  (section "Evaluation"): "the number of correct decisions, taken in the first half of
+  a lifting motion, was counted", "a correct decision was to lock both sides during a
+  squat motion, lock left side during stoop left motions and lock right side during
+  stoop right motions", and "the first decision during an asymmetric stoop motion
+  should always be to engage the supporting side". Its discussion adds that in squats
+  the UMC "initially only locked the right support mechanism" and then "locked the
+  left support mechanism as well", while its table still counts those squats as
+  correct. So:
+  - squat: **correct** if both sides have been commanded to lock within the first
+    half, in one decision (lock both) or in two (one side, then the other); **wrong**
+    if only one side was; **missed** if none was;
+  - stoop: **correct** if the first lock decision in the first half is the supporting
+    side alone (lock left in a stoop left); **wrong** if it is another locking action;
+    **missed** if there is none.
+- **First decision** (`LiftOutcome.first_decision`, the stricter reading): the first
+  lock decision in the first half is the lift's correct action, else wrong; none is
+  missed. For stoops it equals the paper's rule; for squats it counts a squat whose
+  first lock was one-sided as wrong even when the other side followed in time
+  (`LiftOutcome.first_lock_one_sided`), which is the delayed locking the paper's
+  discussion blames for asymmetric squat torques.
+  A lock decided after the first half is missed under both readings.
 - **Peak torque**: the maximum of `torque_left` and of `torque_right` over the whole
   lift (the actuator model applied to the measured spring deflection; see
   `controller.evaluation.torques` to recompute it), NaN ticks ignored.
@@ -50,10 +68,14 @@ from controller.tick import Action
 #: The paper's recognition threshold on the correct model's posterior.
 RECOGNITION_THRESHOLD = 0.5
 _LOCK_ACTIONS = np.array([int(Action.LOCK_BOTH), int(Action.LOCK_RIGHT), int(Action.LOCK_LEFT)])
+#: The sides each locking action commands.
+ACTION_SIDES: dict[Action, str] = {Action.LOCK_BOTH: "LR", Action.LOCK_LEFT: "L",
+                                   Action.LOCK_RIGHT: "R"}
 
 
 class DecisionOutcome(enum.StrEnum):
-    """The outcome of a lift's first lock decision in its first half."""
+    """The outcome of a lift's lock decisions in its first half (rules in the module
+    docstring)."""
 
     CORRECT = "correct"
     WRONG = "wrong"
@@ -72,7 +94,12 @@ class LiftOutcome:
             none was computed there).
         recognised_s: time from onset to the first tick of the first half with the
             correct posterior >= 0.5 (NaN if not recognised).
-        decision: correct, wrong or missed.
+        decision: correct, wrong or missed by the paper's counting rule.
+        first_decision: correct, wrong or missed by the first lock decision alone.
+        first_lock_one_sided: the first lock decision in the first half locked one side
+            only (lock left or lock right); False if there was none.
+        sides_commanded: which sides ("L", "R") any lock decision of the first half
+            commanded, e.g. "LR" or "" (none).
         first_action: the first lock decision in the first half, None if missed.
         first_decision_s: its time from onset (NaN if missed).
         peak_torque_left: peak left exoskeleton torque over the lift (Nm).
@@ -86,6 +113,9 @@ class LiftOutcome:
     peak_posterior: float
     recognised_s: float
     decision: DecisionOutcome
+    first_decision: DecisionOutcome
+    first_lock_one_sided: bool
+    sides_commanded: str
     first_action: Action | None
     first_decision_s: float
     peak_torque_left: float
@@ -160,14 +190,23 @@ def evaluate_lift(
             recognised_s = float(t[lift.start + k] - t[lift.start])
 
     decided = lock_decisions(cols)[half]
+    actions = cols.int_("action")[half]
     k = _first(decided)
+    sides = ""
     if k is None:
-        outcome, first_action, first_s = DecisionOutcome.MISSED, None, math.nan
+        first, first_action, first_s = DecisionOutcome.MISSED, None, math.nan
     else:
-        first_action = Action(int(cols.int_("action")[lift.start + k]))
+        first_action = Action(int(actions[k]))
         first_s = float(t[lift.start + k] - t[lift.start])
-        correct = first_action == lift.correct_action
-        outcome = DecisionOutcome.CORRECT if correct else DecisionOutcome.WRONG
+        first = (DecisionOutcome.CORRECT if first_action == lift.correct_action
+                 else DecisionOutcome.WRONG)
+        commanded = {s for a in np.unique(actions[decided]) for s in ACTION_SIDES[Action(int(a))]}
+        sides = "".join(s for s in "LR" if s in commanded)
+    if lift.kind == "squat":
+        outcome = (DecisionOutcome.MISSED if not sides else
+                   DecisionOutcome.CORRECT if sides == "LR" else DecisionOutcome.WRONG)
+    else:
+        outcome = first
 
     left, right = cols.bool_("lock_left"), cols.bool_("lock_right")
     first_lock = _first_held_s(left | right, t, lift)
@@ -183,6 +222,9 @@ def evaluate_lift(
         peak_posterior=peak_post,
         recognised_s=recognised_s,
         decision=outcome,
+        first_decision=first,
+        first_lock_one_sided=first_action in (Action.LOCK_LEFT, Action.LOCK_RIGHT),
+        sides_commanded=sides,
         first_action=first_action,
         first_decision_s=first_s,
         peak_torque_left=_torque(cols, "left", lift),

@@ -11,12 +11,11 @@ that does not apply (recognitions of a controller without intent estimation).
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from controller import spreadsheet
 from controller.evaluation.lifts import LIFT_KINDS, TRIAL_KINDS
 from controller.evaluation.metrics import (
     DecisionOutcome,
@@ -82,12 +81,8 @@ class Table:
 
     def to_csv(self) -> str:
         """Comma-separated values with a header line, newline-terminated."""
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(self.header)
-        for row in self.rows:
-            w.writerow([_csv_cell(v) for v in row])
-        return buf.getvalue()
+        return spreadsheet.table_text(self.header,
+                                      ([_csv_cell(v) for v in row] for row in self.rows))
 
     def to_markdown(self) -> str:
         """A GitHub-flavoured Markdown table."""
@@ -116,6 +111,10 @@ class PerformanceRow:
     """Counts of one participant, controller and motion group.
 
     `recognised` is None for a controller without intent estimation (the PEC).
+    `correct`, `wrong`, `missed` follow the paper's counting rule; `first_correct` is
+    the stricter first-decision reading and `first_one_sided` the lifts whose first
+    lock decision locked one side only (for squats: the delayed second side); see
+    `controller.evaluation.metrics`.
     """
 
     participant: str
@@ -126,6 +125,8 @@ class PerformanceRow:
     correct: int
     wrong: int
     missed: int
+    first_correct: int = 0
+    first_one_sided: int = 0
 
 
 @dataclass(frozen=True)
@@ -184,6 +185,8 @@ class PerformanceTable:
                             dec.count(DecisionOutcome.CORRECT),
                             dec.count(DecisionOutcome.WRONG),
                             dec.count(DecisionOutcome.MISSED),
+                            sum(1 for o in os_ if o.first_decision is DecisionOutcome.CORRECT),
+                            sum(1 for o in os_ if o.first_lock_one_sided),
                         )
                     )
         return cls(tuple(rows), tuple(participants), tuple(ctls), tuple(motions))
@@ -192,10 +195,10 @@ class PerformanceTable:
         """One row per participant, controller and motion with every count."""
         return Table(
             ("participant", "controller", "motion", "lifts", "recognised", "correct",
-             "wrong", "missed"),
+             "wrong", "missed", "first_correct", "first_one_sided"),
             tuple(
                 (r.participant, r.controller, r.motion, r.lifts, r.recognised, r.correct,
-                 r.wrong, r.missed)
+                 r.wrong, r.missed, r.first_correct, r.first_one_sided)
                 for r in self.rows
             ),
             title="Intent estimation and decision performance",
@@ -209,10 +212,15 @@ class PerformanceTable:
             ("Decision correct", "correct"),
             ("Decision wrong", "wrong"),
             ("Decision missed", "missed"),
+            ("First decision correct", "first_correct"),
+            ("First lock one-sided", "first_one_sided"),
         ]
+        squat_groups = {PAPER_MOTION_GROUPS["squat"], "squat"}
         rows: list[tuple[Cell, ...]] = []
         for label, attr in metrics:
             for m in self.motions:
+                if attr == "first_one_sided" and m not in squat_groups:
+                    continue  # a one-sided first lock is the correct one in a stoop
                 cells: list[Cell] = [label, m]
                 for p in self.participants:
                     vals = []
@@ -234,8 +242,12 @@ class PerformanceTable:
                 f"Cells list {labels} where a participant used several controllers. "
                 f"Lifts per cell: {', '.join(map(str, lifts)) or 'none'}. "
                 "Recognised: the correct model's posterior reached 0.5 in the first half "
-                "of the lift. Decision: the first lock decision in the first half "
-                "(missed: none).",
+                "of the lift. Decision (the paper's rule): squat correct if both sides "
+                "were commanded to lock in the first half (in one decision or two), wrong "
+                "if one side only, missed if none; stoop correct if the first lock "
+                "decision in the first half is the supporting side. First decision: the "
+                "first lock decision alone must be the correct action. First lock "
+                "one-sided: squats whose first lock decision locked one side only.",
             ),
         )
 
@@ -370,6 +382,7 @@ def lift_table(evaluations: Sequence[RecordingEvaluation]) -> Table:
                 (
                     e.participant, e.controller, e.recording, lf.index, lf.kind, lf.start,
                     lf.end, o.recognised, o.peak_posterior, o.decision.value,
+                    o.first_decision.value, o.first_lock_one_sided, o.sides_commanded,
                     None if o.first_action is None else ACTION_NAMES[o.first_action - 1],
                     o.first_decision_s, o.peak_torque_left, o.peak_torque_right,
                     o.first_lock_s, o.correct_lock_s,
@@ -377,7 +390,8 @@ def lift_table(evaluations: Sequence[RecordingEvaluation]) -> Table:
             )
     return Table(
         ("participant", "controller", "recording", "lift", "kind", "start", "end",
-         "recognised", "peak_posterior", "decision", "first_action", "first_decision_s",
+         "recognised", "peak_posterior", "decision", "first_decision", "first_lock_one_sided",
+         "sides_commanded", "first_action", "first_decision_s",
          "peak_torque_left_nm", "peak_torque_right_nm", "first_lock_s", "correct_lock_s"),
         tuple(rows),
         title="Per-lift outcomes",

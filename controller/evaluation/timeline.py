@@ -133,6 +133,33 @@ def _missing(ax: Axes, what: str) -> None:
             transform=ax.transAxes, color="0.4")
 
 
+def draw_models(ax: Axes, models: ModelSetLike,
+                progress_points: Sequence[float] = DEFAULT_PROGRESS_POINTS
+                ) -> tuple[list[Line2D | Patch], list[float]]:
+    """Each model's mean over its online part (degrees, left vs right hip) and its 95 %
+    confidence ellipses at `progress_points`, on `ax`; returns the legend handles and
+    the values drawn (for the axis range). Panel A of the controller output figure and
+    the motion-model figure of the replication report."""
+    handles: list[Line2D | Patch] = []
+    extent: list[float] = []
+    for m in models.ordered():
+        colour = KIND_COLOURS.get(m.name, "0.3")
+        mean = np.degrees(np.asarray(m.mean, dtype=np.float64))
+        cov = np.asarray(m.cov, dtype=np.float64) * (180.0 / np.pi) ** 2
+        online = getattr(m, "online_n", None)  # MotionModel marks its online half
+        last = int(online) if isinstance(online, int) else mean.shape[0]
+        ax.plot(mean[:last, 0], mean[:last, 1], color=colour, lw=1.6)
+        extent += mean[:last].ravel().tolist()
+        for s in progress_points:
+            k = round(s * (mean.shape[0] - 1))
+            w, h, ang = confidence_ellipse(mean[k], cov[k])
+            ax.add_patch(Ellipse((float(mean[k, 0]), float(mean[k, 1])), w, h, angle=ang,
+                                 fill=False, ec=colour, lw=0.8, alpha=0.9))
+            extent += [float(mean[k].min()) - w / 2, float(mean[k].max()) + w / 2]
+        handles.append(Line2D([], [], color=colour, label=KIND_LABELS.get(m.name, m.name)))
+    return handles, extent
+
+
 def controller_output_figure(
     columns: Columns,
     start: int = 0,
@@ -201,21 +228,9 @@ def controller_output_figure(
     handles: list[Line2D | Patch] = []
     extent: list[float] = [float(v) for v in np.concatenate([ql, qr]) if np.isfinite(v)]
     if models is not None:
-        for m in models.ordered():
-            colour = KIND_COLOURS.get(m.name, "0.3")
-            mean = np.degrees(np.asarray(m.mean, dtype=np.float64))
-            cov = np.asarray(m.cov, dtype=np.float64) * (180.0 / np.pi) ** 2
-            online = getattr(m, "online_n", None)  # MotionModel marks its online half
-            last = int(online) if isinstance(online, int) else mean.shape[0]
-            ax_a.plot(mean[:last, 0], mean[:last, 1], color=colour, lw=1.6)
-            extent += mean[:last].ravel().tolist()
-            for s in progress_points:
-                k = round(s * (mean.shape[0] - 1))
-                w, h, ang = confidence_ellipse(mean[k], cov[k])
-                ax_a.add_patch(Ellipse((float(mean[k, 0]), float(mean[k, 1])), w, h, angle=ang,
-                                       fill=False, ec=colour, lw=0.8, alpha=0.9))
-                extent += [float(mean[k].min()) - w / 2, float(mean[k].max()) + w / 2]
-            handles.append(Line2D([], [], color=colour, label=KIND_LABELS.get(m.name, m.name)))
+        h_models, e_models = draw_models(ax_a, models, progress_points)
+        handles += h_models
+        extent += e_models
     if parts:
         ax_a.plot(ql, qr, color="0.6", lw=0.5, alpha=0.4)
         for a, b in parts:

@@ -29,6 +29,7 @@ from controller.sim.activities import (
     draw_lift,
     gait,
     lift,
+    min_jerk,
     stand,
     walk_amplitude,
 )
@@ -59,7 +60,18 @@ class GaitStep:
     pieces: tuple[tuple[str, tuple[float, float]], ...]
 
 
-Step = Stand | LiftStep | GaitStep
+@dataclass(frozen=True, slots=True)
+class HipFlexStep:
+    """One hip flexes to `degrees` above standing and back, the other stays still: what an
+    experimenter asks for in the hardware bring-up's direction step. Labelled `stand`
+    (no lift, no gait); the human moment is left at zero (not used by bring-up)."""
+
+    side: int  # 0 left, 1 right
+    degrees: float
+    seconds: float  # up and back down
+
+
+Step = Stand | LiftStep | GaitStep | HipFlexStep
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,6 +123,15 @@ _STAIRS = (
     Stand((2.0, 3.0)),
 )
 
+#: Hardware bring-up (docs/hardware-bringup.md): quiet standing for the zero, offset,
+#: pulse and watchdog steps, and a single hip flexing for the direction step.
+_BRINGUP_STAND = (Stand((30.0, 30.0)),)
+
+
+def _hip_flex_steps(side: int) -> tuple[Step, ...]:
+    return (Stand((1.0, 1.0)), HipFlexStep(side, 40.0, 2.0), Stand((1.0, 1.0)))
+
+
 SCRIPTS: dict[str, Script] = {
     "squat-sequence": Script("squat-sequence", _SQUATS, 10.0),
     "stoop-sequence": Script("stoop-sequence", _STOOPS, 10.0),
@@ -132,6 +153,9 @@ SCRIPTS: dict[str, Script] = {
         ),
         5.0,
     ),
+    "standing": Script("standing", _BRINGUP_STAND, 0.0),
+    "hip-flex-left": Script("hip-flex-left", _hip_flex_steps(0), 0.0),
+    "hip-flex-right": Script("hip-flex-right", _hip_flex_steps(1), 0.0),
 }
 SCRIPT_NAMES: tuple[str, ...] = tuple(SCRIPTS)
 
@@ -204,6 +228,18 @@ def _gait_pieces(
     return pieces
 
 
+def _hip_flex(p: VirtualParticipant, step: HipFlexStep) -> Segment:
+    """One hip up by `step.degrees` and back (minimum jerk each way), the other standing."""
+    n = max(2, round(step.seconds / SAMPLE_PERIOD_S))
+    half = np.linspace(0.0, 2.0, n)
+    shape = np.where(half <= 1.0, min_jerk(half), min_jerk(2.0 - half))
+    theta = np.tile(p.stand_flexion, (n, 1))
+    theta[:, step.side] += np.radians(step.degrees) * shape
+    stand_code = ACTIVITIES.index("stand")
+    return Segment(theta, np.zeros((n, 2)), np.full(n, stand_code, dtype=np.int8),
+                   np.full(n, -1, dtype=np.int32), np.full(n, np.nan))
+
+
 def realise(
     script: Script,
     participant: VirtualParticipant,
@@ -223,6 +259,9 @@ def realise(
         if isinstance(step, Stand):
             box = script.box_kg if step.holding_box else 0.0
             seg = stand(p, float(rng.uniform(*step.seconds)), box)
+            lift_ids.append(-1)
+        elif isinstance(step, HipFlexStep):
+            seg = _hip_flex(p, step)
             lift_ids.append(-1)
         elif isinstance(step, LiftStep):
             shape = draw_lift(p, rng, step.kind)

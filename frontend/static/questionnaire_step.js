@@ -19,7 +19,7 @@ function renderChoices() {
     // The controller is shown to the study's owners only (null for other roles).
     h("td", {}, h("strong", {}, c.label), c.controller ? h("span", { class: "muted small" }, ` (${controllerLabel(c.controller)})`) : ""),
     ...instruments.map((i) => h("td", {}, h("input", {
-      type: "checkbox", name: "form", value: `${i.key}|${c.label}`, checked: true,
+      type: "checkbox", name: "form", value: `${i.key}|${i.version}|${c.label}`, checked: true,
       "aria-label": `${i.key} for condition ${c.label}` }))))));
   $("#link-create").disabled = conditions.length === 0;
   if (!conditions.length) {
@@ -51,8 +51,9 @@ async function load() {
   if (session.kind !== "evaluation") return;
   participantId = session.participant_id;
   [instruments, conditions] = await Promise.all([
-    get("/api/instruments"), get(`/api/participants/${participantId}/conditions`)]);
-  // The newest version of each instrument.
+    get(`/api/participants/${participantId}/instruments`),
+    get(`/api/participants/${participantId}/conditions`)]);
+  // The newest version of each instrument the study may use; the link names it.
   const newest = new Map();
   for (const i of instruments) newest.set(i.key, i);
   instruments = [...newest.values()];
@@ -75,8 +76,8 @@ $("#link-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#link-create"), $("#link-msg"), async () => {
     const forms = [...ev.target.querySelectorAll("input[name=form]:checked")].map((x) => {
-      const [key, label] = x.value.split("|");
-      return { instrument_key: key, condition_label: label };
+      const [key, version, label] = x.value.split("|");
+      return { instrument_key: key, instrument_version: version, condition_label: label };
     });
     const link = await post(`/api/participants/${participantId}/links`,
       { forms, preference: $("#link-preference").checked });

@@ -78,7 +78,7 @@ def test_experimenter_makes_a_link_and_sees_the_sus_score_in_the_console(
     # Only the SUS for the PEC's condition, and no preference question.
     for box in page.query_selector_all("#link-choices input[type=checkbox]"):
         box.uncheck()
-    page.check(f"#link-choices input[value='sus|{label}']")
+    page.check(f"#link-choices input[value^='sus|'][value$='|{label}']")
     page.uncheck("#link-preference")
     page.click("#link-create")
     page.wait_for_selector("#link-out:not([hidden])")

@@ -9,6 +9,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from tests import c_device
+
 
 @pytest.fixture
 def busy_cores() -> Iterator[int]:
@@ -24,3 +26,13 @@ def busy_cores() -> Iterator[int]:
             p.kill()
         for p in spinners:
             p.wait(10)
+
+
+@pytest.fixture(params=c_device.IMPLEMENTATIONS)
+def device_implementation(request: pytest.FixtureRequest) -> str:
+    """Each device-facing fault test runs against the Python reference device and the
+    C firmware core (firmware/ports/linux-sim), so the two cannot drift apart."""
+    implementation: str = request.param
+    if implementation == "c":
+        c_device.build()
+    return implementation

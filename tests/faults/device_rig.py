@@ -19,6 +19,7 @@ from typing import Any
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.tick import TickRecord
+from tests import c_device
 from tests.polling import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,11 +27,18 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @contextmanager
 def device_process(port: int, key_file: Path, script: str, seed: int = 1,
-                   extra: tuple[str, ...] = ()) -> Iterator[subprocess.Popen[str]]:
-    """`exostudy device-sim` as a real process on `port`; stopped (SIGTERM) on exit."""
+                   extra: tuple[str, ...] = (), implementation: str = "python",
+                   ) -> Iterator[subprocess.Popen[str]]:
+    """`exostudy device-sim` as a real process on `port`, the Python reference device
+    or the C device (same arguments; its simulated wearer on this interpreter);
+    stopped (SIGTERM) on exit."""
+    args = ["--port", str(port), "--seed", str(seed), "--script", script,
+            "--key-file", str(key_file), *extra]
+    command = ([str(c_device.device_binary()), *args, "--python", sys.executable]
+               if implementation == "c"
+               else [sys.executable, "-m", "controller.sim.device_server", *args])
     proc = subprocess.Popen(
-        [sys.executable, "-m", "controller.sim.device_server", "--port", str(port),
-         "--seed", str(seed), "--script", script, "--key-file", str(key_file), *extra],
+        command,
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONPATH": str(ROOT)},
     )

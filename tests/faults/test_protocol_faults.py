@@ -53,9 +53,11 @@ def _seq(sample_packet: bytes) -> int:
     return int(struct.unpack_from("<I", sample_packet, HEADER + 8)[0])
 
 
-def test_forged_and_replayed_samples_and_forged_commands_change_nothing(key_file: Path) -> None:
+def test_forged_and_replayed_samples_and_forged_commands_change_nothing(
+        key_file: Path, device_implementation: str) -> None:
     port = free_udp_port()
-    with device_process(port, key_file, "walking"), Proxy(port) as proxy, \
+    with device_process(port, key_file, "walking", implementation=device_implementation), \
+            Proxy(port) as proxy, \
             Worker(proxy.port, key_file, "pec") as worker:
         walking = worker.wait_ticks(200)
         assert locked_ticks(walking) == 0  # the PEC does not lock a walking wearer
@@ -115,9 +117,11 @@ def test_forged_and_replayed_samples_and_forged_commands_change_nothing(key_file
           f"{locked_ticks(ticks)} locked ticks")
 
 
-def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path) -> None:
+def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path,
+                                                        device_implementation: str) -> None:
     port = free_udp_port()
-    with device_process(port, key_file, "squat-sequence"), Proxy(port) as proxy, \
+    with device_process(port, key_file, "squat-sequence",
+                        implementation=device_implementation), Proxy(port) as proxy, \
             Worker(proxy.port, key_file, "pec") as worker:
         wait_for(lambda: locked_ticks(worker.ticks()) > 20, 90, "the PEC to lock a squat")
         # The attacker keeps every COMMAND that asked for both locks (bits readable).

@@ -19,8 +19,9 @@ from tests.polling import wait_for
 pytestmark = pytest.mark.slow
 
 
-def test_device_silent_mid_lift_then_worker_frozen_both_release(tmp_path: Path) -> None:
-    rig = start_rig(tmp_path)
+def test_device_silent_mid_lift_then_worker_frozen_both_release(
+        tmp_path: Path, device_implementation: str) -> None:
+    rig = start_rig(tmp_path, implementation=device_implementation)
     try:
         # 1. The device stops sending mid-lift: the worker hears nothing, so it commands
         # nothing, and the device's watchdog releases.

@@ -11,7 +11,7 @@ import zipfile
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from fastapi import APIRouter, File, Path, UploadFile
+from fastapi import APIRouter, File, Path, Request, UploadFile
 from fastapi.responses import Response
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
@@ -42,6 +42,7 @@ from backend.schemas.lab import (
     XdfAttachmentOut,
 )
 from backend.study import audit
+from backend.study.access import may_unblind
 
 router = APIRouter(tags=["lab"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
@@ -243,28 +244,34 @@ def download_xdf(session_id: SessionId, attachment_id: AttachmentId, user: Curre
 
 
 # BIDS ----------------------------------------------------------------------------------------
-def bids_zip(engine: Engine, db: Session, study_id: int, site: str | None) -> bytes:
+def bids_zip(engine: Engine, db: Session, study_id: int, site: str | None,
+             unblind: bool = False) -> bytes:
     """The study's BIDS dataset as a zip whose top folder is the dataset."""
     buf = io.BytesIO()
     root = f"study-{study_id}-bids/"
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path, data in bids_export.dataset_files(engine, db, study_id, site):
+        for path, data in bids_export.dataset_files(engine, db, study_id, site, unblind):
             zf.writestr(root + path, data)
     return buf.getvalue()
 
 
 @router.get("/api/studies/{study_id}/export.bids.zip", response_class=Response, responses={
     200: {"content": {"application/zip": {}},
-          "description": "a BIDS dataset (motion modality) of the study"}},
+          "description": "a BIDS dataset (motion modality) of the study"}, **CONFLICT},
     openapi_extra=access("experimenter"))
 def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: CurrentUser,
-                db: SessionDep, runtime: RuntimeDep) -> Response:
+                db: SessionDep, runtime: RuntimeDep, request: Request) -> Response:
     """The study as a BIDS-motion dataset: participants, one motion file per trial with
     channels and events (lifts, locks, markers), questionnaires as phenotype files,
-    attached XDF files as source data. De-identified fields only."""
+    attached XDF files as source data. De-identified fields only. Controllers are
+    named for the study's owner only; anyone else gets blinded labels (`acq-A`). 409
+    if no trial of the study has ticks yet (a BIDS motion dataset needs one)."""
     one_or_404(db, Study, study_id, "study")
     runtime.recorder.flush()
-    data = bids_zip(engine, db, study_id, site)
+    try:
+        data = bids_zip(engine, db, study_id, site, may_unblind(request.state))
+    except bids_export.NothingToExportError as exc:
+        conflict("study", str(exc))
     audit.record(db, user, "export", "study", study_id, {"format": "bids", "bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

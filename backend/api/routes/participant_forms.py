@@ -8,7 +8,7 @@ never reach another participant or an experimenter route.
 from __future__ import annotations
 
 from datetime import UTC, datetime
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path
 from fastapi.responses import FileResponse
@@ -19,6 +19,7 @@ from backend.api.deps import SessionDep, SettingsDep, access
 from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
 from backend.core.security import token_digest
 from backend.db.models import (
+    Participant,
     ParticipantLink,
     Preference,
     QuestionnaireInstrument,
@@ -84,9 +85,19 @@ def _choices(link: ParticipantLink, db: SessionDep) -> list[str]:
     return [*sorted(labels_of(db, link.participant_id)), NO_PREFERENCE]
 
 
-def _instrument(db: SessionDep, key: str, version: str) -> QuestionnaireInstrument:
-    row = db.scalars(select(QuestionnaireInstrument).where(
-        QuestionnaireInstrument.key == key, QuestionnaireInstrument.version == version)).one()
+def _instrument(db: SessionDep, link: ParticipantLink, form: dict[str, Any]
+                ) -> QuestionnaireInstrument:
+    """The instrument row the link pinned for this form: a built-in or one of the
+    participant's study, never another study's row with the same key and version."""
+    row = db.get(QuestionnaireInstrument, form["instrument_id"]) if form.get(
+        "instrument_id") is not None else None
+    if row is not None and not row.built_in:
+        participant = db.get(Participant, link.participant_id)
+        if participant is None or row.study_id != participant.study_id:
+            row = None
+    if row is None:
+        raise HTTPException(410, "a form of this link is no longer available; ask the "
+                            "experimenter for a new link")
     return row
 
 
@@ -120,7 +131,7 @@ def get_forms(token: Token, db: SessionDep) -> ParticipantFormsOut:
     forms = []
     for i, form in enumerate(link.forms_due):
         key, version, label = _form_key(form)
-        d = InstrumentDefinition.model_validate(_instrument(db, key, version).definition)
+        d = InstrumentDefinition.model_validate(_instrument(db, link, form).definition)
         forms.append(FormView(index=i, instrument_key=key, instrument_version=version,
                               title=d.title, instructions=d.instructions,
                               condition_label=label, items=d.items, scale=d.scale,
@@ -145,7 +156,7 @@ def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionO
     done, _ = _submitted(db, link)
     if (key, version, label) in done:
         conflict("form", "this form was already answered")
-    inst = _instrument(db, key, version)
+    inst = _instrument(db, link, link.forms_due[body.form])
     definition = InstrumentDefinition.model_validate(inst.definition)
     try:
         result = score(definition, body.answers)

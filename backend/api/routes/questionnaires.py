@@ -1,6 +1,7 @@
 """Questionnaire instruments, participant links, and the scored responses.
 
-Instruments are definitions (built-in or imported); a link asks one participant for
+Instruments are definitions: built-in ones (global, never changed) or a study's own
+(imported into that study and offered to its participants only); a link asks one participant for
 some forms, each about a blinded condition; responses come back through the link
 (`participant_forms`) and are listed here unblinded for the experimenter.
 """
@@ -11,9 +12,9 @@ from datetime import UTC, datetime, timedelta
 from typing import Annotated
 
 from fastapi import APIRouter, Path, Request
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, or_, select
 
-from backend.api.deps import CurrentUser, SessionDep, access
+from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -27,14 +28,16 @@ from backend.api.errors import (
     not_found,
     one_or_404,
 )
-from backend.api.params import ParticipantId
+from backend.api.params import ParticipantId, StudyId
 from backend.core.security import new_token, token_digest
 from backend.db.models import (
     Participant,
     ParticipantLink,
     QuestionnaireInstrument,
     QuestionnaireResponse,
+    Study,
 )
+from backend.questionnaires.catalog import built_in_keys
 from backend.questionnaires.definition import (
     KEY_PATTERN,
     VERSION_PATTERN,
@@ -55,22 +58,60 @@ from backend.study.blinding import labels_of
 
 router = APIRouter(tags=["questionnaires"], responses=AUTH_RESPONSES)
 
+InstrumentKey = Annotated[str, Path(pattern=KEY_PATTERN)]
+InstrumentVersion = Annotated[str, Path(pattern=VERSION_PATTERN)]
+
 
 def summary(row: QuestionnaireInstrument) -> InstrumentSummary:
     """The list view of an instrument, wording provenance included."""
     prov = row.definition.get("provenance", {})
     return InstrumentSummary(id=row.id, key=row.key, version=row.version, title=row.title,
-                             built_in=row.built_in, wording=prov.get("wording", "study"),
+                             built_in=row.built_in, study_id=row.study_id,
+                             wording=prov.get("wording", "study"),
                              wording_note=prov.get("note", ""), created_at=row.created_at)
 
 
-def find_instrument(db: SessionDep, key: str, version: str | None
+def _visible(study_id: int | None) -> ColumnElement[bool]:
+    """The instruments a study may use: the built-ins and its own, never another
+    study's (None: the built-ins only)."""
+    built_in = QuestionnaireInstrument.built_in.is_(True)
+    if study_id is None:
+        return built_in
+    return or_(built_in, QuestionnaireInstrument.study_id == study_id)
+
+
+def instruments_of(db: SessionDep, study_id: int | None) -> list[QuestionnaireInstrument]:
+    """Every instrument a study may use, by key and age."""
+    return list(db.scalars(select(QuestionnaireInstrument).where(_visible(study_id))
+                           .order_by(QuestionnaireInstrument.key, QuestionnaireInstrument.id)))
+
+
+def find_instrument(db: SessionDep, study_id: int | None, key: str, version: str
                     ) -> QuestionnaireInstrument | None:
-    """An instrument by key and version, or the newest version of `key`."""
-    q = select(QuestionnaireInstrument).where(QuestionnaireInstrument.key == key)
+    """One version of an instrument the study may use."""
+    return db.scalars(select(QuestionnaireInstrument).where(
+        _visible(study_id), QuestionnaireInstrument.key == key,
+        QuestionnaireInstrument.version == version)
+        .order_by(QuestionnaireInstrument.built_in.desc())).first()
+
+
+def resolve_for_link(db: SessionDep, study_id: int, key: str, version: str | None
+                     ) -> QuestionnaireInstrument | str:
+    """The instrument a link's form asks for, or what is wrong.
+
+    Without a version the key must have exactly one version the study may use: a link
+    is never given whichever version someone imported last.
+    """
     if version is not None:
-        q = q.where(QuestionnaireInstrument.version == version)
-    return db.scalars(q.order_by(QuestionnaireInstrument.id.desc())).first()
+        row = find_instrument(db, study_id, key, version)
+        return row if row is not None else f"no instrument {key} {version} in this study"
+    rows = [r for r in instruments_of(db, study_id) if r.key == key]
+    if not rows:
+        return f"no instrument {key} in this study"
+    if len(rows) > 1:
+        return (f"instrument {key} has versions {[r.version for r in rows]} in this study; "
+                "name one in instrument_version")
+    return rows[0]
 
 
 def link_out(link: ParticipantLink) -> LinkOut:
@@ -81,46 +122,87 @@ def link_out(link: ParticipantLink) -> LinkOut:
                    expires_at=link.expires_at, used_at=link.used_at)
 
 
+def _full(row: QuestionnaireInstrument) -> InstrumentOut:
+    return InstrumentOut(**summary(row).model_dump(),
+                         definition=InstrumentDefinition.model_validate(row.definition))
+
+
 @router.get("/api/instruments", response_model=list[InstrumentSummary])
 def list_instruments(user: CurrentUser, db: SessionDep) -> list[InstrumentSummary]:
-    """Every instrument and version; `wording` tells whose item texts they are."""
-    rows = db.scalars(select(QuestionnaireInstrument)
-                      .order_by(QuestionnaireInstrument.key, QuestionnaireInstrument.id))
-    return [summary(r) for r in rows]
-
-
-@router.post("/api/instruments", response_model=InstrumentOut, status_code=201,
-             responses={**BODY, **CONFLICT}, openapi_extra=access("experimenter"))
-def import_instrument(definition: InstrumentDefinition, user: CurrentUser, db: SessionDep
-                      ) -> InstrumentOut:
-    """Import a study's own definition file (the JSON body). It is validated like the
-    built-ins; 409 if the key and version exist (add a new version instead)."""
-    if find_instrument(db, definition.key, definition.version) is not None:
-        conflict("version", f"instrument {definition.key!r} version {definition.version!r} "
-                 "exists; import it under a new version")
-    data = definition.model_dump(mode="json")
-    row = QuestionnaireInstrument(key=definition.key, version=definition.version,
-                                  title=definition.title, definition=data, built_in=False,
-                                  created_by=user.id)
-    db.add(row)
-    db.flush()
-    audit.record(db, user, "import", "instrument", row.id,
-                 {"key": definition.key, "version": definition.version})
-    commit_or_conflict(db, "version", "this key and version exist")
-    return InstrumentOut(**summary(row).model_dump(), definition=definition)
+    """The built-in instruments (a study's own ones: `/api/studies/{id}/instruments`);
+    `wording` tells whose item texts they are."""
+    return [summary(r) for r in instruments_of(db, None)]
 
 
 @router.get("/api/instruments/{key}/{version}", response_model=InstrumentOut,
             responses={**NOT_FOUND, **INVALID})
-def get_instrument(key: Annotated[str, Path(pattern=KEY_PATTERN)],
-                   version: Annotated[str, Path(pattern=VERSION_PATTERN)],
-                   user: CurrentUser, db: SessionDep) -> InstrumentOut:
-    """One instrument version with its full definition."""
-    row = find_instrument(db, key, version)
+def get_instrument(key: InstrumentKey, version: InstrumentVersion, user: CurrentUser,
+                   db: SessionDep) -> InstrumentOut:
+    """One built-in instrument version with its full definition."""
+    row = find_instrument(db, None, key, version)
     if row is None:
         not_found("instrument", f"{key} {version}")
-    return InstrumentOut(**summary(row).model_dump(),
-                         definition=InstrumentDefinition.model_validate(row.definition))
+    return _full(row)
+
+
+@router.get("/api/studies/{study_id}/instruments", response_model=list[InstrumentSummary],
+            responses={**NOT_FOUND, **INVALID})
+def list_study_instruments(study_id: StudyId, user: CurrentUser, db: SessionDep
+                           ) -> list[InstrumentSummary]:
+    """The instruments the study's links may use: the built-ins and the study's own."""
+    one_or_404(db, Study, study_id, "study")
+    return [summary(r) for r in instruments_of(db, study_id)]
+
+
+@router.post("/api/studies/{study_id}/instruments", response_model=InstrumentOut,
+             status_code=201, responses={**NOT_FOUND, **BODY, **CONFLICT})
+def import_instrument(study_id: StudyId, definition: InstrumentDefinition, user: CurrentUser,
+                      db: SessionDep) -> InstrumentOut:
+    """Import the study's own definition file (the JSON body); only this study's links
+    can use it. It is validated like the built-ins; the key of a built-in instrument is
+    refused (422), and 409 if the study has this key and version (add a new version)."""
+    one_or_404(db, Study, study_id, "study")
+    if definition.key in built_in_keys():
+        invalid(["body", "key"], f"{definition.key!r} is a built-in instrument; a study's "
+                "own instrument needs its own key (for example "
+                f"{definition.key + '-' + 'study'!r})")
+    if db.scalars(select(QuestionnaireInstrument.id).where(
+            QuestionnaireInstrument.study_id == study_id,
+            QuestionnaireInstrument.key == definition.key,
+            QuestionnaireInstrument.version == definition.version)).first() is not None:
+        conflict("version", f"instrument {definition.key!r} version {definition.version!r} "
+                 "exists in this study; import it under a new version")
+    data = definition.model_dump(mode="json")
+    row = QuestionnaireInstrument(key=definition.key, version=definition.version,
+                                  title=definition.title, definition=data, built_in=False,
+                                  study_id=study_id, created_by=user.id)
+    db.add(row)
+    db.flush()
+    audit.record(db, user, "import", "instrument", row.id,
+                 {"study_id": study_id, "key": definition.key, "version": definition.version})
+    commit_or_conflict(db, "version", "this key and version exist in this study")
+    return InstrumentOut(**summary(row).model_dump(), definition=definition)
+
+
+@router.get("/api/studies/{study_id}/instruments/{key}/{version}",
+            response_model=InstrumentOut, responses={**NOT_FOUND, **INVALID})
+def get_study_instrument(study_id: StudyId, key: InstrumentKey, version: InstrumentVersion,
+                         user: CurrentUser, db: SessionDep) -> InstrumentOut:
+    """One instrument version the study may use, with its full definition."""
+    one_or_404(db, Study, study_id, "study")
+    row = find_instrument(db, study_id, key, version)
+    if row is None:
+        not_found("instrument", f"{key} {version}")
+    return _full(row)
+
+
+@router.get("/api/participants/{participant_id}/instruments",
+            response_model=list[InstrumentSummary], responses={**NOT_FOUND, **INVALID})
+def list_participant_instruments(participant_id: ParticipantId, user: CurrentUser,
+                                 db: SessionDep) -> list[InstrumentSummary]:
+    """The instruments a link for this participant may ask for (the console's list)."""
+    p = one_or_404(db, Participant, participant_id, "participant")
+    return [summary(r) for r in instruments_of(db, p.study_id)]
 
 
 @router.post("/api/participants/{participant_id}/links", response_model=LinkCreated,
@@ -128,28 +210,28 @@ def get_instrument(key: Annotated[str, Path(pattern=KEY_PATTERN)],
 def create_link(participant_id: ParticipantId, body: LinkIn, request: Request,
                 user: CurrentUser, db: SessionDep) -> LinkCreated:
     """A single-use link for the participant to fill in the forms due (and, if asked,
-    say which condition they preferred). The token is in this answer only."""
-    one_or_404(db, Participant, participant_id, "participant")
+    say which condition they preferred). Each form is pinned to one instrument row of
+    the participant's study (or a built-in). The token is in this answer only."""
+    participant = one_or_404(db, Participant, participant_id, "participant")
     if not body.forms and not body.preference:
         invalid(["body", "forms"], "a link must ask for at least one form or the preference")
     labels = labels_of(db, participant_id)
     problems: list[tuple[list[str | int], str]] = []
-    due: list[dict[str, str | None]] = []
+    due: list[dict[str, str | int | None]] = []
     for i, form in enumerate(body.forms):
-        inst = find_instrument(db, form.instrument_key, form.instrument_version)
-        if inst is None:
-            what = form.instrument_key + (f" {form.instrument_version}"
-                                          if form.instrument_version else "")
-            problems.append((["body", "forms", i, "instrument_key"],
-                             f"no instrument {what}"))
+        inst = resolve_for_link(db, participant.study_id, form.instrument_key,
+                                form.instrument_version)
+        if isinstance(inst, str):
+            problems.append((["body", "forms", i, "instrument_key"], inst))
             continue
         if form.condition_label is not None and form.condition_label not in labels:
             problems.append((["body", "forms", i, "condition_label"],
                              f"{form.condition_label!r} is not a condition of this participant"
                              f" (known: {sorted(labels)})"))
             continue
-        entry = {"instrument_key": inst.key, "instrument_version": inst.version,
-                 "condition_label": form.condition_label}
+        entry: dict[str, str | int | None] = {
+            "instrument_id": inst.id, "instrument_key": inst.key,
+            "instrument_version": inst.version, "condition_label": form.condition_label}
         if entry in due:
             problems.append((["body", "forms", i], "the same form is already due on this link"))
             continue

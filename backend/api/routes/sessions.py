@@ -12,7 +12,7 @@ from backend.api.errors import AUTH_RESPONSES, BODY, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId, SessionId
 from backend.db.models import Participant, StudySession
 from backend.schemas.sessions import SessionIn, SessionOut, SessionUpdate
-from backend.study import audit
+from backend.study import audit, hardware_profiles
 
 router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
@@ -35,7 +35,8 @@ def create_session(participant_id: ParticipantId, body: SessionIn, user: Current
     one_or_404(db, Participant, participant_id, "participant")
     s = StudySession(participant_id=participant_id, kind=body.kind,
                      precompression_pct=body.precompression_pct,
-                     started_at=body.started_at or datetime.now(UTC), notes=body.notes)
+                     started_at=body.started_at or datetime.now(UTC), notes=body.notes,
+                     hardware_profile_id=hardware_profiles.active_id(db))
     db.add(s)
     db.flush()
     audit.record(db, user, "create", "session", s.id,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 from fastapi import Path as PathParam
 from sqlalchemy import select
 
@@ -60,7 +60,8 @@ def create_study(body: StudyIn, user: CurrentUser, db: SessionDep) -> Study:
     if _name_taken(db, body.name):
         conflict("name", f"a study named {body.name!r} exists")
     study = Study(name=body.name, description=body.description, created_by=user.id,
-                  withdrawal_policy=body.withdrawal_policy)
+                  withdrawal_policy=body.withdrawal_policy,
+                  dataset_info=body.dataset_info.model_dump(mode="json"))
     db.add(study)
     db.flush()
     db.add(StudyMember(study_id=study.id, user_id=user.id, role="owner"))
@@ -79,7 +80,8 @@ def get_study(study_id: StudyId, user: CurrentUser, db: SessionDep) -> Study:
               responses={**NOT_FOUND, **BODY, **CONFLICT}, openapi_extra=access("owner"))
 def update_study(study_id: StudyId, body: StudyUpdate, user: CurrentUser, db: SessionDep
                  ) -> Study:
-    """Rename a study or change its description."""
+    """Rename a study or change its description, withdrawal policy or dataset
+    description (authors, licence, institution: what its exports say about the data)."""
     study = one_or_404(db, Study, study_id, "study")
     changes = body.model_dump(mode="json", exclude_unset=True, exclude_none=True)
     if "name" in changes and _name_taken(db, changes["name"], but=study.id):
@@ -181,14 +183,18 @@ def add_consent(study_id: StudyId, body: ConsentIn, user: CurrentUser, db: Sessi
                 "description": "the export without identifiers, dates shifted"}},
             openapi_extra=access("experimenter"))
 def export_deidentified(study_id: StudyId, engine: EngineDep, site: SiteDep,
-                        runtime: RuntimeDep, user: CurrentUser, db: SessionDep) -> Response:
+                        runtime: RuntimeDep, user: CurrentUser, db: SessionDep,
+                        request: Request) -> Response:
     """The study's export for sharing: participants re-coded, free text and account ids
     removed, ages above 89 as 90, dates shifted per participant; `data_dictionary.csv`
-    says what was done to each column. The full export needs the owner role."""
+    says what was done to each column. The blinding key (`condition_labels.csv`
+    `controller`) is filled in for the study's owner only. The full export needs the
+    owner role."""
     from backend.analysis.export import study_zip
 
     runtime.recorder.flush()
-    data = study_zip(engine, study_id, deidentified=True, site=site)
+    data = study_zip(engine, study_id, deidentified=True, site=site,
+                     unblind=access_rules.may_unblind(request.state))
     audit.record(db, user, "export_deidentified", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

@@ -126,7 +126,7 @@ def export_study(study_id: StudyId, engine: EngineDep, site: SiteDep, user: Curr
 
     one_or_404(db, Study, study_id, "study")
     runtime.recorder.flush()
-    data = study_zip(engine, study_id, site=site)
+    data = study_zip(engine, study_id, site=site, unblind=True)  # owners only
     audit.record(db, user, "export", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

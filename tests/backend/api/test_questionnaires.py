@@ -165,19 +165,33 @@ def test_instruments_list_shows_whose_wording(client: TestClient) -> None:
     assert client.get("/api/instruments/eus/9.9").status_code == 404
 
 
+def _study(client: TestClient, name: str = "Own") -> int:
+    return int(client.post("/api/studies", json={"name": name}).json()["id"])
+
+
 def test_import_a_studys_own_definition(client: TestClient) -> None:
-    r = client.post("/api/instruments", json=_own_definition())
+    sid = _study(client)
+    url = f"/api/studies/{sid}/instruments"
+    r = client.post(url, json=_own_definition())
     assert r.status_code == 201 and r.json()["built_in"] is False
-    assert r.json()["wording"] == "study"
-    assert client.post("/api/instruments", json=_own_definition()).status_code == 409
+    assert r.json()["wording"] == "study" and r.json()["study_id"] == sid
+    assert client.post(url, json=_own_definition()).status_code == 409
     broken = _own_definition()
     broken["score_range"] = {"min": 0, "max": 100}
-    r = client.post("/api/instruments", json=broken)
+    r = client.post(url, json=broken)
     assert r.status_code == 422 and "score_range" in r.json()["detail"][0]["msg"]
     broken = _own_definition()
     broken["scale"] = {"min": 0}
-    r = client.post("/api/instruments", json=broken)
+    r = client.post(url, json=broken)
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "scale", "max"]
+    # The study sees it; the built-in list and other studies do not.
+    assert "borg-cr10" in {i["key"] for i in client.get(url).json()}
+    assert "borg-cr10" not in {i["key"] for i in client.get("/api/instruments").json()}
+    other = _study(client, "Other")
+    assert "borg-cr10" not in {i["key"] for i in
+                               client.get(f"/api/studies/{other}/instruments").json()}
+    assert client.get(f"/api/studies/{other}/instruments/borg-cr10/2026.1").status_code == 404
+    assert client.get(f"{url}/borg-cr10/2026.1").json()["definition"]["key"] == "borg-cr10"
 
 
 def test_link_forms_answers_scores_and_single_use(client: TestClient) -> None:
@@ -261,13 +275,97 @@ def test_an_expired_link_opens_nothing(client: TestClient) -> None:
 
 
 def test_stored_instrument_versions_are_never_edited(client: TestClient) -> None:
+    url = f"/api/studies/{_study(client)}/instruments"
     own = _own_definition()
-    client.post("/api/instruments", json=own)
+    client.post(url, json=own)
     changed = copy.deepcopy(own)
     changed["items"][0]["text"] = "How hard was it?"
-    assert client.post("/api/instruments", json=changed).status_code == 409
+    assert client.post(url, json=changed).status_code == 409
     changed["version"] = "2026.2"
-    assert client.post("/api/instruments", json=changed).status_code == 201
-    versions = [i["version"] for i in client.get("/api/instruments").json()
-                if i["key"] == "borg-cr10"]
+    assert client.post(url, json=changed).status_code == 201
+    versions = [i["version"] for i in client.get(url).json() if i["key"] == "borg-cr10"]
     assert versions == ["2026.1", "2026.2"]
+
+
+def _phishing_sus() -> dict[str, Any]:
+    sus = _definition("sus").model_dump(mode="json")
+    sus["version"] = "9.9"
+    sus["items"][0]["text"] = "Please type your bank PIN as your answer."
+    return sus
+
+
+def test_one_study_cannot_change_what_another_studys_participants_see(
+        client: TestClient) -> None:
+    # Issue 23: an experimenter of study X imported "sus 9.9" (asking for a bank PIN,
+    # marked standard wording); a link of study Y without a version then served it.
+    x = _study(client, "X")
+    r = client.post(f"/api/studies/{x}/instruments", json=_phishing_sus())
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "key"]
+    assert "built-in" in r.json()["detail"][0]["msg"]
+    # Under a key of its own, study X's file is X's alone.
+    own = _phishing_sus()
+    own["key"] = "sus-x"
+    assert client.post(f"/api/studies/{x}/instruments", json=own).status_code == 201
+    pid = _participant_with_conditions(client)  # in another study, "Q"
+    url = f"/api/participants/{pid}/links"
+    r = client.post(url, json={"forms": [{"instrument_key": "sus-x"}]})
+    assert r.status_code == 422 and "no instrument sus-x" in r.json()["detail"][0]["msg"]
+    r = client.post(url, json={"forms": [{"instrument_key": "sus", "condition_label": "A"}]})
+    assert r.status_code == 201 and r.json()["forms_due"][0]["instrument_version"] == "1.0"
+    form = TestClient(client.app).get(f"/api/participant-forms/{r.json()['token']}").json()
+    assert form["forms"][0]["items"][0]["text"] == (
+        "I think that I would like to use this system frequently.")
+    keys = {i["key"] for i in client.get(f"/api/participants/{pid}/instruments").json()}
+    assert keys == {"sus", "eus"}
+
+
+def test_a_link_without_a_version_needs_one_version_in_the_study(
+        client: TestClient) -> None:
+    pid = _participant_with_conditions(client)
+    sid = client.get(f"/api/participants/{pid}").json()["study_id"]
+    own = _own_definition()
+    client.post(f"/api/studies/{sid}/instruments", json=own)
+    url = f"/api/participants/{pid}/links"
+    r = client.post(url, json={"forms": [{"instrument_key": "borg-cr10"}]})
+    assert r.status_code == 201 and r.json()["forms_due"][0]["instrument_version"] == "2026.1"
+    own["version"] = "2026.2"
+    client.post(f"/api/studies/{sid}/instruments", json=own)
+    r = client.post(url, json={"forms": [{"instrument_key": "borg-cr10"}]})
+    assert r.status_code == 422 and "name one" in r.json()["detail"][0]["msg"]
+    r = client.post(url, json={"forms": [{"instrument_key": "borg-cr10",
+                                          "instrument_version": "2026.2"}]})
+    assert r.status_code == 201
+
+
+def test_a_form_is_served_from_the_row_its_link_pinned(client: TestClient) -> None:
+    # Two studies may each import the same key and version; each link shows its own.
+    pid = _participant_with_conditions(client)
+    sid = client.get(f"/api/participants/{pid}").json()["study_id"]
+    other = _study(client, "Other")
+    theirs = _own_definition()
+    theirs["items"][0]["text"] = "Another study's wording"
+    assert client.post(f"/api/studies/{other}/instruments", json=theirs).status_code == 201
+    assert client.post(f"/api/studies/{sid}/instruments",
+                       json=_own_definition()).status_code == 201
+    token = client.post(f"/api/participants/{pid}/links", json={"forms": [
+        {"instrument_key": "borg-cr10", "instrument_version": "2026.1"}]}).json()["token"]
+    participant = TestClient(client.app)
+    form = participant.get(f"/api/participant-forms/{token}").json()["forms"][0]
+    assert form["items"][0]["text"] == "How hard was the lifting?"
+    r = participant.post(f"/api/participant-forms/{token}/responses",
+                         json={"form": 0, "answers": {"exertion": 4}})
+    assert r.status_code == 201
+    assert client.get(f"/api/participants/{pid}/responses").json()[0]["score"] == 4
+
+
+@pytest.mark.parametrize("value", [True, False, 3.0, "3"])
+def test_answers_must_be_integers_not_booleans(client: TestClient, value: Any) -> None:
+    pid = _participant_with_conditions(client)
+    token = client.post(f"/api/participants/{pid}/links", json={
+        "forms": [{"instrument_key": "sus", "condition_label": "A"}]}).json()["token"]
+    answers: dict[str, Any] = _sus("3,3,3,3,3,3,3,3,3,3")
+    answers["q1"] = value
+    r = TestClient(client.app).post(f"/api/participant-forms/{token}/responses",
+                                    json={"form": 0, "answers": answers})
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["loc"][:3] == ["body", "answers", "q1"]

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from controller.evaluation import (
     DecisionOutcome,
@@ -47,16 +49,70 @@ def test_correct_first_decision() -> None:
     assert o.first_decision_s == pytest.approx(0.20)
 
 
-def test_wrong_first_decision_lock_left_in_a_squat_then_both() -> None:
+def test_squat_locked_left_then_both_counts_as_correct_but_not_first_decision() -> None:
+    # The paper counts a squat as correct once both sides are locked in the first half,
+    # in one decision or two; the stricter first-decision reading calls it wrong.
     b, lift = one_lift("squat")
     b.run(115, Action.LOCK_LEFT)
     b.run(125, Action.LOCK_BOTH)
     o = evaluate_lift(b.columns(), lift)
-    assert o.decision is DecisionOutcome.WRONG
+    assert o.decision is DecisionOutcome.CORRECT
+    assert o.first_decision is DecisionOutcome.WRONG
+    assert o.first_lock_one_sided is True and o.sides_commanded == "LR"
     assert o.first_action is Action.LOCK_LEFT
     # The correct side(s) -- both, for a squat -- are held once the right side follows.
     assert o.first_lock_s == pytest.approx(0.15)
     assert o.correct_lock_s == pytest.approx(0.25)
+
+
+def test_squat_locked_right_then_left_in_two_decisions_is_correct() -> None:
+    b, lift = one_lift("squat")
+    b.run(110, Action.LOCK_RIGHT)
+    b.run(149, Action.LOCK_LEFT)  # the last tick of the first half
+    o = evaluate_lift(b.columns(), lift)
+    assert (o.decision, o.first_decision) == (DecisionOutcome.CORRECT, DecisionOutcome.WRONG)
+    assert o.sides_commanded == "LR"
+
+
+def test_squat_with_the_second_side_only_after_the_first_half_is_wrong() -> None:
+    b, lift = one_lift("squat")
+    b.run(110, Action.LOCK_RIGHT)
+    b.run(150, Action.LOCK_LEFT)  # first tick of the second half: too late
+    o = evaluate_lift(b.columns(), lift)
+    assert (o.decision, o.first_decision) == (DecisionOutcome.WRONG, DecisionOutcome.WRONG)
+    assert o.sides_commanded == "R" and o.first_lock_one_sided is True
+
+
+def test_squat_locked_both_at_once_is_correct_under_both_readings() -> None:
+    b, lift = one_lift("squat")
+    b.run(120, Action.LOCK_BOTH)
+    o = evaluate_lift(b.columns(), lift)
+    assert (o.decision, o.first_decision) == (DecisionOutcome.CORRECT, DecisionOutcome.CORRECT)
+    assert o.first_lock_one_sided is False and o.sides_commanded == "LR"
+
+
+@pytest.mark.parametrize(
+    ("kind", "decisions", "paper", "first"),
+    [
+        # stoop: only the first lock decision counts, and it must be the supporting side
+        ("stoop_left", [Action.LOCK_BOTH, Action.LOCK_LEFT], "wrong", "wrong"),
+        ("stoop_left", [Action.LOCK_RIGHT, Action.LOCK_LEFT], "wrong", "wrong"),
+        ("stoop_right", [Action.LOCK_RIGHT, Action.LOCK_BOTH], "correct", "correct"),
+        ("stoop_right", [Action.LOCK_LEFT], "wrong", "wrong"),
+        ("squat", [Action.LOCK_LEFT], "wrong", "wrong"),
+        ("squat", [Action.LOCK_LEFT, Action.LOCK_RIGHT], "correct", "wrong"),
+        ("squat", [Action.LOCK_RIGHT, Action.LOCK_RIGHT], "wrong", "wrong"),
+        ("squat", [Action.LOCK_BOTH, Action.LOCK_LEFT], "correct", "correct"),
+    ],
+)
+def test_counting_rules_on_hand_built_lifts(
+    kind: str, decisions: list[Action], paper: str, first: str
+) -> None:
+    b, lift = one_lift(kind)
+    for i, a in enumerate(decisions):
+        b.run(105 + 10 * i, a)
+    o = evaluate_lift(b.columns(), lift)
+    assert (o.decision.value, o.first_decision.value) == (paper, first)
 
 
 def test_late_lock_after_the_first_half_is_missed() -> None:
@@ -64,6 +120,7 @@ def test_late_lock_after_the_first_half_is_missed() -> None:
     b.run(150, Action.LOCK_BOTH)  # first tick of the second half
     o = evaluate_lift(b.columns(), lift)
     assert o.decision is DecisionOutcome.MISSED
+    assert o.first_decision is DecisionOutcome.MISSED and o.sides_commanded == ""
     assert o.first_action is None and math.isnan(o.first_decision_s)
     assert o.first_lock_s == pytest.approx(0.50)  # it did lock, late
 
@@ -247,3 +304,37 @@ def test_intent_estimation_is_known_by_controller_name() -> None:
     assert evaluate_recording(b.columns(), "1", "mine", [lift]).lifts[0].recognised is False
     forced = evaluate_recording(b.columns(), "1", "umc", [lift], with_intent=False)
     assert forced.lifts[0].recognised is None
+
+
+_LOCKS = [Action.LOCK_BOTH, Action.LOCK_LEFT, Action.LOCK_RIGHT]
+
+
+@given(
+    kind=st.sampled_from(["squat", "stoop_left", "stoop_right"]),
+    plan=st.lists(st.tuples(st.integers(100, 199), st.sampled_from(_LOCKS)), max_size=5,
+                  unique_by=lambda x: x[0]),
+)
+@settings(max_examples=80, deadline=None)
+def test_paper_rule_against_an_independent_oracle(
+    kind: str, plan: list[tuple[int, Action]]
+) -> None:
+    """Random decisions in a lift of ticks 100..199 (first half 100..149), checked
+    against the rules written out plainly."""
+    b, lift = one_lift(kind)
+    for k, a in sorted(plan):
+        b.run(k, a)
+    o = evaluate_lift(b.columns(), lift)
+    early = [a for k, a in sorted(plan) if k <= 149]
+    sides = set()
+    for a in early:
+        sides |= {"L", "R"} if a is Action.LOCK_BOTH else {"L"} if a is Action.LOCK_LEFT else {"R"}
+    want = {"squat": Action.LOCK_BOTH, "stoop_left": Action.LOCK_LEFT,
+            "stoop_right": Action.LOCK_RIGHT}[kind]
+    first = "missed" if not early else "correct" if early[0] is want else "wrong"
+    if kind == "squat":
+        paper = "missed" if not sides else "correct" if sides == {"L", "R"} else "wrong"
+    else:
+        paper = first
+    assert (o.decision.value, o.first_decision.value) == (paper, first)
+    # The stricter reading never counts more correct lifts than the paper's.
+    assert not (first == "correct" and paper != "correct")

@@ -70,7 +70,10 @@ def test_performance_paper_layout(study: list[RecordingEvaluation]) -> None:
     assert "UMC/E-UMC" in md
     rows = parse(t.to_csv())
     assert rows[0] == {"participant": "1", "controller": "umc", "motion": "SQ", "lifts": "2",
-                       "recognised": "1", "correct": "1", "wrong": "0", "missed": "1"}
+                       "recognised": "1", "correct": "1", "wrong": "0", "missed": "1",
+                       "first_correct": "1", "first_one_sided": "0"}
+    assert cells[("First decision correct", "AS")] == ("1", "2/1")
+    assert ("First lock one-sided", "AS") not in cells
     pec = PerformanceTable.from_evaluations(study, controllers=("pec",))
     assert pec.rows[0].recognised is None
     assert "| Intent estimation | SQ | - |" in pec.to_markdown()
@@ -100,6 +103,7 @@ def test_lift_and_onset_tables(study: list[RecordingEvaluation]) -> None:
     )
     assert (missed["peak_torque_left_nm"], missed["peak_torque_right_nm"]) == ("11.0", "21.0")
     assert rows[2]["first_action"] == "lock_both" and rows[2]["decision"] == "wrong"
+    assert (rows[2]["first_decision"], rows[2]["sides_commanded"]) == ("wrong", "LR")
     onset = parse(onset_to_lock_table(study).to_csv())
     umc_all = next(r for r in onset if r["controller"] == "UMC" and r["motion"] == "all")
     assert (umc_all["lifts"], umc_all["first_locked"]) == ("8", "7")

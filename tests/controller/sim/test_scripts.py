@@ -24,7 +24,8 @@ def lift_kinds(tr: Trajectory) -> list[str]:
 
 def test_builtin_names_and_unknown_name() -> None:
     assert set(SCRIPT_NAMES) == {
-        "squat-sequence", "stoop-sequence", "walking", "stairs", "paper-evaluation"
+        "squat-sequence", "stoop-sequence", "walking", "stairs", "paper-evaluation",
+        "standing", "hip-flex-left", "hip-flex-right",
     }
     with pytest.raises(ValueError, match="squat-sequence"):
         get_script("jumping")
@@ -106,3 +107,15 @@ def test_time_offset_and_lift_numbering() -> None:
     tr = realise(get_script("squat-sequence"), P, 4, 1, t0=100.0, lift_offset=10)
     assert tr.t[0] == 100.0
     assert sorted(set(tr.lift.tolist())) == [-1, *range(10, 20)]
+
+
+def test_hip_flex_moves_one_hip_40_degrees_and_back() -> None:
+    for name, side in (("hip-flex-left", 0), ("hip-flex-right", 1)):
+        tr = run(name)
+        moved = np.degrees(tr.theta[:, side] - tr.theta[0, side])
+        still = np.degrees(tr.theta[:, 1 - side] - tr.theta[0, 1 - side])
+        assert moved.max() == pytest.approx(40.0, abs=1.5)  # plus the participant's sway
+        assert abs(moved[-1]) < 1.5
+        assert np.abs(still).max() < 1.5
+        assert tr.n_lifts == 0
+        assert set(tr.activity_names().tolist()) == {"stand"}

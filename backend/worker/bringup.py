@@ -1,0 +1,243 @@
+"""Hardware bring-up inside the worker: one handler per command, each owning the device
+for its few seconds.
+
+The server judges what the samples mean (`controller.bringup`); the worker only does what
+needs the device at 100 Hz: capture raw samples with the solenoids off, drive one
+bounded solenoid pulse, or go silent and time the device's command watchdog. Each
+handler answers every sample it reads with a command (the heartbeat), except the
+watchdog test's silence, and every handler ends with `device.release()` whatever
+happens, so no path leaves a solenoid energised. Handlers run only while the
+controller is `none` (the server also refuses them during a trial or recording).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from backend.worker.messages import (
+    BringupCapture,
+    BringupCommand,
+    BringupPulse,
+    BringupResult,
+    BringupWatchdog,
+    RawSample,
+)
+from controller.device.base import SAMPLE_PERIOD_S, Device, LockCommand, Sample, Status
+from controller.encoders import EncoderLayout
+
+#: Longest solenoid pulse: the low-level controller's lock hold, 0.3 s, long enough for
+#: the pawl to seat (docs/hardware.md); a bring-up pulse never holds longer.
+PULSE_MAX_S = 0.3
+#: Longest capture a bring-up step may ask for (the loop pauses meanwhile).
+CAPTURE_MAX_S = 10.0
+#: Samples read with the solenoids off before a pulse, to judge that nothing loads the
+#: mechanism (50 ms).
+PRECHECK_SAMPLES = 5
+#: The device must release within 100-110 ms of the last command (docs/device-protocol.md);
+#: the test waits up to this long for the release before it reports a failure.
+WATCHDOG_WAIT_S = 0.5
+#: Samples after a pulse in which the solenoid bit must have cleared.
+RELEASE_SAMPLES = 10
+SOLENOIDS = Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT
+_READ_S = 0.05
+
+
+class _Step:
+    """The samples of one step, with arrival times on one clock from the step's start."""
+
+    def __init__(self, device: Device) -> None:
+        self.device = device
+        self.t0 = time.monotonic()
+        self.samples: list[RawSample] = []
+        self.last_command_s = math.nan
+        self._seq = 0
+
+    def now(self) -> float:
+        return time.monotonic() - self.t0
+
+    def read(self) -> Sample | None:
+        sample = self.device.read(_READ_S)
+        if sample is not None:
+            c = sample.counts
+            self.samples.append((self.now(), sample.seq, sample.t, c[0], c[1], c[2], c[3],
+                                 int(sample.status)))
+        return sample
+
+    def send(self, left: bool, right: bool) -> None:
+        self._seq += 1
+        self.device.send(LockCommand(self._seq, left, right))
+        self.last_command_s = self.now()
+
+    def result(self, request_id: int, ok: bool, message: str, **kw: object) -> BringupResult:
+        return BringupResult(request_id, ok, message, tuple(self.samples),
+                             last_command_s=self.last_command_s, **kw)  # type: ignore[arg-type]
+
+
+def handle(cmd: BringupCommand, device: Device, controller: str) -> BringupResult:
+    """Run one bring-up command on `device`; always answered, always released after."""
+    if controller != "none":
+        return BringupResult(cmd.request_id, False,
+                             f"controller {controller!r} is running: bring-up needs 'none'",
+                             refused=True)
+    step = _Step(device)
+    try:
+        if isinstance(cmd, BringupCapture):
+            return capture(cmd, step)
+        if isinstance(cmd, BringupPulse):
+            return pulse(cmd, step)
+        return watchdog(cmd, step)
+    except Exception as exc:  # answered, never a dead worker loop
+        return step.result(cmd.request_id, False, f"bring-up step failed: {exc!r}")
+    finally:
+        device.release()
+
+
+def capture(cmd: BringupCapture, step: _Step) -> BringupResult:
+    """`cmd.seconds` of samples, every one answered with both solenoids off."""
+    seconds = min(max(cmd.seconds, SAMPLE_PERIOD_S), CAPTURE_MAX_S)
+    needed = max(1, round(seconds / SAMPLE_PERIOD_S))
+    # Wall-clock bound: a real-time device delivers `needed` samples in `seconds`; a
+    # device that stalls is reported, not waited for.
+    give_up = seconds + 2.0
+    while len(step.samples) < needed and step.now() < give_up:
+        if step.read() is not None:
+            step.send(False, False)
+    if len(step.samples) < needed:
+        return step.result(cmd.request_id, False, f"only {len(step.samples)} of {needed} "
+                           f"samples arrived in {give_up:.1f} s: is the device streaming?")
+    return step.result(cmd.request_id, True, f"{needed} samples")
+
+
+def _side_bits(side: str) -> tuple[Status, bool, bool]:
+    if side == "left":
+        return Status.SOLENOID_LEFT, True, False
+    if side == "right":
+        return Status.SOLENOID_RIGHT, False, True
+    raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+
+
+def load_reason(sample: Sample, layout: EncoderLayout, max_alpha_deg: float) -> str:
+    """Why `sample` shows a loaded or faulty mechanism ("" if it shows none)."""
+    st = Status(sample.status)
+    if st & (Status.LOCKED_LEFT | Status.LOCKED_RIGHT):
+        return f"the device reports a pawl engaged ({st!r}): the mechanism is loaded"
+    if st & (Status.HARD_STOP_LEFT | Status.HARD_STOP_RIGHT):
+        return f"the device reports a hard stop ({st!r}): the mechanism is loaded"
+    if st.is_fault:
+        return f"the device reports a fault ({st!r})"
+    _, alpha_l, _, alpha_r = layout.joint_angles(sample.counts)
+    worst = max(abs(alpha_l), abs(alpha_r))
+    if math.degrees(worst) > max_alpha_deg:
+        return (f"spring deflection {math.degrees(alpha_l):.2f} deg left, "
+                f"{math.degrees(alpha_r):.2f} deg right, beyond {max_alpha_deg:g} deg: the "
+                "mechanism is loaded (or the cam offset is not calibrated)")
+    return ""
+
+
+def _precheck(step: _Step, layout: EncoderLayout, max_alpha_deg: float) -> str:
+    """Read `PRECHECK_SAMPLES` with the solenoids off; the first load seen, or ""."""
+    seen = 0
+    while seen < PRECHECK_SAMPLES and step.now() < 2.0:
+        sample = step.read()
+        if sample is None:
+            continue
+        step.send(False, False)
+        seen += 1
+        reason = load_reason(sample, layout, max_alpha_deg)
+        if reason:
+            return reason
+    return "" if seen == PRECHECK_SAMPLES else "the device sent no samples"
+
+
+def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
+    """Energise one solenoid for at most `PULSE_MAX_S`, then release and check both the
+    solenoid bit coming on (and only that side's) and going off again."""
+    bit, left, right = _side_bits(cmd.side)
+    other = SOLENOIDS & ~bit
+    layout = EncoderLayout(cmd.offsets, cmd.directions)
+    seconds = min(max(cmd.seconds, SAMPLE_PERIOD_S), PULSE_MAX_S)
+    refused = _precheck(step, layout, cmd.max_alpha_deg)
+    if refused:
+        return step.result(cmd.request_id, False, f"pulse refused: {refused}", refused=True)
+    began = step.now()
+    step.send(left, right)
+    seen, problem = False, ""
+    # Commands stop one period before the end, so the solenoid is on for at most
+    # `seconds` however late the release arrives.
+    while step.now() - began + SAMPLE_PERIOD_S <= seconds:
+        sample = step.read()
+        if sample is None:
+            continue
+        st = Status(sample.status)
+        seen = seen or bool(st & bit)
+        if st & other:
+            problem = f"the {'right' if left else 'left'} solenoid came on instead"
+        problem = problem or load_reason(sample, layout, cmd.max_alpha_deg)
+        if problem:
+            break
+        step.send(left, right)
+    step.send(False, False)
+    released = False
+    for _ in range(RELEASE_SAMPLES * 3):
+        sample = step.read()
+        if sample is None:
+            continue
+        step.send(False, False)
+        if not Status(sample.status) & SOLENOIDS:
+            released = True
+            break
+    if problem:
+        return step.result(cmd.request_id, False, f"pulse stopped: {problem}",
+                           solenoid_seen=seen, released_seen=released)
+    if not seen:
+        msg = f"the device never reported SOLENOID_{cmd.side.upper()} during the pulse"
+    elif not released:
+        msg = "the device still reports a solenoid energised after the pulse"
+    else:
+        msg = f"SOLENOID_{cmd.side.upper()} came on and went off"
+    return step.result(cmd.request_id, seen and released, msg, solenoid_seen=seen,
+                       released_seen=released)
+
+
+def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
+    """Energise one solenoid until the device reports it, then send nothing and time the
+    first sample with WATCHDOG_RELEASED and the solenoids off."""
+    if step.device.kind != "udp":
+        return step.result(cmd.request_id, False, "the command watchdog lives in the device: "
+                           "this test needs a device on the UDP link (hardware or the "
+                           "device simulator)", refused=True)
+    bit, left, right = _side_bits(cmd.side)
+    layout = EncoderLayout(cmd.offsets, cmd.directions)
+    refused = _precheck(step, layout, cmd.max_alpha_deg)
+    if refused:
+        return step.result(cmd.request_id, False, f"watchdog test refused: {refused}",
+                           refused=True)
+    began = step.now()
+    step.send(left, right)
+    seen = False
+    while not seen and step.now() - began + SAMPLE_PERIOD_S <= PULSE_MAX_S:
+        sample = step.read()
+        if sample is None:
+            continue
+        seen = bool(Status(sample.status) & bit)
+        if not seen:
+            step.send(left, right)
+    if not seen:
+        return step.result(cmd.request_id, False, f"the device never reported "
+                           f"SOLENOID_{cmd.side.upper()}: nothing to release")
+    # Silence: no command from here on (HELLO packets do not feed the watchdog).
+    last = step.last_command_s
+    while step.now() - last < WATCHDOG_WAIT_S:
+        sample = step.read()
+        if sample is None:
+            continue
+        st = Status(sample.status)
+        if st & Status.WATCHDOG_RELEASED and not st & SOLENOIDS:
+            release_s = step.samples[-1][0] - last
+            return step.result(cmd.request_id, True, f"released {1000 * release_s:.1f} ms "
+                               "after the last command", solenoid_seen=True,
+                               released_seen=True, release_s=release_s)
+    return step.result(cmd.request_id, False, f"the device did not release within "
+                       f"{1000 * WATCHDOG_WAIT_S:.0f} ms of the last command",
+                       solenoid_seen=True)

@@ -1,0 +1,205 @@
+"""The C device (firmware core on Linux, simulated wearer) against the Python reference
+device, in the same run, on loopback.
+
+For each implementation, the device runs as its own process with the same arguments
+(`firmware/build/exostudy-device` or `python -m controller.sim.device_server`) and this
+script plays the worker with `UdpDevice`: it reads each sample and answers at once with
+a command (both sides locked 0.3 s of every 2 s, as bench/bench_udp.py). Reports
+
+- the sample-to-command round trip the device measured (send of sample n to arrival
+  of the command echoing n), p50/p99/max;
+- late samples over the run (sent more than 2 ms after due), as the device counted them;
+- the watchdog: `--releases` times, with both solenoids commanded on, the host stops
+  commanding (it goes on reading); the release time is from the last command sent to
+  the arrival of the first sample whose status says WATCHDOG_RELEASED with both
+  solenoids off (an upper bound on the device's own time: loopback adds microseconds).
+  The protocol requires 100-110 ms.
+
+    .venv/bin/python bench/bench_c_device.py [--minutes 10] [--releases 10]
+        [--script paper-evaluation] [--seed 0] [--only c|python]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from controller.device.auth import load_or_create_key  # noqa: E402
+from controller.device.base import LockCommand, Status  # noqa: E402
+from controller.device.udp import UdpDevice  # noqa: E402
+from tests import c_device  # noqa: E402
+from tests.polling import free_udp_port  # noqa: E402
+
+KEY_FILE = Path(tempfile.gettempdir()) / f"exostudy-bench-c-{os.getuid()}.key"
+WATCHDOG_LIMIT_MS = 110.0  # docs/device-protocol.md, safety rule 1
+
+
+def _pct(values: list[float], q: float) -> float:
+    if not values:
+        return math.nan
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, math.ceil(q / 100 * len(ordered)) - 1)]
+
+
+def _command(implementation: str, port: int, seed: int, script: str, seconds: float
+             ) -> list[str]:
+    args = ["--port", str(port), "--seed", str(seed), "--script", script,
+            "--duration", str(seconds), "--key-file", str(KEY_FILE)]
+    if implementation == "c":
+        return [str(c_device.device_binary()), *args, "--python", sys.executable]
+    return [sys.executable, "-m", "controller.sim.device_server", *args]
+
+
+def _first_sample(dev: UdpDevice) -> None:
+    deadline = time.monotonic() + 120.0  # interpreter start on a loaded machine
+    while time.monotonic() < deadline:
+        if dev.read(0.5) is not None:
+            return
+    raise SystemExit("no sample from the device within 120 s")
+
+
+def _drive(dev: UdpDevice, seconds: float) -> dict[str, Any]:
+    """The worker's side: one command per sample."""
+    end = time.monotonic() + seconds
+    n = timeouts = 0
+    while time.monotonic() < end:
+        s = dev.read(0.1)
+        if s is None:
+            timeouts += 1
+            continue
+        lock = (s.seq % 200) < 30
+        dev.send(LockCommand(seq=s.seq, lock_left=lock, lock_right=lock))
+        n += 1
+    return {"received": n, "timeouts": timeouts}
+
+
+def _watchdog(dev: UdpDevice, releases: int) -> list[float]:
+    """Release times (ms) after the last command, `releases` times."""
+    out: list[float] = []
+    for _ in range(releases):
+        # 0.5 s of commands with both solenoids on, until a sample shows them on.
+        on_since = time.monotonic()
+        energised = False
+        while time.monotonic() - on_since < 0.5 or not energised:
+            s = dev.read(0.1)
+            if s is None:
+                continue
+            dev.send(LockCommand(seq=s.seq, lock_left=True, lock_right=True))
+            last_command = time.monotonic()
+            energised = bool(s.status & Status.SOLENOID_LEFT and s.status & Status.SOLENOID_RIGHT)
+            if time.monotonic() - on_since > 10.0:
+                raise SystemExit("the device never showed both solenoids energised")
+        # Silence: read on, command nothing.
+        deadline = last_command + 1.0
+        released_at = math.nan
+        while time.monotonic() < deadline:
+            s = dev.read(0.1)
+            if s is None:
+                continue
+            off = not s.status & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT)
+            if s.status & Status.WATCHDOG_RELEASED and off:
+                released_at = time.monotonic()
+                break
+        out.append(1e3 * (released_at - last_command))
+        # Let the mechanism settle unlocked before the next round (the wearer moves on).
+        settle = time.monotonic() + 0.3
+        while time.monotonic() < settle:
+            s = dev.read(0.1)
+            if s is not None:
+                dev.send(LockCommand(seq=s.seq, lock_left=False, lock_right=False))
+    return out
+
+
+def run(implementation: str, minutes: float, releases: int, seed: int, script: str
+        ) -> dict[str, Any]:
+    """One device process: drive it, then the watchdog rounds; its own statistics."""
+    port = free_udp_port()
+    seconds = 60.0 * minutes
+    proc = subprocess.Popen(_command(implementation, port, seed, script, seconds + 600.0),
+                            cwd=ROOT, stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    dev = UdpDevice(device_port=port, key=load_or_create_key(KEY_FILE))
+    try:
+        dev.open()
+        _first_sample(dev)
+        host = _drive(dev, seconds)
+        host["watchdog_ms"] = _watchdog(dev, releases)
+        link = dev.stats.copy()
+        host.update(gaps=link.gaps, missing=link.missing, malformed=sum(link.malformed.values()))
+    finally:
+        dev.close()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=30.0)
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    if not lines:
+        raise SystemExit(f"{implementation} device printed no statistics (exit {proc.returncode})")
+    return {"host": host, "device": json.loads(lines[-1])}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse arguments, run each implementation, print one table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--minutes", type=float, default=10.0, help="per implementation")
+    parser.add_argument("--releases", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--script", default="paper-evaluation")
+    parser.add_argument("--only", choices=("c", "python"), default=None)
+    args = parser.parse_args(argv)
+    load_or_create_key(KEY_FILE)
+    c_device.build()
+    results: dict[str, dict[str, Any]] = {}
+    load0 = os.getloadavg()
+    started = time.strftime("%H:%M:%S", time.gmtime())
+    for implementation in ("python", "c"):
+        if args.only and implementation != args.only:
+            continue
+        print(f"running the {implementation} device for {args.minutes:g} min ...", flush=True)
+        results[implementation] = run(implementation, args.minutes, args.releases, args.seed,
+                                      args.script)
+    load1 = os.getloadavg()
+    print(f"\n{args.minutes:g} min per device, script {args.script} seed {args.seed}, "
+          f"started {started} UTC, {os.cpu_count()} CPUs, load {load0[0]:.2f} -> "
+          f"{load1[0]:.2f}")
+    print(f"{'':34}" + "".join(f"{name:>22}" for name in results))
+
+    def row(label: str, fmt: Any) -> None:
+        print(f"{label:34}" + "".join(f"{fmt(r):>22}" for r in results.values()))
+
+    row("samples sent / received", lambda r: f"{r['device']['samples_sent']} / "
+        f"{r['host']['received']}")
+    row("round trip p50 / p99 (ms)", lambda r: f"{r['device']['rtt_p50_ms']:.3f} / "
+        f"{r['device']['rtt_p99_ms']:.3f}")
+    row("round trip max (ms)", lambda r: f"{r['device']['rtt_max_ms']:.3f}")
+    row("late samples (> 2 ms)", lambda r: f"{r['device']['late']} "
+        f"({100 * r['device']['late_fraction']:.2f} %)")
+    row("lateness p50 / p99 (ms)", lambda r: f"{r['device']['lateness_p50_ms']:.3f} / "
+        f"{r['device']['lateness_p99_ms']:.3f}")
+    row("lateness max (ms)", lambda r: f"{r['device']['lateness_max_ms']:.1f}")
+    row("host gaps (missing) / timeouts", lambda r: f"{r['host']['gaps']} "
+        f"({r['host']['missing']}) / {r['host']['timeouts']}")
+    row("watchdog release min/median/max", lambda r: "{:.0f} / {:.0f} / {:.0f} ms".format(
+        min(r["host"]["watchdog_ms"]), _pct(r["host"]["watchdog_ms"], 50),
+        max(r["host"]["watchdog_ms"])))
+    row("device watchdog releases", lambda r: str(r["device"]["watchdog_releases"]))
+    worst = max((max(r["host"]["watchdog_ms"]) for r in results.values()), default=math.nan)
+    verdict = "within" if worst <= WATCHDOG_LIMIT_MS else "OVER"
+    print(f"\nworst watchdog release {worst:.1f} ms: {verdict} the {WATCHDOG_LIMIT_MS:g} ms "
+          "bound (host-side upper bound: last command sent -> released sample received)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

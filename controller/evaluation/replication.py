@@ -1,0 +1,496 @@
+"""The paper's claims, one by one, and the numbers a virtual study gives for them.
+
+The paper's user study is replicated on virtual participants (several seeds, each a
+whole study); this module holds what is compared:
+
+- `PAPER_PERFORMANCE` and `PAPER_FALSE_POSITIVES`: the paper's two count tables,
+  transcribed (participants 1-8; E-UMC only for participants 2, 3 and 7).
+- `TrialData`: one evaluated trial of one seed, with the few tick-level facts the
+  claims need beyond the evaluation (the largest progress estimate, which model the
+  posteriors favoured during stair walking).
+- `seed_measures`: every per-seed number (a mean over that seed's participants).
+- `CLAIMS`: the claims, each with the paper's sentence, its number where it gives one,
+  the measure compared and the kind of verdict (`controller.evaluation.verdicts`).
+- `judge`: the verdict of every claim from the measures of all seeds.
+
+Counts are reported per 10 lifts of a kind (the paper's tables have 10 squats and 10
+asymmetric stoops per participant), so a trial that lost a lift at its edges does not
+count as a wrong decision.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from controller.evaluation.columns import TickData
+from controller.evaluation.metrics import DecisionOutcome, LiftOutcome
+from controller.evaluation.study import RecordingEvaluation
+from controller.evaluation.verdicts import (
+    Interval,
+    Verdict,
+    check_verdict,
+    ordinal_verdict,
+    t_interval,
+    value_verdict,
+)
+from controller.tick import CATEGORY_NAMES
+
+PAPER_PARTICIPANTS: tuple[str, ...] = ("1", "2", "3", "4", "5", "6", "7", "8")
+#: Paper, table "Intent estimation and Decision Performance for (E-)UMC": counts out
+#: of 10 per participant; (controller, metric, group) -> participant -> count.
+PAPER_PERFORMANCE: dict[tuple[str, str, str], dict[str, int]] = {
+    ("umc", "recognised", "SQ"): dict(zip(PAPER_PARTICIPANTS, (7, 10, 8, 10, 10, 10, 10, 10),
+                                          strict=True)),
+    ("umc", "recognised", "AS"): dict(zip(PAPER_PARTICIPANTS, (10, 10, 5, 10, 10, 10, 6, 10),
+                                          strict=True)),
+    ("umc", "correct", "SQ"): dict(zip(PAPER_PARTICIPANTS, (7, 10, 6, 10, 10, 10, 10, 10),
+                                       strict=True)),
+    ("umc", "correct", "AS"): dict(zip(PAPER_PARTICIPANTS, (10, 10, 5, 10, 10, 5, 7, 10),
+                                       strict=True)),
+    ("eumc", "recognised", "SQ"): {"2": 10, "3": 10, "7": 10},
+    ("eumc", "recognised", "AS"): {"2": 10, "3": 10, "7": 10},
+    ("eumc", "correct", "SQ"): {"2": 10, "3": 10, "7": 10},
+    ("eumc", "correct", "AS"): {"2": 10, "3": 10, "7": 10},
+    # Paper, text under the table: the PEC "engaged both support mechanisms during all
+    # demonstrations for all participants except for participant 7" (three squats and
+    # one asymmetric stoop not supported). Engaging both is its only lock.
+    ("pec", "correct", "SQ"): {**dict.fromkeys(PAPER_PARTICIPANTS, 10), "7": 7},
+    ("pec", "engaged", "AS"): {**dict.fromkeys(PAPER_PARTICIPANTS, 10), "7": 9},
+}
+#: Paper, table "Number of false positive lock signals": (controller, trial) ->
+#: participant -> count; W walking, SW stair walking.
+PAPER_FALSE_POSITIVES: dict[tuple[str, str], dict[str, int]] = {
+    ("pec", "W"): dict.fromkeys(PAPER_PARTICIPANTS, 0),
+    ("pec", "SW"): dict.fromkeys(PAPER_PARTICIPANTS, 0),
+    ("umc", "W"): dict(zip(PAPER_PARTICIPANTS, (0, 0, 7, 0, 1, 0, 14, 0), strict=True)),
+    ("umc", "SW"): dict(zip(PAPER_PARTICIPANTS, (6, 16, 15, 1, 15, 19, 14, 20), strict=True)),
+    ("eumc", "W"): {"2": 0, "3": 0, "7": 0},
+    ("eumc", "SW"): {"2": 0, "3": 0, "7": 0},
+}
+GROUP_KINDS: dict[str, tuple[str, ...]] = {"SQ": ("squat",),
+                                           "AS": ("stoop_left", "stoop_right")}
+TRIAL_GROUPS: dict[str, str] = {"walking": "W", "stair_walking": "SW"}
+
+
+def paper_mean(table: Mapping[str, int]) -> float:
+    """Mean over the participants of one row of a transcribed table."""
+    return float(np.mean(list(table.values())))
+
+
+def paper_eumc_gain() -> float:
+    """Paper: E-UMC minus UMC correct decisions (SQ + AS, per 20 lifts), mean over the
+    three participants who used both (2, 3, 7)."""
+    gains = []
+    for p in ("2", "3", "7"):
+        e = sum(PAPER_PERFORMANCE[("eumc", "correct", g)][p] for g in ("SQ", "AS"))
+        u = sum(PAPER_PERFORMANCE[("umc", "correct", g)][p] for g in ("SQ", "AS"))
+        gains.append(e - u)
+    return float(np.mean(gains))
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True)
+class TrialData:
+    """One evaluated trial of one seed.
+
+    Attributes:
+        participant: the participant's code within the seed.
+        controller: umc, eumc or pec.
+        evaluation: its lifts and gait trials, evaluated.
+        max_progress: the largest progress estimate `s_curr` of the most probable model
+            over the ticks where the controller ran (NaN without intent estimation).
+        online_end: the progress at which the models' online part ends (the largest
+            `s_curr` the onset detection can return).
+        stair_favoured: during stair-walking ticks where the controller ran, how many
+            times each category (squat, stoop_left, stoop_right, other) had the
+            largest posterior.
+        stair_lock_favoured: the same, at lock decisions only.
+    """
+
+    participant: str
+    controller: str
+    evaluation: RecordingEvaluation
+    max_progress: float = math.nan
+    online_end: float = 0.5
+    stair_favoured: dict[str, int] = field(default_factory=dict)
+    stair_lock_favoured: dict[str, int] = field(default_factory=dict)
+
+
+def trial_data(cols: TickData, evaluation: RecordingEvaluation,
+               online_end: float = 0.5) -> TrialData:
+    """The tick-level facts of one trial (see `TrialData`)."""
+    post_names = [f"post_{c}" for c in CATEGORY_NAMES]
+    ran = cols.bool_("controller_ran") if "controller_ran" in cols else np.zeros(len(cols), bool)
+    max_progress = math.nan
+    favoured: dict[str, int] = dict.fromkeys(CATEGORY_NAMES, 0)
+    lock_favoured: dict[str, int] = dict.fromkeys(CATEGORY_NAMES, 0)
+    if all(p in cols for p in post_names):
+        post = np.stack([cols.float_(p) for p in post_names], axis=1)
+        ok = ran & np.isfinite(post).all(axis=1)
+        if ok.any():
+            best = np.argmax(np.where(np.isfinite(post), post, -1.0), axis=1)
+            s_names = [f"s_curr_{c}" for c in CATEGORY_NAMES[:3]]
+            if all(s in cols for s in s_names):
+                prog = np.stack([cols.float_(s) for s in s_names], axis=1)
+                model = ok & (best < 3)
+                if model.any():
+                    picked = prog[np.flatnonzero(model), best[model]]
+                    picked = picked[np.isfinite(picked)]
+                    if picked.size:
+                        max_progress = float(picked.max())
+            action = cols.int_("action") if "action" in cols else np.zeros(len(cols), int)
+            for fp in evaluation.false_positives:
+                if fp.trial.kind != "stair_walking":
+                    continue
+                sel = np.zeros(len(cols), dtype=bool)
+                sel[fp.trial.ticks] = True
+                for j, c in enumerate(CATEGORY_NAMES):
+                    favoured[c] += int(np.count_nonzero(sel & ok & (best == j)))
+                    lock_favoured[c] += int(np.count_nonzero(sel & ok & (best == j)
+                                                             & np.isin(action, (2, 3, 4))))
+    return TrialData(evaluation.participant, evaluation.controller, evaluation, max_progress,
+                     online_end, favoured, lock_favoured)
+
+
+# --------------------------------------------------------------------------- per seed
+
+
+def _per10(outcomes: Sequence[LiftOutcome], hit: Callable[[LiftOutcome], bool]) -> float:
+    return 10.0 * sum(1 for o in outcomes if hit(o)) / len(outcomes) if outcomes else math.nan
+
+
+def _group(lifts: Sequence[LiftOutcome], group: str) -> list[LiftOutcome]:
+    return [o for o in lifts if o.lift.kind in GROUP_KINDS[group]]
+
+
+def _support_share(o: LiftOutcome) -> float:
+    """Supporting side's share of the two peak torques in a stoop (NaN if no torque)."""
+    sup, other = ((o.peak_torque_left, o.peak_torque_right) if o.lift.kind == "stoop_left"
+                  else (o.peak_torque_right, o.peak_torque_left))
+    total = sup + other
+    return sup / total if total > 0 else math.nan
+
+
+def _asymmetry(o: LiftOutcome) -> float:
+    """|left - right| / (left + right) of a lift's peak torques (NaN if no torque)."""
+    total = o.peak_torque_left + o.peak_torque_right
+    return abs(o.peak_torque_left - o.peak_torque_right) / total if total > 0 else math.nan
+
+
+def _mean(values: Sequence[float]) -> float:
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if x.size else math.nan
+
+
+def seed_measures(trials: Sequence[TrialData]) -> dict[str, float]:
+    """Every measure of one seed: means over that seed's participants (each
+    participant's value first, then their mean, so that participants weigh equally).
+
+    Keys: `<ctl>.<metric>.<group>` for the performance table (per 10 lifts),
+    `fp.<ctl>.<W|SW>` for false positives, and the named measures of `CLAIMS`.
+    """
+    by: dict[str, dict[str, list[TrialData]]] = {}
+    for tr in trials:
+        by.setdefault(tr.controller, {}).setdefault(tr.participant, []).append(tr)
+    out: dict[str, float] = {}
+
+    def lifts_of(ctl: str, p: str) -> list[LiftOutcome]:
+        return [o for tr in by.get(ctl, {}).get(p, []) for o in tr.evaluation.lifts]
+
+    metrics: dict[str, Callable[[LiftOutcome], bool]] = {
+        "recognised": lambda o: bool(o.recognised),
+        "correct": lambda o: o.decision is DecisionOutcome.CORRECT,
+        "first_correct": lambda o: o.first_decision is DecisionOutcome.CORRECT,
+        "first_one_sided": lambda o: o.first_lock_one_sided,
+        "engaged": lambda o: "L" in o.sides_commanded and "R" in o.sides_commanded,
+    }
+    for ctl, parts in by.items():
+        for name, hit in metrics.items():
+            if name == "recognised" and ctl == "pec":
+                continue
+            for g in GROUP_KINDS:
+                out[f"{ctl}.{name}.{g}"] = _mean([_per10(_group(lifts_of(ctl, p), g), hit)
+                                                  for p in parts])
+        for kind, g in TRIAL_GROUPS.items():
+            counts = [sum(fp.signals for tr in trs for fp in tr.evaluation.false_positives
+                          if fp.trial.kind == kind) for trs in parts.values()]
+            has = [any(fp.trial.kind == kind for tr in trs for fp in tr.evaluation.false_positives)
+                   for trs in parts.values()]
+            vals = [float(c) for c, h in zip(counts, has, strict=True) if h]
+            out[f"fp.{ctl}.{g}"] = _mean(vals)
+            out[f"fp_any.{ctl}.{g}"] = _mean([float(v > 0) for v in vals])
+        lifts = [o for p in parts for o in lifts_of(ctl, p)]
+        squats = [o for o in lifts if o.lift.kind == "squat"]
+        stoops = [o for o in lifts if o.lift.kind != "squat"]
+        out[f"{ctl}.squat_asymmetry"] = _mean([_asymmetry(o) for o in squats])
+        out[f"{ctl}.stoop_support_share"] = _mean([_support_share(o) for o in stoops])
+        out[f"{ctl}.peak_torque"] = _mean([max(o.peak_torque_left, o.peak_torque_right)
+                                           for o in lifts])
+        out[f"{ctl}.first_decision_s"] = _mean([o.first_decision_s for o in lifts])
+        progress = [tr.max_progress / tr.online_end for trs in parts.values() for tr in trs
+                    if math.isfinite(tr.max_progress)]
+        out[f"{ctl}.max_progress"] = max(progress) if progress else math.nan
+        fav = {c: sum(tr.stair_lock_favoured.get(c, 0) for trs in parts.values() for tr in trs)
+               for c in CATEGORY_NAMES}
+        total = sum(fav.values())
+        out[f"{ctl}.stair_lock_stoop_share"] = (
+            (fav["stoop_left"] + fav["stoop_right"]) / total if total else math.nan)
+        fav_all = {c: sum(tr.stair_favoured.get(c, 0) for trs in parts.values() for tr in trs)
+                   for c in CATEGORY_NAMES}
+        total_all = sum(fav_all.values())
+        for c in CATEGORY_NAMES:
+            out[f"{ctl}.stair_favoured.{c}"] = fav_all[c] / total_all if total_all else math.nan
+    # Paired: participants who used both the UMC and the E-UMC.
+    both = [p for p in by.get("eumc", {}) if p in by.get("umc", {})]
+    gains = []
+    for p in both:
+        e, u = lifts_of("eumc", p), lifts_of("umc", p)
+        if e and u:
+            gains.append(20.0 * (sum(o.decision is DecisionOutcome.CORRECT for o in e) / len(e)
+                                 - sum(o.decision is DecisionOutcome.CORRECT for o in u) / len(u)))
+    out["eumc_minus_umc.correct20"] = _mean(gains)
+    out["fp.umc.SW_minus_W"] = out.get("fp.umc.SW", math.nan) - out.get("fp.umc.W", math.nan)
+    out["fp.pec_eumc.total"] = (out.get("fp.pec.W", 0.0) + out.get("fp.pec.SW", 0.0)
+                                + out.get("fp.eumc.W", 0.0) + out.get("fp.eumc.SW", 0.0))
+    out["pec_minus_umc.peak_torque"] = (out.get("pec.peak_torque", math.nan)
+                                        - out.get("umc.peak_torque", math.nan))
+    out["eumc_minus_umc.peak_torque"] = (out.get("eumc.peak_torque", math.nan)
+                                         - out.get("umc.peak_torque", math.nan))
+    out["umc_minus_eumc.squat_asymmetry"] = (out.get("umc.squat_asymmetry", math.nan)
+                                             - out.get("eumc.squat_asymmetry", math.nan))
+    out["umc_minus_pec.stoop_support_share"] = (out.get("umc.stoop_support_share", math.nan)
+                                                - out.get("pec.stoop_support_share", math.nan))
+    out["umc_minus_eumc.first_decision_s"] = (out.get("umc.first_decision_s", math.nan)
+                                              - out.get("eumc.first_decision_s", math.nan))
+    return out
+
+
+# --------------------------------------------------------------------------- claims
+
+
+ClaimKind = Literal["value", "ordinal", "check", "not_simulated"]
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of the paper.
+
+    Attributes:
+        key: short identifier.
+        source: where in the paper (table or figure name, section).
+        statement: the paper's sentence (short quote) or what its table/figure shows.
+        measure: the key of the per-seed measure compared (`seed_measures`, or one of
+            the method checks given to `judge`).
+        kind: value, ordinal, check or not_simulated (`controller.evaluation.verdicts`).
+        paper: the paper's number (value claims; the expected value of checks).
+        direction, threshold: ordinal claims: the measure lies above (+1) or below (-1)
+            the threshold.
+        tolerance: check claims.
+        unit: of the measure.
+        figure: the name of the report figure that shows it, if any.
+    """
+
+    key: str
+    source: str
+    statement: str
+    measure: str = ""
+    kind: ClaimKind = "value"
+    paper: float = math.nan
+    direction: int = 1
+    threshold: float = 0.0
+    tolerance: float = 0.0
+    unit: str = ""
+    figure: str = ""
+
+
+def _table_claims() -> list[Claim]:
+    src = "Table \"Intent estimation and Decision Performance for (E-)UMC\""
+    out = []
+    names = {"recognised": "recognised", "correct": "correct decisions"}
+    labels = {"SQ": "squats", "AS": "asymmetric stoops"}
+    for (ctl, metric, g), row in PAPER_PERFORMANCE.items():
+        if ctl == "pec":
+            continue
+        who = "UMC, participants 1-8" if ctl == "umc" else "E-UMC, participants 2, 3, 7"
+        out.append(Claim(f"{ctl}.{metric}.{g}", src,
+                         f"{names[metric].capitalize()} {labels[g]} per 10 ({who}): "
+                         + ", ".join(f"{v}" for v in row.values()),
+                         f"{ctl}.{metric}.{g}", "value", paper_mean(row), unit="per 10 lifts"))
+    out.append(Claim("pec.correct.SQ", "Section \"Intent estimation and decision performance\"",
+                     "\"The PEC ... engaged both support mechanisms during all demonstrations "
+                     "for all participants except for participant 7\" (3 squats not supported)",
+                     "pec.correct.SQ", "value", paper_mean(PAPER_PERFORMANCE[("pec", "correct",
+                                                                             "SQ")]),
+                     unit="per 10 lifts"))
+    out.append(Claim("pec.engaged.AS", "Section \"Intent estimation and decision performance\"",
+                     "The PEC engaged both sides in every asymmetric stoop but one of "
+                     "participant 7", "pec.engaged.AS", "value",
+                     paper_mean(PAPER_PERFORMANCE[("pec", "engaged", "AS")]),
+                     unit="per 10 lifts"))
+    src = "Table \"Number of false positive lock signals\""
+    for (ctl, g), row in PAPER_FALSE_POSITIVES.items():
+        trial = "walking" if g == "W" else "stair walking"
+        out.append(Claim(f"fp.{ctl}.{g}", src,
+                         f"False positive lock signals, {trial}, "
+                         f"{ctl.upper().replace('EUMC', 'E-UMC')}: "
+                         + ", ".join(str(v) for v in row.values()),
+                         f"fp.{ctl}.{g}", "value", paper_mean(row), unit="per trial"))
+    return out
+
+
+CLAIMS: tuple[Claim, ...] = (
+    *_table_claims(),
+    Claim("umc_fp_walk_some", "Section \"False positives\"",
+          "\"During walking trials, the UMC generated false positive signals for "
+          "participants 3, 5 and 7\" (3 of 8)", "fp_any.umc.W", "value", 3 / 8,
+          unit="share of participants"),
+    Claim("umc_fp_stairs_all", "Section \"False positives\"",
+          "\"During all stair walking trials, the UMC generated false positives signals\"",
+          "fp_any.umc.SW", "value", 1.0, unit="share of participants"),
+    Claim("pec_eumc_no_fp", "Sections \"False positives\", discussion",
+          "\"the PEC did not generate any false positive lock signal\"; \"the E-UMC did not "
+          "generate any false positive lock signals\"", "fp.pec_eumc.total", "value", 0.0,
+          unit="per trial"),
+    Claim("umc_stairs_more", "Discussion",
+          "\"During stair walking trials, the UMC generates a lot of false positives\": more "
+          "than in walking (paper: 13.25 vs 2.75 per trial)", "fp.umc.SW_minus_W", "ordinal",
+          13.25 - 2.75, unit="per trial"),
+    Claim("stairs_look_like_stoops", "Discussion",
+          "\"the intent estimation algorithm in the UMC is not able to discriminate between "
+          "stair walking and asymmetric stoop lifting\": the UMC's lock decisions on stairs "
+          "come with a stoop model most probable (share > 0.5)", "umc.stair_lock_stoop_share",
+          "ordinal", threshold=0.5, unit="share of lock decisions"),
+    Claim("eumc_squats_symmetric", "Figure \"peak torques\", section \"Exoskeleton torques\"",
+          "Squat peak torques of the UMC partly \"grouped along the horizontal axis\"; "
+          "\"This behavior is no longer present with the E-UMC which generates symmetric "
+          "peak support torques\": squat asymmetry UMC minus E-UMC > 0",
+          "umc_minus_eumc.squat_asymmetry", "ordinal", unit="|L-R|/(L+R)",
+          figure="peak_torques"),
+    Claim("umc_stoops_on_axis", "Figure \"peak torques\"",
+          "\"During stoop left motions, only the left hip joint is supported\": the "
+          "supporting side's share of peak torque in stoops > 0.5 (UMC)",
+          "umc.stoop_support_share", "ordinal", threshold=0.5, unit="share",
+          figure="peak_torques"),
+    Claim("eumc_stoops_on_axis", "Figure \"peak torques\"",
+          "The same for the E-UMC: supporting side's share of stoop peak torque > 0.5",
+          "eumc.stoop_support_share", "ordinal", threshold=0.5, unit="share",
+          figure="peak_torques"),
+    Claim("pec_on_diagonal", "Figure \"peak torques\"",
+          "\"the PEC generates almost identical assistance torques during all motions\": "
+          "its stoops lie nearer the diagonal than the UMC's (share UMC minus PEC > 0)",
+          "umc_minus_pec.stoop_support_share", "ordinal", unit="share",
+          figure="peak_torques"),
+    Claim("pec_higher_torque", "Section \"Exoskeleton torques\", discussion",
+          "\"the PEC generates higher peak torques than the UMC during all lifting motions\"",
+          "pec_minus_umc.peak_torque", "ordinal", unit="Nm", figure="peak_torques"),
+    Claim("eumc_higher_torque", "Section \"Exoskeleton torques\"",
+          "the E-UMC \"is also able to generate higher peak torques than the UMC\"",
+          "eumc_minus_umc.peak_torque", "ordinal", unit="Nm", figure="peak_torques"),
+    Claim("eumc_earlier", "Discussion",
+          "\"the E-UMC recognizes motions earlier\": first lock decision earlier than the "
+          "UMC's (UMC minus E-UMC > 0)", "umc_minus_eumc.first_decision_s", "ordinal",
+          unit="s"),
+    Claim("eumc_better_decisions", "Table \"Intent estimation and Decision Performance\", "
+          "discussion", "E-UMC better than UMC for the participants who used both (donning "
+          "offsets removed by the calibration): correct decisions per 20 lifts, E-UMC minus "
+          "UMC (paper: participants 2, 3, 7)", "eumc_minus_umc.correct20", "ordinal",
+          paper_eumc_gain(), unit="per 20 lifts", figure="offsets"),
+    Claim("eumc_progress_below_1", "Figure \"controller output\", section \"Exoskeleton "
+          "torques\"", "\"the progress never reaches s_curr = 1 as the onset detection "
+          "algorithm stops running\" with the E-UMC: largest progress over the online part "
+          "< 1", "eumc.max_progress", "ordinal", direction=-1, threshold=1.0,
+          unit="fraction of the online part", figure="controller_output"),
+    Claim("utility_stoop", "Figure \"utility differences\", section \"Calculating utilities\"",
+          "\"for asymmetric stoop motions not locking ... initially results in higher utility "
+          "than providing support at the non-supporting leg\": U(no lock) - U(lock "
+          "non-supporting) at s = 0, smaller of the two stoops, > 0", "utility_stoop_gap",
+          "ordinal", unit="Nm^2", figure="utilities"),
+    Claim("value_iteration", "Appendix", "The general method (value iteration) gives the "
+          "closed-form utilities for the lifting motions: largest |difference| relative to "
+          "the largest |utility|", "value_iteration_gap", "check", 0.0, tolerance=1e-9,
+          unit="relative", figure="utilities"),
+    Claim("actuator", "Figure \"torque-deflection\", table \"Main Parameters of the "
+          "Actuator\"", "Torque grows with deflection and with spring precompression "
+          "(B = 10, C = 30, R = 7.5 mm; 22 mm maximal compression): share of the curve "
+          "points where it does not", "actuator_violations", "check", 0.0, tolerance=0.0,
+          unit="share", figure="actuator"),
+    Claim("chi_square", "Figure \"chi-square\"", "P(obs|model) for D = 7.5 and L = 3 "
+          "(6 degrees of freedom) is the shaded tail area, 0.2771", "chi_square_tail",
+          "check", 0.2771, tolerance=5e-5, figure="chi_square"),
+    Claim("motion_models", "Figure \"motion models\"", "Models with their 95 % regions: "
+          "squat along the diagonal, the stoops to either side: smaller stoop |L-R| minus "
+          "squat |L-R| at the end of the online part > 0", "models_separation_deg",
+          "ordinal", unit="deg", figure="motion_models"),
+    Claim("questionnaires", "Table \"Questionnaire Results for PEC and UMC\"",
+          "SUS and EUS scores and stated preferences; \"no clear conclusion can be drawn "
+          "about user preferences\"", kind="not_simulated"),
+)
+
+
+@dataclass(frozen=True)
+class ClaimResult:
+    """A claim with its virtual number and verdict."""
+
+    claim: Claim
+    interval: Interval
+    verdict: Verdict
+    reason: str
+    seeds: tuple[float, ...] = ()
+
+
+def _fmt(x: float) -> str:
+    if not math.isfinite(x):
+        return "n/a"
+    return f"{x:.4g}"
+
+
+def judge(claim: Claim, values: Sequence[float]) -> ClaimResult:
+    """The verdict of one claim from its per-seed values (one value for checks)."""
+    iv = t_interval(values)
+    seeds = tuple(float(v) for v in values)
+    if claim.kind == "not_simulated":
+        return ClaimResult(claim, iv, Verdict.NOT_SIMULATED,
+                           "Virtual participants give no answers; none are invented.", seeds)
+    if iv.n == 0:
+        return ClaimResult(claim, iv, Verdict.DIFFERS,
+                           "No seed gave a value (the measure is undefined).", seeds)
+    if claim.kind == "value":
+        v = value_verdict(claim.paper, iv)
+        where = "inside" if v is Verdict.REPRODUCED else (
+            "below" if claim.paper < iv.low else "above")
+        return ClaimResult(claim, iv, v, f"The paper's {_fmt(claim.paper)} lies {where} the "
+                           f"95 % interval {iv.text('.3g')} over {iv.n} seeds.", seeds)
+    if claim.kind == "ordinal":
+        v = ordinal_verdict(iv, claim.direction, claim.threshold)
+        side = "above" if claim.direction > 0 else "below"
+        if v is Verdict.REPRODUCED:
+            why = f"The whole interval {iv.text('.3g')} lies {side} {_fmt(claim.threshold)}."
+        else:
+            why = (f"The interval {iv.text('.3g')} does not lie wholly {side} "
+                   f"{_fmt(claim.threshold)}.")
+        return ClaimResult(claim, iv, v, why, seeds)
+    v = check_verdict(iv.mean, claim.paper, claim.tolerance)
+    return ClaimResult(claim, iv, v, f"Computed {_fmt(iv.mean)}, expected {_fmt(claim.paper)} "
+                       f"within {_fmt(claim.tolerance)}.", seeds)
+
+
+def judge_all(per_seed: Sequence[Mapping[str, float]], checks: Mapping[str, float],
+              claims: Sequence[Claim] = CLAIMS) -> list[ClaimResult]:
+    """Every claim: seed measures from `per_seed` (one mapping per seed), method checks
+    (deterministic) and per-seed model measures from `checks` or `per_seed`."""
+    out = []
+    for c in claims:
+        if c.measure in checks:
+            values: list[float] = [checks[c.measure]]
+        else:
+            values = [m.get(c.measure, math.nan) for m in per_seed]
+        out.append(judge(c, values))
+    return out

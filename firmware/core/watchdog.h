@@ -1,0 +1,33 @@
+/*
+ * watchdog.h - the command watchdog (protocol "Safety rules", rule 1).
+ *
+ * Solenoids may be energised only while valid COMMANDs keep arriving: if none came
+ * for 100 ms, both are released and every sample says WATCHDOG_RELEASED until the
+ * next one. It is checked once per sample period, so the release lands 100-110 ms
+ * after the last command. From power-up until the first command it is released.
+ */
+#ifndef EXO_WATCHDOG_H
+#define EXO_WATCHDOG_H
+
+#include <stdint.h>
+
+#define EXO_WATCHDOG_US 100000u
+
+typedef struct {
+    int fed;              /* a valid COMMAND has arrived since init */
+    uint64_t last_cmd_us; /* when the latest valid COMMAND arrived */
+    int released;         /* solenoids are held off (state after the last check) */
+    uint64_t releases;    /* transitions from commanded to released */
+} exo_watchdog;
+
+/* Released, never fed. */
+void exo_watchdog_init(exo_watchdog *w);
+
+/* A valid COMMAND arrived at `now_us`. (HELLO never feeds it.) */
+void exo_watchdog_feed(exo_watchdog *w, uint64_t now_us);
+
+/* Once per sample period: 1 if the latest command may be applied now, 0 if the
+ * solenoids must be released (counting a release when this is a change). */
+int exo_watchdog_check(exo_watchdog *w, uint64_t now_us);
+
+#endif /* EXO_WATCHDOG_H */

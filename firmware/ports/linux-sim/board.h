@@ -1,0 +1,46 @@
+/*
+ * board.h - the linux-sim board: UDP sockets and the monotonic clock of Linux, four
+ * emulated AS5048A chips on the SPI bus, and the simulated wearer (plant.h) as the
+ * mechanism the solenoids act on.
+ */
+#ifndef LINUX_SIM_BOARD_H
+#define LINUX_SIM_BOARD_H
+
+#include <stdint.h>
+
+#include "as5048a_chip.h"
+#include "exo_board.h"
+#include "plant.h"
+
+#define LINUX_SIM_LATE_US 2000u /* a sample sent later than this after its period began */
+
+typedef struct {
+    int sock;
+    plant *plant;
+    as5048a chips[4];
+    plant_reading reading; /* what the mechanism and encoders show this period */
+    int have_reading;
+    int solenoids[2];      /* as last driven */
+    int hold;              /* drive the solenoids but do not advance the wearer (the
+                              core's release at init and at stop) */
+    unsigned rate_factor;  /* fault probe: the plant steps once every this many samples */
+    uint64_t drive_calls;  /* set_solenoids calls while running */
+    int plant_failed;      /* the wearer is gone: the port exits */
+    int finished;          /* the script or file has ended (a sample showed it) */
+    int finished_sent;     /* ... and the sample that showed it was sent */
+    uint64_t periods;      /* sample periods the plant was stepped */
+    uint64_t spi_frames;
+    uint64_t sends;
+    uint64_t send_errors;
+    uint64_t receive_errors;
+    uint64_t foreign;      /* datagrams from an address other than the host */
+    uint32_t host_ip;      /* host byte order */
+} linux_sim_board;
+
+/* Fill `board` with this port's functions around `ctx` (socket and plant set). */
+void linux_sim_board_init(linux_sim_board *ctx, exo_board *board, int sock, plant *p,
+                          uint32_t host_ip);
+
+uint64_t linux_sim_now_us(void);
+
+#endif /* LINUX_SIM_BOARD_H */

@@ -1,0 +1,13 @@
+/* tests.h - the test groups run by test_main.c. */
+#ifndef TESTS_H
+#define TESTS_H
+
+#include <stdint.h>
+
+void test_checksum(void);
+void test_ipv4_udp(void);
+void test_arp(void);
+void test_stack(void);
+void test_prov(void);
+
+#endif /* TESTS_H */

@@ -1,0 +1,120 @@
+"""The worker's bring-up commands (backend/worker/bringup.py) on the real worker process
+and the UDP device simulator as its own process: what each answers, with values."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from backend.worker.messages import (
+    BringupCapture,
+    BringupCommand,
+    BringupPulse,
+    BringupResult,
+    BringupWatchdog,
+    SetController,
+    WorkerConfig,
+)
+from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller import bringup as calc
+from controller.device.auth import load_or_create_key
+from controller.device.base import Status
+from controller.encoders import DEFAULT_LAYOUT
+from tests.faults.device_rig import device_process
+from tests.polling import free_udp_port, wait_for
+
+pytestmark = pytest.mark.slow
+LAY = DEFAULT_LAYOUT
+
+
+class BringupWorker:
+    """The real worker on a UDP device, answering bring-up commands."""
+
+    def __init__(self, port: int, key_file: Path) -> None:
+        self.answers: dict[int, BringupResult] = {}
+        self._lock = threading.Lock()
+        config = WorkerConfig(device_kind="udp", device_port=port,
+                              device_key_file=str(key_file), status_interval=0.1)
+        self.sup = WorkerSupervisor(config, WorkerCallbacks(on_bringup=self._answer))
+
+    def _answer(self, result: BringupResult) -> None:
+        with self._lock:
+            self.answers[result.request_id] = result
+
+    def run(self, cmd: BringupCommand) -> BringupResult:
+        rid = self.sup.request_bringup(cmd)
+        wait_for(lambda: rid in self.answers, 60, f"the worker's answer to {cmd}")
+        return self.answers[rid]
+
+
+@pytest.fixture
+def worker(tmp_path: Path) -> Iterator[BringupWorker]:
+    key = tmp_path / "device.key"
+    load_or_create_key(key)
+    port = free_udp_port()
+    with device_process(port, key, "standing"):
+        w = BringupWorker(port, key)
+        w.sup.start()
+        try:
+            wait_for(lambda: (st := w.sup.state.status) is not None and st.device.alive, 60,
+                     "the device to stream")
+            yield w
+        finally:
+            w.sup.stop("test over")
+
+
+def statuses(result: BringupResult) -> list[Status]:
+    return [Status(s[7]) for s in result.samples]
+
+
+def test_capture_pulse_and_watchdog(worker: BringupWorker) -> None:
+    cap = worker.run(BringupCapture(1.0))
+    assert cap.ok and not cap.refused
+    assert len(cap.samples) == 100
+    seqs = [s[1] for s in cap.samples]
+    assert seqs == list(range(seqs[0], seqs[0] + 100))  # every sample, in order
+    assert not any(st & calc.Status.SOLENOID_LEFT for st in statuses(cap))
+    zero = calc.zero(cap.samples)  # a standing wearer is still
+    assert max(zero.std_deg) < 0.5
+
+    pulse = worker.run(BringupPulse("left", 0.3, LAY.offsets, LAY.directions, 2.0))
+    assert pulse.ok, pulse.message
+    on = [i for i, st in enumerate(statuses(pulse)) if st & Status.SOLENOID_LEFT]
+    assert on and on == list(range(on[0], on[-1] + 1))  # one contiguous pulse
+    assert not any(st & Status.SOLENOID_RIGHT for st in statuses(pulse))
+    # At most the 0.3 s hold: 30 samples of 10 ms.
+    assert len(on) <= 30
+    assert not statuses(pulse)[-1] & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT)
+
+    dog = worker.run(BringupWatchdog("right", LAY.offsets, LAY.directions, 2.0))
+    assert dog.ok, dog.message
+    assert dog.solenoid_seen and dog.released_seen
+    # The device holds the solenoid at least its 100 ms after the last command.
+    assert dog.release_s >= 0.100
+    last = statuses(dog)[-1]
+    assert last & Status.WATCHDOG_RELEASED and not last & Status.SOLENOID_RIGHT
+    # Samples after the last command and before the release still show it energised.
+    after = [Status(s[7]) for s in dog.samples if s[0] > dog.last_command_s]
+    assert after[0] & Status.SOLENOID_RIGHT
+
+
+def test_a_loaded_device_refuses_the_pulse(worker: BringupWorker) -> None:
+    # A layout whose cam zero is 10 deg off reads alpha = 10 deg: a loaded spring.
+    off = list(LAY.offsets)
+    off[1] = (off[1] + 457) % 16384
+    r = worker.run(BringupPulse("left", 0.3, tuple(off), LAY.directions, 2.0))  # type: ignore[arg-type]
+    assert r.refused and not r.ok
+    assert "spring deflection" in r.message and "loaded" in r.message
+    assert not any(st & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for st in statuses(r))
+
+
+def test_refused_unless_the_controller_is_none(worker: BringupWorker) -> None:
+    assert worker.sup._cmd is not None
+    worker.sup._cmd.send(SetController("pec", {}))
+    wait_for(lambda: (st := worker.sup.state.status) is not None and st.loop.controller == "pec",
+             60, "pec to run")
+    r = worker.run(BringupPulse("left", 0.3, LAY.offsets, LAY.directions, 2.0))
+    assert r.refused and "'pec'" in r.message and r.samples == ()
