@@ -8,18 +8,20 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 NODE_STAMP := frontend/node_modules/.package-lock.json
-# The official BIDS validator (npm), used by the tests of the BIDS-motion export.
-BIDS_STAMP := tools/bids/node_modules/.package-lock.json
+# The guide (docs/ as a MkDocs site), served by the app at /guide.
+GUIDE_STAMP := site/index.html
+export NO_MKDOCS_2_WARNING := 1
 
 .PHONY: run test test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware
 
-run: install
+run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-test: install $(BIDS_STAMP) system-chromium system-postgresql firmware-check
-	$(BIN)/ruff check controller backend tests bench migrations
+test: install system-chromium system-postgresql firmware-check
+	$(BIN)/ruff check controller backend tests bench migrations tools/docs setup.py
 	$(BIN)/mypy
+	$(BIN)/mkdocs build --strict --quiet
 	$(BIN)/python -m pytest
 
 # The C device firmware core on Linux against the simulated wearer (gcc, warnings as
@@ -60,9 +62,8 @@ $(NODE_STAMP): frontend/package.json frontend/package-lock.json | system-npm
 	cd frontend && npm ci --no-audit --no-fund
 	touch $@
 
-$(BIDS_STAMP): tools/bids/package.json tools/bids/package-lock.json | system-npm
-	cd tools/bids && npm ci --no-audit --no-fund --ignore-scripts
-	touch $@
+$(GUIDE_STAMP): mkdocs.yml tools/docs/hooks.py $(shell find docs bench/results -type f 2>/dev/null) | $(VENV)/.installed
+	$(BIN)/mkdocs build --strict --quiet
 
 # Debian packages the project needs and a fresh machine may lack.
 system-npm:
@@ -78,7 +79,7 @@ system-chromium:
 	@command -v chromium >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y chromium; }
 
 lint: install
-	$(BIN)/ruff check controller backend tests bench migrations
+	$(BIN)/ruff check controller backend tests bench migrations tools/docs setup.py
 	$(BIN)/mypy
 	frontend/node_modules/.bin/eslint --max-warnings 0 -c frontend/eslint.config.mjs frontend tests/frontend
 

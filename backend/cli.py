@@ -383,6 +383,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--stair-participants", type=int, default=20)
     rp.set_defaults(func=_replicate)
 
+    sub.add_parser("hardware", help="hardware bring-up through the running server's API: "
+                   "zero, direction, offset, pulse, watchdog, link, profile, status "
+                   "(`exostudy hardware --help`)")
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")
     return p
@@ -430,7 +433,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `exostudy` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
     # Subcommands with their own parsers get their arguments untouched.
-    passthrough = {"replay": "controller.replay", "device-sim": "controller.sim.device_server"}
+    passthrough = {"replay": "controller.replay", "device-sim": "controller.sim.device_server",
+                   "hardware": "backend.hardware_cli"}
     if argv and argv[0] in passthrough:
         import importlib
 

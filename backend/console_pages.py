@@ -40,7 +40,9 @@ NAVIGATION: tuple[tuple[str, str], ...] = (
     ("/live", "Live"),
     ("/console", "Studies"),
     ("/console/cohorts", "Cohorts"),
+    ("/console/replication", "Replication"),
     ("/viewer/", "3D view"),
+    ("/hardware", "Hardware"),
     ("/admin", "Accounts"),
     ("/guide/index.html", "Guide"),
 )
@@ -152,7 +154,11 @@ PAGES: tuple[tuple[str, str, str], ...] = (
      "A study's results: tables, figures, trials, what-if replay, model evaluation."),
     ("/console/cohorts", "cohorts.html",
      "Virtual cohorts: run one, follow its progress, read its tables and power curves."),
+    ("/console/replication", "replication.html",
+     "The paper replicated claim by claim: the newest report, or start one."),
     ("/console/sessions/{id}", "session.html", "A session: the protocol step by step."),
+    ("/hardware", "hardware.html",
+     "Hardware bring-up: encoder zero, directions, offset, pulse, watchdog, link, profile."),
 )
 
 

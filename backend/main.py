@@ -13,8 +13,8 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend import console_pages, guide
-from backend.analysis.jobs import JobRunner
-from backend.api import docs_assets, json_text, web_surface
+from backend.analysis import jobs
+from backend.api import docs_assets, json_text, log_redaction, web_surface
 from backend.api.deps import authorize, document_access
 from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors
@@ -32,6 +32,7 @@ from backend.api.routes import (
     preferences,
     questionnaires,
     recordings,
+    replication,
     results,
     sessions,
     studies,
@@ -40,6 +41,7 @@ from backend.api.routes import (
     vocabulary,
     worker,
 )
+from backend.api.socket_logins import SocketLogins
 from backend.core.config import Settings, get_settings
 from backend.core.resources import version
 from backend.db import migrate
@@ -77,8 +79,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app. Migrations are applied at start-up, so a fresh clone just works."""
     settings = settings or get_settings()
 
+    log_redaction.install()  # participant link tokens never in full in a log
+
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        log_redaction.install()  # again: uvicorn may have set up logging since
         migrate.upgrade(settings.database_url)
         engine = make_engine(settings.database_url)
         app.state.settings = settings
@@ -91,14 +96,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         closed = activity.recover(engine)
         if closed:
             log.warning("closed after an unclean stop: %s", ", ".join(closed))
+        # Background jobs a previous process left queued or running end failed, and so
+        # do the sets and cohorts they were producing (backend/analysis/jobs.py).
+        interrupted = jobs.recover(app.state.sessions)
+        if interrupted:
+            log.warning("interrupted by the restart: %s", ", ".join(interrupted))
         runtime = Runtime(settings, engine)
         app.state.runtime = runtime
-        app.state.jobs = JobRunner(app.state.sessions)
+        app.state.jobs = jobs.JobRunner(app.state.sessions)
         await runtime.start()
         try:
             refuse_published_passwords(settings, app.state.sessions)
             yield
         finally:
+            app.state.jobs.begin_shutdown()  # jobs stop while the worker stops
             await runtime.stop()
             app.state.jobs.shutdown()
             engine.dispose()
@@ -117,8 +128,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     # Inside the body limit (middleware added later wraps the earlier ones).
     app.add_middleware(json_text.StorableJsonText)
+    # WebSockets end with their login: revoking routes wake their watchers.
+    app.state.socket_logins = SocketLogins()
+    # Routes that take a file allow max_upload_bytes, all others max_body_bytes; the
+    # list is filled below, once the routes are included.
+    upload_paths: list[str] = []
     app.add_middleware(web_surface.BodyLimit, limit=settings.max_body_bytes,
-                       limits={"/utility-sets/import": settings.max_upload_bytes})
+                       upload_limit=settings.max_upload_bytes, upload_paths=upload_paths)
     app.add_middleware(web_surface.SecurityHeaders)
     docs_assets.install(app, settings.frontend_dir)
     install_handlers(app)
@@ -143,12 +159,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(lab.router)
     app.include_router(results.router)
     app.include_router(cohorts.router)
+    app.include_router(replication.router)
     app.include_router(vocabulary.router)
     app.include_router(console_pages.router)
     app.include_router(guide.router)
     app.include_router(viewer.router)
     document_framework_errors(app)
     document_access(app)
+    upload_paths.extend(web_surface.file_routes(app))
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

@@ -23,6 +23,8 @@ BENCHES = [
     ("a tick from the worker to a database row: records vs one block",
      ["bench_tick_transport.py"]),
     ("UDP device round trip and emulator lateness", ["bench_udp.py", "--minutes", "1"]),
+    ("C device vs Python device: round trip, late samples, watchdog release",
+     ["bench_c_device.py", "--minutes", "1"]),
     ("cost of the device link's authentication", ["bench_link_auth.py"]),
     ("device calls of a tick: UDP send and read timeout, simulated reads",
      ["bench_device_calls.py"]),

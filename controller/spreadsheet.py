@@ -41,19 +41,41 @@ def safe_cell(value: Any) -> Any:
 
 
 class SafeWriter:
-    """`csv.writer` whose every cell passes through `safe_cell`."""
+    """`csv.writer` whose every cell passes through `safe_cell`.
+
+    CSV: fields are quoted where needed, and a row with a carriage return in a text
+    cell is quoted whole (Python's writer quotes only the line terminator `\n`, so a
+    lone `\r` would otherwise end the row for a reader). TSV (BIDS' form): never quoted,
+    so a tab, carriage return or newline inside a text cell becomes a space."""
 
     def __init__(self, out: IO[str], delimiter: str = ",") -> None:
-        self._w = csv.writer(out, delimiter=delimiter, lineterminator="\n")
+        self._tsv = delimiter == "\t"
+        if self._tsv:
+            self._w = csv.writer(out, delimiter="\t", lineterminator="\n",
+                                 quoting=csv.QUOTE_NONE, quotechar=None)
+        else:
+            self._w = csv.writer(out, delimiter=delimiter, lineterminator="\n")
+            self._quoted = csv.writer(out, delimiter=delimiter, lineterminator="\n",
+                                      quoting=csv.QUOTE_ALL)
 
     def writerow(self, row: Iterable[Any]) -> None:
         """Write one row."""
-        self._w.writerow([safe_cell(v) for v in row])
+        cells = [safe_cell(v) for v in row]
+        if self._tsv:
+            self._w.writerow([_one_line(v) if isinstance(v, str) else v for v in cells])
+        elif any(isinstance(v, str) and "\r" in v for v in cells):
+            self._quoted.writerow(cells)
+        else:
+            self._w.writerow(cells)
 
     def writerows(self, rows: Iterable[Iterable[Any]]) -> None:
         """Write many rows."""
         for row in rows:
             self.writerow(row)
+
+
+def _one_line(text: str) -> str:
+    return text.replace("\t", " ").replace("\r", " ").replace("\n", " ")
 
 
 def writer(out: IO[str], delimiter: str = ",") -> SafeWriter:

@@ -39,6 +39,9 @@ def run_online() -> None:
             # sessions and trials). Off for the migration (a PRAGMA outside any
             # transaction), then checked and back on.
             connection.exec_driver_sql("PRAGMA foreign_keys=OFF")
+            # The statement began a transaction; ended here, Alembic begins and commits
+            # its own (it never commits one it finds open, and closing rolls it back).
+            connection.commit()
         context.configure(connection=connection, target_metadata=Base.metadata,
                           render_as_batch=True)
         with context.begin_transaction():

@@ -1,5 +1,6 @@
-"""Virtual cohorts run from the console: recorded, then simulated and analysed on the
-background job thread with the server's default model and utility sets.
+"""Virtual cohorts run from the console: recorded, then simulated and analysed as a
+background job (the cohort lane, in a child process) with the server's default model
+and utility sets. Each account may have a few unfinished at a time.
 
 The service behind `backend/api/routes/cohorts.py`.
 """
@@ -7,15 +8,18 @@ The service behind `backend/api/routes/cohorts.py`.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import update
+from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
-from backend.analysis.jobs import JobRunner
+from backend.analysis.jobs import UNFINISHED, JobRunner, Reporter
+from backend.core.errors import ConflictError
 from backend.db.cohorts import CohortRecord
+from backend.db.evidence_tables import Job
 from backend.db.models import User
 from backend.schemas.cohorts import CohortIn, CohortOut
 from backend.study import audit
@@ -28,16 +32,43 @@ def _set(sessions: sessionmaker[Session], cohort_id: int, **values: Any) -> None
         s.commit()
 
 
-def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, user: User,
-                 body: CohortIn, precompression_pct: float, models_path: Path,
-                 utilities_path: Path) -> CohortOut:
-    """Record the cohort as `queued` and queue its simulation and analysis; the answer
-    carries the job id."""
+def compute(cfg: CohortConfig, models_path: Path, utilities_path: Path,
+            progress: Callable[[float], None]) -> dict[str, Any]:
+    """Simulate and analyse the cohort: its cohort.json document. Runs in the job's
+    child process (`backend.analysis.job_process`), so it takes only picklable values."""
     from controller.evaluation.cohort import simulate_cohort
     from controller.evaluation.cohort_report import analyse, analysis_json
     from controller.motion_model import ModelSet
     from controller.utilities import UtilitySet
 
+    models = ModelSet.load(models_path) if models_path.is_file() else None
+    utilities = UtilitySet.load(utilities_path) if utilities_path.is_file() else None
+    cohort = simulate_cohort(cfg, models, utilities, lambda f: progress(0.85 * f))
+    doc: dict[str, Any] = analysis_json(cohort, analyse(cohort, seed=cfg.seed))
+    return doc
+
+
+def _check_quota(db: Session, user: User, limit: int) -> None:
+    """At most `limit` unfinished (queued or running) cohorts per account: the cohort
+    lane is one thread, and one account must not fill it for hours."""
+    unfinished = list(db.scalars(select(Job.id).where(
+        Job.kind == "cohort", Job.created_by == user.id, Job.status.in_(UNFINISHED))))
+    if len(unfinished) >= limit:
+        raise ConflictError("cohorts", f"account {user.username} already has {len(unfinished)} "
+                         f"unfinished virtual cohort(s) (jobs {unfinished}); at most "
+                         f"{limit} may be queued or running per account "
+                         "(setting cohort_jobs_per_account): wait for one to finish")
+
+
+def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, user: User,
+                 body: CohortIn, precompression_pct: float, models_path: Path,
+                 utilities_path: Path, per_account: int) -> CohortOut:
+    """Record the cohort as `queued` and queue its simulation and analysis in the
+    cohort lane; the answer carries the job id. Refused (409, `ConflictError`) beyond
+    `per_account` unfinished cohorts of this account."""
+    from backend.analysis.job_process import run_in_child
+
+    _check_quota(db, user, per_account)
     cfg = CohortConfig(participants=body.participants, seed=body.seed,
                        controllers=tuple(body.controllers), rate_hz=body.rate_hz,
                        precompression_pct=precompression_pct)
@@ -50,13 +81,11 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
     db.commit()
     cohort_id = row.id
 
-    def work(progress: Any) -> str:
+    def work(progress: Reporter) -> str:
         t0 = time.monotonic()
         _set(sessions, cohort_id, status="running")
-        models = ModelSet.load(models_path) if models_path.is_file() else None
-        utilities = UtilitySet.load(utilities_path) if utilities_path.is_file() else None
-        cohort = simulate_cohort(cfg, models, utilities, lambda f: progress(0.85 * f))
-        doc = analysis_json(cohort, analyse(cohort, seed=cfg.seed))
+        doc = run_in_child(compute, (cfg, models_path, utilities_path), progress,
+                           progress.cancelled)
         progress(1.0)
         wall = round(time.monotonic() - t0, 1)
         _set(sessions, cohort_id, status="ready", result=doc, wall_s=wall,
@@ -67,5 +96,6 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
         _set(sessions, cohort_id, status="failed", error=message[:2000],
              finished_at=datetime.now(UTC))
 
-    job_id, _ = jobs.submit("cohort", cohort_id, work, failed)
+    job_id, _ = jobs.submit("cohort", cohort_id, work, failed, lane="cohort",
+                            owner_id=user.id)
     return CohortOut.model_validate(row).model_copy(update={"job_id": job_id})

@@ -1,5 +1,6 @@
 """Fitting motion models and computing utility sets: checked, recorded with their
-provenance, then computed on the background job thread.
+provenance, then computed in the background jobs' `study` lane (never queued behind
+virtual cohorts).
 
 The service behind `backend/api/routes/model_sets.py`; refusals are `backend.core.errors`.
 A job's row is created in the caller's transaction (so the answer carries its id) and
@@ -112,7 +113,8 @@ def fit_model_set(db: Session, engine: Engine, sessions: sessionmaker[Session],
         return f"fitted {sum(len(v) for v in demos.values())} demonstrations"
 
     job_id, _ = jobs.submit(
-        "fit_model_set", ms_id, work, _failure(sessions, ModelSetRecord, ms_id))
+        "fit_model_set", ms_id, work, _failure(sessions, ModelSetRecord, ms_id),
+        owner_id=user.id)
     return ModelSetOut.model_validate(row).model_copy(update={"job_id": job_id})
 
 
@@ -137,5 +139,6 @@ def compute_utility_set(jobs: JobRunner, sessions: sessionmaker[Session], db: Se
         return f"utilities for {pct:g} % precompression"
 
     job_id, _ = jobs.submit(
-        "compute_utilities", us_id, work, _failure(sessions, UtilitySetRecord, us_id))
+        "compute_utilities", us_id, work, _failure(sessions, UtilitySetRecord, us_id),
+        owner_id=user.id)
     return UtilitySetOut.model_validate(row).model_copy(update={"job_id": job_id})

@@ -39,6 +39,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -60,11 +61,9 @@ from controller.evaluation.method_figures import (
 )
 from controller.evaluation.rendering import render_figure
 from controller.evaluation.replication import (
-    CLAIMS,
     PAPER_FALSE_POSITIVES,
     PAPER_PERFORMANCE,
     ClaimResult,
-    TrialData,
     judge_all,
     seed_measures,
     trial_data,
@@ -77,6 +76,9 @@ from controller.motion_model import ModelSet
 from controller.utilities import UtilitySet
 
 Engine = Literal["study", "cohort"]
+#: One seed's evaluated trials with their ticks, and the model and utility sets used.
+SeedLoad = tuple[list[tuple[TickData, RecordingEvaluation]], ModelSet | None,
+                 UtilitySet | None]
 #: Tick fields a claim reads (the rest of a stored trial is not loaded).
 _FIELDS = ("t", "controller_ran", "action", "lock_left", "lock_right", "post_squat",
            "post_stoop_left", "post_stoop_right", "post_other", "s_curr_squat",
@@ -207,8 +209,7 @@ def _sqlite_url(path: Path) -> str:
     return f"sqlite:///{Path(path).resolve()}"
 
 
-def read_study_db(path: Path) -> tuple[list[tuple[TickData, RecordingEvaluation]],
-                                       ModelSet | None, UtilitySet | None]:
+def read_study_db(path: Path) -> SeedLoad:
     """Every completed trial of the first study in a `study.db` (the paper-rates study
     of a virtual study) with its ticks, and the model and utility sets it used.
 
@@ -240,12 +241,12 @@ def read_study_db(path: Path) -> tuple[list[tuple[TickData, RecordingEvaluation]
             if ms_id is not None:
                 doc = c.execute(text("SELECT document FROM model_sets WHERE id = :i"),
                                 {"i": ms_id}).scalar()
-                models = ModelSet.from_json(doc if isinstance(doc, dict) else json.loads(doc))
+                models = ModelSet.from_json(doc if isinstance(doc, dict) else json.loads(str(doc)))
             if us_id is not None:
                 doc = c.execute(text("SELECT document FROM utility_sets WHERE id = :i"),
                                 {"i": us_id}).scalar()
                 utilities = UtilitySet.from_json(doc if isinstance(doc, dict)
-                                                 else json.loads(doc))
+                                                 else json.loads(str(doc)))
         for _tid, ctl, task, run_id, _ms, _us, code in rows:
             cols_d = tick_queries.columns(engine, run_id, fields=_FIELDS)
             cols = TickData.of(cols_d)
@@ -262,13 +263,13 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     """The protocol of one seed replayed through the controllers in this process: the
     virtual study's participants (`seed*100 + 1 + j`) and data-collection seeds
     (`seed*100 + 50 + i`), each controller on its own repetition of the script."""
+    from controller.config import ControllerConfig
     from controller.evaluation.cohort import _calibrated, default_utilities, trial_recording
     from controller.factory import make_from_spec, needs_models
     from controller.replay import replay_columns
     from controller.sim.demonstrations import simulated_model_set
     from controller.sim.participant import VirtualParticipant
     from controller.spec import ControllerSpec
-    from controller.config import ControllerConfig
 
     models = simulated_model_set(seeds=[seed * 100 + 50 + i
                                         for i in range(cfg.data_participants)])
@@ -453,24 +454,29 @@ def stair_kinematics(n: int, first_seed: int = 1) -> dict[str, Any]:
 # --------------------------------------------------------------------------- the run
 
 
-def run(cfg: ReplicationConfig, log: Callable[[str], None] = print) -> Replication:
-    """Run or read every seed, judge every claim and write the report into `cfg.out`."""
+def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
+        progress: Callable[[float], None] | None = None) -> Replication:
+    """Run or read every seed, judge every claim and write the report into `cfg.out`;
+    `progress(fraction)` after each seed and each later phase."""
+    report = progress or (lambda _f: None)
     t_start = time.monotonic()
     cfg.out.mkdir(parents=True, exist_ok=True)
     rep = Replication(cfg)
     first: tuple[list[tuple[TickData, RecordingEvaluation]], ModelSet | None] | None = None
     utilities: UtilitySet | None = None
-    sources: list[tuple[str, Callable[[], tuple[list[tuple[TickData, RecordingEvaluation]],
-                                                ModelSet | None, UtilitySet | None]]]] = []
+    def from_study(seed: int) -> SeedLoad:
+        return read_study_db(run_study_seed(cfg, seed, log))
+
+    sources: list[tuple[str, Callable[[], SeedLoad]]]
     if cfg.from_db:
-        sources = [(str(p), (lambda p=p: read_study_db(Path(p)))) for p in cfg.from_db]
+        sources = [(str(p), partial(read_study_db, Path(p))) for p in cfg.from_db]
     elif cfg.engine == "study":
-        sources = [(f"seed {s}", (lambda s=s: read_study_db(run_study_seed(cfg, s, log))))
-                   for s in cfg.seed_list()]
+        sources = [(f"seed {s}", partial(from_study, s)) for s in cfg.seed_list()]
     else:
-        sources = [(f"seed {s}", (lambda s=s: cohort_seed(cfg, s))) for s in cfg.seed_list()]
+        sources = [(f"seed {s}", partial(cohort_seed, cfg, s)) for s in cfg.seed_list()]
     t0 = time.monotonic()
-    for label, load in sources:
+    steps = len(sources) + 2
+    for i, (label, load) in enumerate(sources):
         t1 = time.monotonic()
         trials, models, us = load()
         m = measure_seed(label, trials, models)
@@ -494,6 +500,7 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print) -> Replicati
                 rep.figures["motion_models"] = (mm.png, mm.svg)
         log(f"{label}: measured in {time.monotonic() - t1:.0f} s")
         del trials
+        report((i + 1) / steps)
     rep.phases["seeds"] = round(time.monotonic() - t0, 1)
     if utilities is None:
         from controller.evaluation.cohort import default_utilities
@@ -514,6 +521,7 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print) -> Replicati
                                         o["slope"], o["intercept"], label))
         rep.figures[f"offsets_{name}"] = (r.png, r.svg)
     rep.phases["offsets"] = round(time.monotonic() - t0, 1)
+    report((steps - 1) / steps)
     t0 = time.monotonic()
     rep.stairs = stair_kinematics(cfg.stair_participants, cfg.first_seed)
     cyc = {k: np.array(v) for k, v in rep.stairs.pop("cycles").items()}
@@ -524,6 +532,7 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print) -> Replicati
     rep.claims = judge_all([s.measures for s in rep.seeds], rep.checks)
     rep.wall_s = round(time.monotonic() - t_start, 1)
     write(rep)
+    report(1.0)
     return rep
 
 
@@ -672,7 +681,8 @@ def report_html(rep: Replication) -> str:
                      "(scipy.stats.linregress), slope with its 95 % t interval:</p><ul>")
         for name in ("both", "difference"):
             r = o[name]
-            parts.append(f"<li>{'mean |offset| of both hips' if name == 'both' else '|left - right offset|'}: "
+            what = "mean |offset| of both hips" if name == "both" else "|left - right offset|"
+            parts.append(f"<li>{what}: "
                          f"slope {r['slope']:.3f} [{r['low']:.3f}, {r['high']:.3f}] per deg, "
                          f"r = {r['r']:.2f}, p = {r['p']:.3g}, n = {r['n']}</li>")
         parts.append("</ul>")
@@ -758,10 +768,10 @@ def write(rep: Replication) -> list[Path]:
            "offsets": _jsonable({k: v for k, v in rep.offsets.items()
                                  if k not in ("offset_deg", "gain")}),
            "stairs": _jsonable(rep.stairs), "notes": rep.notes}
-    for name, data in (("replication.json", json.dumps(doc, indent=1)),
+    for name, body in (("replication.json", json.dumps(doc, indent=1)),
                        ("replication.md", claims_markdown(rep)),
                        ("report.html", report_html(rep))):
         p = out / name
-        p.write_text(data)
+        p.write_text(body)
         paths.append(p)
     return paths

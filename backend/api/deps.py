@@ -19,6 +19,7 @@ from backend.analysis.results import ResultsCache
 from backend.api import web_surface
 from backend.api.errors import not_found
 from backend.api.params import MAX_ID
+from backend.api.socket_logins import SocketLogins
 from backend.core.config import Settings
 from backend.db.models import AuthToken, User
 from backend.live.runtime import Runtime
@@ -81,6 +82,15 @@ def get_session_factory(conn: HTTPConnection) -> sessionmaker[Session]:
 
 
 SessionFactoryDep = Annotated[sessionmaker[Session], Depends(get_session_factory)]
+
+
+def get_socket_logins(conn: HTTPConnection) -> SocketLogins:
+    """The open WebSockets' login watchers: routes that revoke logins wake them."""
+    logins: SocketLogins = conn.app.state.socket_logins
+    return logins
+
+
+SocketLoginsDep = Annotated[SocketLogins, Depends(get_socket_logins)]
 
 
 def get_jobs(request: Request) -> JobRunner:
@@ -241,9 +251,10 @@ def _check(db: Session, conn: HTTPConnection, route: BaseRoute, rule: AccessRule
         return
     assert rule in access_rules.STUDY_ROLES, f"unknown access rule {rule!r}"
     target = _target(db, conn, route)
-    if target is None:
-        # No study in the path (or a malformed id, which the route refuses with 422):
-        # the caller must hold the role somewhere.
+    if target is None or target.study_id is None:
+        # No study in the path (or a malformed id, which the route refuses with 422,
+        # or a row of no study, such as a virtual cohort's job): the caller must hold
+        # the role somewhere.
         if not access_rules.at_least(access_rules.best_study_role(db, user), rule):
             _refuse(403, f"this needs the {rule} role in a study")
         return

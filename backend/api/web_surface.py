@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import re
 from collections.abc import Iterable
 from typing import Any
 from urllib.parse import urlsplit
@@ -111,21 +112,30 @@ class SecurityHeaders:
 
 
 class BodyLimit:
-    """Refuses a request body larger than `limit` bytes with 413, before anything
+    """Refuses a request body larger than its route's limit with 413, before anything
     reads it: at once when `Content-Length` says so, else as soon as the streamed body
-    passes the limit (nothing larger is ever held in memory)."""
+    passes the limit (nothing larger is ever held in memory).
 
-    def __init__(self, app: ASGIApp, limit: int, limits: dict[str, int] | None = None
-                 ) -> None:
+    One setting per kind of body: routes that take a file (a `File()` parameter: the
+    utility-set import, XDF attachments) allow `upload_limit` (`max_upload_bytes`),
+    every other route `limit` (`max_body_bytes`, JSON bodies). `upload_paths` holds the
+    file routes' path templates; the app fills it once its routes are included.
+    """
+
+    def __init__(self, app: ASGIApp, limit: int, upload_limit: int | None = None,
+                 upload_paths: list[str] | None = None) -> None:
         self.app = app
         self.limit = limit
-        #: Larger limits for paths ending so, the ones that take files (an import).
-        self.limits = limits or {}
+        self.upload_limit = upload_limit if upload_limit is not None else limit
+        self.upload_paths = upload_paths if upload_paths is not None else []
+        self._patterns: list[re.Pattern[str]] | None = None
 
     def _limit_for(self, path: str) -> int:
-        for suffix, n in self.limits.items():
-            if path.endswith(suffix):
-                return n
+        if self._patterns is None or len(self._patterns) != len(self.upload_paths):
+            self._patterns = [re.compile("^" + re.sub(r"\\{[^}]+\\}", "[^/]+", re.escape(p))
+                                         + "$") for p in self.upload_paths]
+        if any(p.match(path) for p in self._patterns):
+            return self.upload_limit
         return self.limit
 
     async def _refuse(self, send: Send, limit: int) -> None:
@@ -170,6 +180,20 @@ class BodyLimit:
         except _TooLarge:
             if not started:
                 await self._refuse(send, limit)
+
+
+def file_routes(app: Any) -> list[str]:
+    """Path templates of the app's routes that take a file (a `File()` parameter)."""
+    from fastapi import params
+    from fastapi.routing import APIRoute, iter_route_contexts
+
+    out = []
+    for context in iter_route_contexts(app.routes):
+        route = context.original_route
+        if isinstance(route, APIRoute) and any(
+                isinstance(p.field_info, params.File) for p in route.dependant.body_params):
+            out.append(context.path_format or route.path_format)
+    return out
 
 
 class _TooLarge(HTTPException):

@@ -105,6 +105,10 @@ class Settings(BaseSettings):
     #: about 40 MB (1.3 kB a received tick, measured with tracemalloc). Beyond it the
     #: oldest are dropped and counted in health; the worker keeps controlling.
     db_backlog_limit: int = Field(default=30_000, ge=100)
+    #: Virtual cohorts one account may have queued or running at once (one runs at a
+    #: time in the cohort lane, so 3 is one running and two waiting; a 1,000-participant
+    #: cohort takes minutes). Beyond it, `POST /api/cohorts` answers 409.
+    cohort_jobs_per_account: int = Field(default=3, ge=1, le=100)
 
     @field_validator("device_address")
     @classmethod

@@ -115,18 +115,26 @@ class UtilitySetRecord(Base):
 
 
 class Job(Base):
-    """A background computation (model fitting, utilities) with its progress."""
+    """A background computation (model fitting, utilities, a virtual cohort) with its
+    progress. `status`: queued, running, then done (succeeded), failed or cancelled;
+    `message` is the result's summary or the reason it failed or was cancelled."""
 
     __tablename__ = "jobs"
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     kind: Mapped[str] = mapped_column(String(32))
     target_id: Mapped[int] = mapped_column(Integer)
-    status: Mapped[str] = mapped_column(String(16), default="queued")
+    status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
+    #: Which runner thread takes it: `study` (short study jobs) or `cohort` (long).
+    lane: Mapped[str] = mapped_column(String(16), default="study",
+                                      server_default="study")
     progress: Mapped[float] = mapped_column(Float, default=0.0)
     message: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    created_by: Mapped[int | None] = mapped_column(
+        ForeignKey("users.id", ondelete="SET NULL", name="fk_jobs_created_by"))
 
 
 class Trial(Base):

@@ -13,8 +13,6 @@ Every stream's span, moved onto our clock, is then compared with the trials' spa
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from typing import Any
 
 import numpy as np
@@ -24,10 +22,8 @@ from sqlalchemy.orm import Session
 from backend.analysis import tick_queries
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
+from backend.lab import xdf_limits
 from backend.schemas.lab import XdfStreamSummary
-
-#: Largest XDF file accepted (bytes): a long session of motion capture and EMG.
-MAX_XDF_BYTES = 512 * 1024 * 1024
 
 
 def _first(info: dict[str, Any], key: str, default: str = "") -> str:
@@ -46,22 +42,14 @@ def _channels(info: dict[str, Any]) -> list[str]:
 
 
 def read(data: bytes) -> list[dict[str, Any]]:
-    """The streams of an XDF file as pyxdf gives them; ValueError names the problem."""
-    import pyxdf
+    """The streams of an XDF file as pyxdf gives them; ValueError names the problem.
 
-    if not data.startswith(b"XDF:"):
-        raise ValueError("not an XDF file (it does not start with 'XDF:')")
-    fd, path = tempfile.mkstemp(suffix=".xdf")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        try:
-            streams, _header = pyxdf.load_xdf(path, synchronize_clocks=True,
-                                              dejitter_timestamps=False)
-        except Exception as exc:
-            raise ValueError(f"the XDF file cannot be read: {exc}") from exc
-    finally:
-        os.unlink(path)
+    The declared sizes are checked first (`xdf_limits.check`: nothing is allocated for a
+    file that declares more than it holds), then pyxdf reads the checked bytes in a
+    child process with a memory ceiling (`xdf_limits.load`).
+    """
+    plan = xdf_limits.check(data)
+    streams = xdf_limits.load(data[:plan.readable_bytes])
     # pyxdf recovers what it can from a damaged file (a LabRecorder killed mid-write);
     # a file from which nothing can be recovered is refused.
     if not any(len(s.get("time_stamps", [])) for s in streams):

@@ -46,6 +46,9 @@ class LiveClient:
     """One connected console."""
 
     queue: asyncio.Queue[str]
+    #: A browser's WebSocket (counted in health), not an in-process follower such as
+    #: the 3D view's pose updater, which stays subscribed with no browser connected.
+    console: bool = True
     dropped: int = 0
     msg_seq: int = 0
     connected_at: float = field(default_factory=time.time)
@@ -82,8 +85,8 @@ class LiveStream:
 
     @property
     def client_count(self) -> int:
-        """Connected consoles."""
-        return len(self._clients)
+        """Open console connections (in-process followers are not consoles)."""
+        return sum(1 for c in self._clients if c.console)
 
     def push(self, ticks: TickBlock) -> None:
         """Called from any thread; never blocks (for long)."""
@@ -131,9 +134,10 @@ class LiveStream:
             return False  # loop closed during shutdown
         return True
 
-    def connect(self) -> LiveClient:
-        """Register a console (on the event loop)."""
-        client = LiveClient(queue=asyncio.Queue(maxsize=self.queue_size))
+    def connect(self, console: bool = True) -> LiveClient:
+        """Register a console's connection, or (`console` false) an in-process
+        follower; on the event loop."""
+        client = LiveClient(queue=asyncio.Queue(maxsize=self.queue_size), console=console)
         self._clients.add(client)
         return client
 

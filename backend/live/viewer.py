@@ -185,7 +185,7 @@ def _apply(viewer: _Viewer, tick: dict[str, Any]) -> None:
 async def _follow_ticks(app: Any, viewer: _Viewer) -> None:
     """Pose the scene from the live stream (the same messages the consoles get)."""
     stream = app.state.runtime.stream
-    client = stream.connect()
+    client = stream.connect(console=False)
     try:
         while True:
             msg = json.loads(await client.queue.get())
@@ -264,7 +264,9 @@ async def viewer_socket(websocket: WebSocket) -> None:
     from websockets.asyncio.client import connect
     from websockets.typing import Subprotocol
 
-    if not await asyncio.to_thread(_logged_in, websocket.app, dict(websocket.cookies)):
+    login = await asyncio.to_thread(login_from_token, websocket.app.state.sessions,
+                                    websocket.cookies.get(SESSION_COOKIE))
+    if login is None:
         await websocket.close(code=status.WS_1008_POLICY_VIOLATION, reason="not logged in")
         return
     viewer = await _viewer(websocket.app)
@@ -298,7 +300,11 @@ async def viewer_socket(websocket: WebSocket) -> None:
             elif message.get("text") is not None:
                 await upstream.send(message["text"])
 
-    tasks = [asyncio.create_task(down()), asyncio.create_task(up())]
+    # The relay ends with its login, like the live socket.
+    watch = websocket.app.state.socket_logins.watch(websocket, websocket.app.state.sessions,
+                                                    login[0].id, login[1].id)
+    tasks = [asyncio.create_task(down()), asyncio.create_task(up()),
+             asyncio.create_task(watch)]
     try:
         await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
     except (WebSocketDisconnect, RuntimeError):

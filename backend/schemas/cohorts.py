@@ -51,7 +51,6 @@ class CohortOut(BaseModel):
     created_at: datetime
     finished_at: datetime | None
     job_id: int | None = None
-    #: The job's progress, 0..1 (a cohort belongs to no study, so its job is followed
-    #: here rather than through `/api/jobs`, whose access is per study).
+    #: The job's progress, 0..1 (also at `GET /api/jobs/{job_id}`).
     progress: float | None = None
     result: dict[str, Any] | None = None

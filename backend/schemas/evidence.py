@@ -155,16 +155,23 @@ class UtilityCurves(BaseModel):
 
 
 class JobOut(BaseModel):
-    """A background job."""
+    """A background job: a model fit (`fit_model_set`), a utility table
+    (`compute_utilities`) or a virtual cohort (`cohort`), of the model set, utility set
+    or cohort `target_id`. `status` is queued, running, then done (succeeded), failed
+    or cancelled; `message` says what it produced, or why it failed or was cancelled
+    (e.g. "interrupted by a server restart at ...")."""
 
     model_config = ConfigDict(from_attributes=True)
     id: int
     kind: str
     target_id: int
-    status: str
+    status: Literal["queued", "running", "done", "failed", "cancelled"]
+    #: The runner thread it waits for: `study` (short jobs) or `cohort`.
+    lane: str
     progress: float
     message: str
     created_at: datetime
+    started_at: datetime | None
     finished_at: datetime | None
 
 
@@ -178,6 +185,9 @@ class TrialPlanIn(BaseModel):
     # Ids within what the id columns hold: a larger one is a 422, not a driver overflow.
     model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
     utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
+    replace: bool = Field(default=False, description=(
+        "replace the session's plan, allowed while none of its trials has started "
+        "(a plan with a started trial is kept, with its data)"))
 
 
 class TrialStartIn(BaseModel):

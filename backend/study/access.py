@@ -86,9 +86,10 @@ def best_study_role(db: Session, user: User) -> StudyRole | None:
 
 @dataclass(frozen=True)
 class Target:
-    """The study (and participant, if any) an id in a path belongs to."""
+    """The study (and participant, if any) an id in a path belongs to; `study_id` None
+    for a row that exists but belongs to no study (a virtual cohort's job)."""
 
-    study_id: int
+    study_id: int | None
     participant_id: int | None = None
 
 
@@ -144,7 +145,9 @@ def _of_job(db: Session, jid: int) -> Target | None:
         return _of_model_set(db, job.target_id)
     if job.kind == "compute_utilities":
         return _of_utility_set(db, job.target_id)
-    return None
+    # A virtual cohort (or any later kind) belongs to no study: the job exists, and is
+    # checked as a path without a study (the role somewhere).
+    return Target(None)
 
 
 #: How each path parameter that names a stored row leads to its study. A new route

@@ -10,7 +10,7 @@ from dataclasses import replace
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import Engine, select
+from sqlalchemy import Engine, delete, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -49,13 +49,19 @@ def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Tr
     if sess.kind != "evaluation":
         raise ConflictError("kind", f"session {sess.id} is a {sess.kind} session, not "
                             "evaluation")
-    if db.scalar(select(Trial.id).where(Trial.session_id == session_id)) is not None:
-        raise ConflictError("trials", f"session {sess.id} already has a plan")
-    for key, model, entity in (("model_set_id", ModelSetRecord, "model set"),
-                               ("utility_set_id", UtilitySetRecord, "utility set")):
-        ref = getattr(body, key)
-        if ref is not None and db.get(model, ref) is None:
-            raise InvalidError.at(["body", key], f"{entity} {ref} does not exist")
+    existing_plan = list(db.scalars(select(Trial).where(Trial.session_id == session_id)
+                                    .order_by(Trial.planned_order)))
+    replaced = [t.id for t in existing_plan]
+    if existing_plan and not body.replace:
+        raise ConflictError("trials", f"session {sess.id} already has a plan; send "
+                            '"replace": true to replace it (allowed while none of its '
+                            "trials has started)")
+    ms = db.get(ModelSetRecord, body.model_set_id) if body.model_set_id else None
+    us = db.get(UtilitySetRecord, body.utility_set_id) if body.utility_set_id else None
+    _check_ready("model_set_id", "model set", body.model_set_id, ms)
+    _check_ready("utility_set_id", "utility set", body.utility_set_id, us)
+    if existing_plan:
+        _discard_plan(db, sess, existing_plan)
     participant: Participant = _get(db, Participant, sess.participant_id, "participant")
     order = controller_order(_position(db, participant), body.include_eumc)
     labels = blinded_labels(order)
@@ -76,9 +82,42 @@ def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Tr
     db.add_all(trials)
     db.flush()
     audit.record(db, user, "plan", "session", session_id,
-                 {"order": order, "tasks": body.tasks, "labels": labels})
+                 {"order": order, "tasks": body.tasks, "labels": labels,
+                  "replaced_trials": replaced})
     db.commit()
     return trials
+
+
+def _check_ready(key: str, entity: str, ref: int | None,
+                 row: ModelSetRecord | UtilitySetRecord | None) -> None:
+    """A plan names only sets that exist and are ready: one still fitting may yet fail,
+    and trials planned with it could never start."""
+    if ref is None:
+        return
+    if row is None:
+        raise InvalidError.at(["body", key], f"{entity} {ref} does not exist")
+    if row.status != "ready" or row.document is None:
+        raise ConflictError(key, f"{entity} {ref} is {row.status}, not ready: plan with a "
+                            f"ready {entity}" + (f" ({row.error})" if row.error else ""))
+
+
+def _discard_plan(db: Session, sess: StudySession, trials: list[Trial]) -> None:
+    """Make way for a new plan (asked for with `replace`), only while no trial of the
+    old one has started: a started trial's ticks, configuration and outcome are
+    evidence."""
+    started = [f"{t.id} ({t.status})" for t in trials if t.status != "planned"]
+    if started:
+        raise ConflictError("trials", f"session {sess.id}'s plan cannot be replaced: "
+                            f"trial(s) {', '.join(started[:20])} have started and are kept "
+                            "with their data")
+    ids = [t.id for t in trials]
+    # Conditional: a trial started by a concurrent request since the read stays.
+    gone = db.execute(delete(Trial).where(Trial.id.in_(ids), Trial.status == "planned")
+                      .execution_options(synchronize_session="fetch"))
+    if gone.rowcount != len(ids):  # type: ignore[attr-defined]
+        db.rollback()
+        raise ConflictError("trials", f"session {sess.id}'s plan cannot be replaced: a "
+                            "trial of it has just started")
 
 
 def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,

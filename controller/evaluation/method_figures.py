@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.stats import chi2
 
-from controller.actuator import PAPER_ACTUATOR, MaccepaParams, max_deflection, maccepa_torque
+from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
 from controller.evaluation.rendering import DEFAULT_DPI, KIND_COLOURS, KIND_LABELS, new_figure
 from controller.evaluation.timeline import ModelSetLike, draw_models
 from controller.tick import ACTION_NAMES, MODEL_NAMES

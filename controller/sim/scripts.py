@@ -129,7 +129,8 @@ _BRINGUP_STAND = (Stand((30.0, 30.0)),)
 
 
 def _hip_flex_steps(side: int) -> tuple[Step, ...]:
-    return (Stand((1.0, 1.0)), HipFlexStep(side, 40.0, 2.0), Stand((1.0, 1.0)))
+    # One flexion every 3 s: any capture of 3 s or more holds a whole one.
+    return (*(Stand((1.0, 1.0)), HipFlexStep(side, 40.0, 2.0)) * 4, Stand((1.0, 1.0)))
 
 
 SCRIPTS: dict[str, Script] = {

@@ -12,8 +12,11 @@ $("#whatif-controller").replaceChildren(...CONTROLLER_NAMES.map((c) => h("option
 const TABLES = [
   { name: "performance", title: "Intent estimation and decision performance", wide: true,
     longNotes: ["motion: SQ squat, AS asymmetric stoop (either side). Recognised: the correct "
-      + "model's posterior reached 0.5 in the first half of the lift; decision: the first lock "
-      + "decision in the first half (missed: none)."] },
+      + "model's posterior reached 0.5 in the first half of the lift; decision (the paper's "
+      + "rule): a squat is correct once both sides were commanded to lock in the first half, in "
+      + "one decision or two, a stoop if its first lock decision there is the supporting side; "
+      + "first_correct: the first lock decision alone; first_one_sided: squats whose first lock "
+      + "was one side only."] },
   { name: "performance_by_kind", title: "Intent estimation and decision performance per lift kind", longOnly: true },
   { name: "false_positives", title: "False positive lock signals", wide: true,
     longNotes: ["signals: rising edges of the held lock command on either side; edges per side; "

@@ -1,4 +1,5 @@
-"""Questionnaire instruments belong to a study; participant links pin the instrument row.
+"""Questionnaire instruments belong to a study; participant links pin the instrument row;
+a marker stream subscription can be closed as failed.
 
 Before this revision every imported instrument was global: an experimenter of one study
 could import `sus` version 9.9 and a link of another study that named no version got it.
@@ -26,6 +27,9 @@ transaction, rebuild, `PRAGMA foreign_key_check`, foreign keys on). With foreign
 on, SQLite's `DROP TABLE` of the old copy would refuse (responses point at it) or, for
 a table whose children cascade, delete the children.
 
+`lab_marker_streams.error` says why the server closed a subscription (a name the LSL
+resolver cannot search for, or an inlet that kept failing); existing rows get "".
+
 Revision ID: 0011
 Revises: 0010
 Create Date: 2026-11-26 00:30:00
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+
 import sqlalchemy as sa
 from alembic import op
 
@@ -165,6 +170,8 @@ def _data_up() -> None:
 def upgrade() -> None:
     _schema_up()
     _data_up()
+    with op.batch_alter_table("lab_marker_streams") as batch:
+        batch.add_column(sa.Column("error", sa.Text(), nullable=False, server_default=""))
 
 
 def downgrade() -> None:
@@ -177,6 +184,8 @@ def downgrade() -> None:
         # change what some responses were scored with.
         raise RuntimeError(f"cannot downgrade below 0011: instruments {dupes[:5]} exist in "
                            "more than one study")
+    with _foreign_keys_off(), op.batch_alter_table("lab_marker_streams") as batch:
+        batch.drop_column("error")  # markers point at these rows: a rebuild
     op.drop_index("uq_instruments_builtin_key_version", "questionnaire_instruments")
     op.drop_index("ix_questionnaire_instruments_study_id", "questionnaire_instruments")
     with _foreign_keys_off(), op.batch_alter_table("questionnaire_instruments") as batch:

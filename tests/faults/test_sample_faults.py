@@ -121,9 +121,11 @@ def test_glitches_and_228_rad_per_s_spikes_add_no_lock(key_file: Path) -> None:
           f"{dict(per_lift)}, {outside} while standing")
 
 
-def test_a_device_sending_ten_times_too_fast_gets_no_extra_lock(key_file: Path) -> None:
+def test_a_device_sending_ten_times_too_fast_gets_no_extra_lock(
+        key_file: Path, device_implementation: str) -> None:
     port = free_udp_port()
-    with device_process(port, key_file, "squat-sequence", extra=("--rate-factor", "10")), \
+    with device_process(port, key_file, "squat-sequence", extra=("--rate-factor", "10"),
+                        implementation=device_implementation), \
             Worker(port, key_file, "pec") as worker:
         wait_for(lambda: len({r.truth_lift for r in worker.ticks() if r.truth_lift >= 0}) >= 2,
                  120, "two squats at ten times the sample rate")

@@ -1,6 +1,6 @@
 """MkDocs hook of the guide: benchmark tables from the benchmarks' own result files.
 
-A page writes `<!-- bench: NAME -->` where a table belongs; the build puts there the
+A page writes `<!-- bench: NAME -->` on a line of its own where a table belongs; the build puts there the
 table of `bench/results/NAME.json` (written by the benchmark, see bench/record.py) with
 the command and the conditions it was measured under. A marker without its file fails
 the build, so a page never shows a table that no benchmark wrote.
@@ -27,7 +27,8 @@ from typing import Any
 from mkdocs.plugins import event_priority
 
 RESULTS = Path(__file__).resolve().parents[2] / "bench" / "results"
-_MARKER = re.compile(r"<!--\s*bench:\s*([\w-]+)\s*-->")
+#: A marker is a line of its own (so prose can name the marker in backticks).
+_MARKER = re.compile(r"^<!--\s*bench:\s*([\w-]+)\s*-->[ \t]*$", re.M)
 
 
 def _cell(value: object) -> str:

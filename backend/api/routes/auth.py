@@ -15,6 +15,7 @@ from backend.api.deps import (
     CurrentUser,
     SessionDep,
     SettingsDep,
+    SocketLoginsDep,
     access,
 )
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, ErrorMessage, invalid, not_found
@@ -101,12 +102,14 @@ def _forget_cookies(response: Response) -> None:
 
 @router.post("/logout", status_code=204, responses=AUTH_RESPONSES,
              openapi_extra=access("login"))
-def logout(login: CurrentLogin, db: SessionDep) -> Response:
-    """End this login (the cookie's or the bearer token's); other logins stay."""
+def logout(login: CurrentLogin, db: SessionDep, sockets: SocketLoginsDep) -> Response:
+    """End this login (the cookie's or the bearer token's) and the WebSockets opened
+    with it; other logins stay."""
     user, row = login
     row.revoked_at = datetime.now(UTC)
     audit.record(db, user, "logout", "user", user.id, {"kind": row.kind})
     db.commit()
+    sockets.logins_changed(user.id)
     response = Response(status_code=204)
     _forget_cookies(response)
     return response
@@ -114,13 +117,14 @@ def logout(login: CurrentLogin, db: SessionDep) -> Response:
 
 @router.post("/revoke-all", status_code=204, responses=AUTH_RESPONSES,
              openapi_extra=access("login"))
-def revoke_all(login: CurrentLogin, db: SessionDep) -> Response:
+def revoke_all(login: CurrentLogin, db: SessionDep, sockets: SocketLoginsDep) -> Response:
     """End every login of this account, this one included (a lost laptop, a leaked
-    token)."""
+    token), and every WebSocket opened with them."""
     user, _ = login
     n = accounts.revoke_all(db, user)
     audit.record(db, user, "revoke_all", "user", user.id, {"logins": n})
     db.commit()
+    sockets.logins_changed(user.id)
     response = Response(status_code=204)
     _forget_cookies(response)
     return response
@@ -128,7 +132,8 @@ def revoke_all(login: CurrentLogin, db: SessionDep) -> Response:
 
 @router.post("/password", status_code=204, responses={**AUTH_RESPONSES, **BODY},
              openapi_extra=access("login"))
-def change_password(body: PasswordChange, login: CurrentLogin, db: SessionDep) -> Response:
+def change_password(body: PasswordChange, login: CurrentLogin, db: SessionDep,
+                    sockets: SocketLoginsDep) -> Response:
     """Change one's own password; every other login of the account ends."""
     user, row = login
     if not accounts.authenticate(db, user.username, body.current_password):
@@ -140,6 +145,7 @@ def change_password(body: PasswordChange, login: CurrentLogin, db: SessionDep) -
     accounts.revoke_all(db, user, keep=row)
     audit.record(db, user, "change_password", "user", user.id, {})
     db.commit()
+    sockets.logins_changed(user.id)
     return Response(status_code=204)
 
 
@@ -179,8 +185,8 @@ def add_user(body: NewAccount, admin: CurrentUser, db: SessionDep) -> User:
 @users.patch("/{user_id}", response_model=UserOut, responses=BODY,
              openapi_extra=access("admin"))
 def update_user(user_id: Annotated[int, Path(ge=1, le=MAX_ID, description="account id")],
-                body: AccountUpdate, admin: CurrentUser, db: SessionDep
-                ) -> User:
+                body: AccountUpdate, admin: CurrentUser, db: SessionDep,
+                sockets: SocketLoginsDep) -> User:
     """Change an account's role, disable or enable it (disabling ends its logins), or
     set a new password (its logins end)."""
     user = db.get(User, user_id)
@@ -206,4 +212,5 @@ def update_user(user_id: Annotated[int, Path(ge=1, le=MAX_ID, description="accou
         changes["active"] = body.active
     audit.record(db, admin, "update", "user", user.id, changes)
     db.commit()
+    sockets.logins_changed(user.id)  # disabled, or logins ended by a new password
     return user

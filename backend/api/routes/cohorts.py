@@ -2,7 +2,9 @@
 tables and figures.
 
 A cohort is a planning tool outside any study (no participant data is involved), so any
-logged-in account may run and read cohorts. The job uses the server's default model
+logged-in account may read cohorts; running one takes minutes of the server's CPU, so
+it needs the experimenter role in some study, and each account may have only a few
+queued or running (`cohort_jobs_per_account`). The job uses the server's default model
 set and utility set, the ones the live controllers use.
 """
 
@@ -36,14 +38,17 @@ TABLES = ("participants", "metrics", "comparisons", "power")
 
 
 @router.post("/api/cohorts", response_model=CohortOut, status_code=202,
-             openapi_extra=access("login"))
+             openapi_extra=access("experimenter"), responses=CONFLICT)
 def start_cohort(body: CohortIn, sessions: SessionFactoryDep, jobs: JobsDep,
                  user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> CohortOut:
-    """Simulate a virtual cohort in the background; poll `GET /api/cohorts/{id}` for
-    its progress, then its analysis."""
+    """Simulate a virtual cohort in the background; poll `GET /api/cohorts/{id}` (or
+    `GET /api/jobs/{job_id}`) for its progress, then its analysis. Needs the
+    experimenter role in some study (it takes minutes of the server's CPU); 409 while
+    the account already has `cohort_jobs_per_account` cohorts queued or running."""
+    settings = runtime.settings
     return cohorts.start_cohort(db, sessions, jobs, user, body,
-                                runtime.settings.precompression_pct,
-                                runtime.settings.models_path, runtime.utilities_path())
+                                settings.precompression_pct, settings.models_path,
+                                runtime.utilities_path(), settings.cohort_jobs_per_account)
 
 
 @router.get("/api/cohorts", response_model=list[CohortOut], openapi_extra=access("login"))

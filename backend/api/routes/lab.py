@@ -11,12 +11,20 @@ import zipfile
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from fastapi import APIRouter, File, Path, Request, UploadFile
+from fastapi import APIRouter, File, HTTPException, Path, Request, UploadFile
 from fastapi.responses import Response
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SiteDep, access
+from backend.api.deps import (
+    CurrentUser,
+    EngineDep,
+    RuntimeDep,
+    SessionDep,
+    SettingsDep,
+    SiteDep,
+    access,
+)
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -194,15 +202,18 @@ def unsubscribe(session_id: SessionId, subscription_id: SubscriptionId, user: Cu
 @router.post("/api/sessions/{session_id}/xdf", response_model=XdfAttachmentOut,
              status_code=201, responses={413: {"description": "the file is too large"}})
 async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser,
-                     db: SessionDep,
+                     db: SessionDep, settings: SettingsDep,
                      file: Annotated[UploadFile, File(description="a LabRecorder .xdf file")],
                      ) -> XdfAttachment:
-    """Attach a LabRecorder XDF file: kept whole, its streams aligned with the session's
-    ticks on the LSL clock, and for each the trials it covers."""
+    """Attach a LabRecorder XDF file (at most `max_upload_bytes`): kept whole, its
+    streams aligned with the session's ticks on the LSL clock, and for each the trials
+    it covers. A file that declares more samples or channels than it holds, or that
+    would take more than 1 GiB to decode, is refused (422) before it is parsed."""
     one_or_404(db, StudySession, session_id, "session")
-    data = await file.read(xdf_import.MAX_XDF_BYTES + 1)
-    if len(data) > xdf_import.MAX_XDF_BYTES:
-        invalid(["body", "file"], f"larger than {xdf_import.MAX_XDF_BYTES} bytes")
+    limit = settings.max_upload_bytes
+    data = await file.read(limit + 1)
+    if len(data) > limit:  # the body limit stops it first; a file part cannot be larger
+        raise HTTPException(413, f"file: larger than {limit} bytes")
     try:
         streams = await asyncio.to_thread(xdf_import.read, data)
     except ValueError as exc:

@@ -159,7 +159,9 @@ def utility_curves(utility_set_id: UtilitySetId, user: CurrentUser, db: SessionD
 
 @router.get("/api/jobs/{job_id}", response_model=JobOut)
 def get_job(job_id: JobId, user: CurrentUser, db: SessionDep) -> Job:
-    """A background job's status and progress (0..1)."""
+    """A background job's status, progress (0..1) and message: a model fit or utility
+    table (the viewer role in its study) or a virtual cohort (which belongs to no study:
+    the viewer role in some study). `done`, `failed` and `cancelled` are final."""
     db.expire_all()
     return one_or_404(db, Job, job_id, "job")
 

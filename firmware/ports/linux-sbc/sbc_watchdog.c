@@ -21,7 +21,10 @@ int sbc_watchdog_open(sbc_watchdog *w, const char *path, unsigned timeout_s, cha
         if (errno == ENOENT) {
             return 1;
         }
-        snprintf(err, errlen, "%s: %s", path, strerror(errno));
+        snprintf(err, errlen, "%s: %s%s", path, strerror(errno),
+                 errno == EBUSY ? " (another program holds it, e.g. systemd's "
+                                  "RuntimeWatchdogSec; or pass --watchdog none)"
+                                : "");
         return -1;
     }
     w->fd = fd;

@@ -20,13 +20,13 @@
 
 static int ready;
 
-void console_init(void)
+void console_init(uint32_t pclk1_hz)
 {
     gpio_alternate((pin_t){PORT_D, 8u}, AF_USART3, 0);
     RCC_APB1ENR |= RCC_APB1ENR_USART3EN;
     (void)RCC_APB1ENR;
     USART3_CR1 = 0u;
-    USART3_BRR = (CLOCK_PCLK1_HZ + BAUD / 2u) / BAUD; /* 16x oversampling */
+    USART3_BRR = (pclk1_hz + BAUD / 2u) / BAUD; /* 16x oversampling */
     USART3_CR1 = USART_CR1_TE | USART_CR1_UE;
     ready = 1;
 }

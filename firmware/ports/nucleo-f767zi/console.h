@@ -10,7 +10,8 @@
 
 #include <stdint.h>
 
-void console_init(void);
+/* `pclk1_hz`: the APB1 clock the baud rate is derived from (lower if the PLL failed). */
+void console_init(uint32_t pclk1_hz);
 void console_puts(const char *s);
 void console_hex(const uint8_t *data, unsigned n);
 void console_ipv4(uint32_t ip);

@@ -5,8 +5,8 @@
 #include "gpio.h"
 #include "phy.h"
 
-#define RX_BUFS 4u
-#define TX_BUFS 2u
+#define RX_BUFS ETH_RX_BUFS
+#define TX_BUFS ETH_TX_BUFS
 #define BUF_SIZE 1536u /* a full 1518-byte frame, rounded to a multiple of 32 */
 #define TX_TIMEOUT_CYCLES (CLOCK_HCLK_HZ / 1000u)
 #define RESET_TIMEOUT_CYCLES (CLOCK_HCLK_HZ / 10u)

@@ -13,6 +13,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#define ETH_RX_BUFS 4u
+#define ETH_TX_BUFS 2u
+
 typedef struct {
     uint32_t rx_frames;
     uint32_t rx_errors;   /* descriptor error summary, or a frame split over buffers */

@@ -90,7 +90,8 @@ int main(void)
     gpio_output(PIN_LED_RED, 0);
 
     clock_source clock = clock_init();
-    console_init();
+    /* If the PLL failed the chip runs on its 16 MHz internal oscillator, APB1 undivided. */
+    console_init(clock == CLOCK_FAILED ? 16000000u : CLOCK_PCLK1_HZ);
     console_puts("\nExoStudy device firmware " EXO_FIRMWARE_VERSION
                  ", nucleo-f767zi, protocol 2\n");
     if (clock == CLOCK_FAILED) {
@@ -118,7 +119,10 @@ int main(void)
     console_puts(", host ");
     console_ipv4(prov.host_ip);
     console_puts(", mac ");
-    console_hex(prov.mac, 6);
+    for (unsigned i = 0; i < 6u; i++) {
+        console_hex(&prov.mac[i], 1);
+        console_puts(i < 5u ? ":" : "");
+    }
     console_puts(", key id ");
     console_hex(digest, 4);
     console_puts(NUCLEO_BUS_DAISY_CHAIN ? ", encoders: daisy chain\n"
@@ -171,7 +175,9 @@ int main(void)
         now = timebase_now_us();
         const uint8_t *frame;
         size_t n;
-        while ((n = eth_rx_take(&frame)) > 0u) {
+        /* At most one ring's worth per pass, so a flood of frames cannot starve the
+         * sample schedule; the rest wait in the DMA ring (or are dropped by the MAC). */
+        for (unsigned i = 0; i < ETH_RX_BUFS && (n = eth_rx_take(&frame)) > 0u; i++) {
             net_stack_input(&net, frame, n, now);
             eth_rx_release();
         }

@@ -13,8 +13,11 @@
 #include "stm32f7_regs.h"
 
 extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _estack;
+typedef void (*vector_t)(void);
+
 int main(void);
 void Reset_Handler(void);
+extern const vector_t vector_table[];
 void fault_handler(void);
 
 #define IRQ_COUNT 110u /* STM32F76x/77x vector table: 110 peripheral interrupts */
@@ -32,6 +35,9 @@ void fault_handler(void)
 
 __attribute__((noreturn)) void Reset_Handler(void)
 {
+    /* Point exceptions at this table: the F7 boots through its flash alias at
+     * 0x00200000, and address 0 is ITCM RAM, not a copy of the vectors. */
+    SCB_VTOR = (uint32_t)(uintptr_t)vector_table;
     SCB_CPACR |= 0xFu << 20; /* CP10 and CP11: full access to the FPU */
     __asm__ volatile("dsb\n isb" ::: "memory");
 
@@ -47,8 +53,6 @@ __attribute__((noreturn)) void Reset_Handler(void)
     for (;;) {
     }
 }
-
-typedef void (*vector_t)(void);
 
 __attribute__((section(".isr_vector"), used)) const vector_t vector_table[16u + IRQ_COUNT] = {
     [0] = (vector_t)(uintptr_t)&_estack,

@@ -1,0 +1,77 @@
+"""`exostudy replicate` on a tiny run: the report, its figures and the seed reuse."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from backend.analysis import replication
+from backend.analysis.replication import ReplicationConfig, run, run_study_seed
+from backend.cli import main
+from controller.evaluation.replication import CLAIMS
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("replication")
+    run(ReplicationConfig(out=out, seeds=2, engine="cohort", participants=2, eumc=1,
+                          data_participants=2, offset_participants=6, stair_participants=2),
+        log=lambda _m: None)
+    return out
+
+
+def test_report_is_self_contained_and_judges_every_claim(tiny: Path) -> None:
+    page = (tiny / "report.html").read_text()
+    # No resource from the network: every image is a data URI.
+    assert not re.search(r"""src=['"]https?:""", page)
+    assert page.count("src='data:image/png;base64,") >= 9
+    doc = json.loads((tiny / "replication.json").read_text())
+    assert [c["key"] for c in doc["claims"]] == [c.key for c in CLAIMS]
+    assert {c["verdict"] for c in doc["claims"]} <= {"reproduced", "differs", "not simulated"}
+    by = {c["key"]: c for c in doc["claims"]}
+    assert by["questionnaires"]["verdict"] == "not simulated"
+    assert by["chi_square"]["verdict"] == "reproduced"
+    assert len(doc["seeds"]) == 2 and by["umc.correct.SQ"]["interval"]["n"] == 2
+    for name in ("peak_torques", "controller_output", "motion_models", "utilities",
+                 "actuator", "chi_square", "offsets_both", "stairs"):
+        assert (tiny / "figures" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert b"<svg" in (tiny / "figures" / f"{name}.svg").read_bytes()[:2000]
+    md = (tiny / "replication.md").read_text()
+    assert md.count("\n| ") == len(CLAIMS) + 1
+
+
+def test_offsets_regression_is_ordinary_least_squares(tiny: Path) -> None:
+
+    doc = json.loads((tiny / "replication.json").read_text())
+    both = doc["offsets"]["both"]
+    assert both["n"] == 6 and both["low"] < both["slope"] < both["high"]
+
+
+def test_a_finished_seed_is_reused_and_an_unfinished_one_refused(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = ReplicationConfig(out=tmp_path, seeds=2)
+    done = replication.study_seed_folder(tmp_path, 1)
+    done.mkdir(parents=True)
+    (done / "study.db").write_bytes(b"")
+    (done / "summary.json").write_text("{}")
+
+    def no_run(*_a: object, **_k: object) -> int:
+        raise AssertionError("a finished seed must not run again")
+
+    monkeypatch.setattr(subprocess, "call", no_run)
+    assert run_study_seed(cfg, 1, lambda _m: None) == done / "study.db"
+    replication.study_seed_folder(tmp_path, 2).mkdir(parents=True)
+    with pytest.raises(ValueError, match="unfinished virtual study"):
+        run_study_seed(cfg, 2, lambda _m: None)
+
+
+def test_bad_arguments_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["replicate", "--out", str(tmp_path), "--seeds", "1"]) == 2
+    assert "seeds" in capsys.readouterr().err
+    assert main(["replicate", "--out", str(tmp_path), "--from-db",
+                 str(tmp_path / "missing.db")]) == 2
+    assert "--from-db" in capsys.readouterr().err

@@ -1,0 +1,123 @@
+"""Text no database can store (a lone surrogate, NUL) is a 422 naming the field, on
+every route that takes JSON, never a 500 (a trial plan's task names gave one).
+
+Schemathesis draws one valid body per operation from the app's own OpenAPI schema; each
+string in it (up to `PER_OPERATION`) is then replaced in turn by a lone surrogate or
+NUL, and the answer must be a 422 whose `loc` is that string's place in the body."""
+
+from __future__ import annotations
+
+import copy
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import schemathesis
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from hypothesis import HealthCheck, given, settings
+from schemathesis import GenerationMode
+
+from backend.core.config import Settings
+from backend.main import create_app
+from tests.backend.api.test_api_fuzz import EXCLUDED, _fuzz_target
+from tests.databases import fresh_database
+
+#: Strings replaced per operation (the first ones of the drawn body).
+PER_OPERATION = 6
+BAD = ("\ud800", "\udfff", "a\x00b")
+
+
+def _json_operations() -> list[tuple[str, str]]:
+    """(method, path) of every operation that takes a JSON body."""
+    app = create_app(Settings(_env_file=None, start_worker=False))  # type: ignore[call-arg]
+    out = []
+    for path, item in app.openapi()["paths"].items():
+        for method, op in item.items():
+            body = op.get("requestBody", {}).get("content", {})
+            if "application/json" in body and (method.upper(), path) not in EXCLUDED:
+                out.append((method.upper(), path))
+    return out
+
+
+OPERATIONS = _json_operations()
+
+
+@pytest.fixture(scope="module")
+def target(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path]
+           ) -> Iterator[tuple[FastAPI, dict[str, str]]]:
+    with fresh_database(tmp_path_factory.mktemp("storable")) as url:
+        yield from _fuzz_target(url, default_sets)
+
+
+def _strings(doc: Any, path: tuple[str | int, ...] = ()) -> Iterator[tuple[str | int, ...]]:
+    if isinstance(doc, str):
+        yield path
+    elif isinstance(doc, dict):
+        for k, v in doc.items():
+            yield from _strings(v, (*path, k))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            yield from _strings(v, (*path, i))
+
+
+def _set(doc: Any, path: tuple[str | int, ...], value: str) -> Any:
+    out = copy.deepcopy(doc)
+    here = out
+    for key in path[:-1]:
+        here = here[key]
+    here[path[-1]] = value
+    return out
+
+
+def test_a_trial_plan_with_a_lone_surrogate_is_a_422(client: TestClient) -> None:
+    assert client.post("/api/studies", json={"name": "s"}).status_code == 201
+    assert client.post("/api/studies/1/participants", json={"code": "P01"}).status_code == 201
+    assert client.post("/api/participants/1/sessions", json={
+        "kind": "evaluation", "precompression_pct": 25}).status_code == 201
+    r = client.post("/api/sessions/1/trials/plan", content=b'{"tasks": ["\\ud800"]}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"][0]["loc"] == ["body", "tasks", 0]
+    assert client.get("/api/sessions/1/trials").json() == []  # nothing stored
+    # A paired surrogate is an ordinary character (an emoji) and passes.
+    r = client.post("/api/sessions/1/trials/plan", content=b'{"tasks": ["\\ud83d\\ude00"]}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code < 500, r.text
+
+
+@pytest.fixture(scope="module")
+def api_schema(target: tuple[FastAPI, dict[str, str]]) -> Any:
+    return schemathesis.openapi.from_asgi("/openapi.json", target[0])
+
+
+@pytest.fixture(scope="module")
+def raw_client(target: tuple[FastAPI, dict[str, str]]) -> Iterator[TestClient]:
+    with TestClient(target[0]) as c:
+        yield c
+
+
+@pytest.mark.parametrize(("method", "path"), OPERATIONS, ids=[f"{m} {p}" for m, p in OPERATIONS])
+def test_every_json_string_refuses_unstorable_text(
+        method: str, path: str, api_schema: Any, raw_client: TestClient,
+        target: tuple[FastAPI, dict[str, str]]) -> None:
+    operation = api_schema[path][method]
+    headers = {**target[1], "content-type": "application/json"}
+
+    @given(case=operation.as_strategy(generation_mode=GenerationMode.POSITIVE))
+    @settings(max_examples=1, deadline=None, derandomize=True, database=None,
+              suppress_health_check=list(HealthCheck))
+    def run(case: Any) -> None:
+        body = case.body
+        url = case.formatted_path
+        for i, where in enumerate(list(_strings(body))[:PER_OPERATION]):
+            # json.dumps escapes the bad characters (\ud800, \u0000) as a client would.
+            sent = json.dumps(_set(body, where, BAD[i % len(BAD)]))
+            r = raw_client.request(method, url, content=sent, headers=headers,
+                                   params=case.query)
+            assert r.status_code == 422, (where, r.status_code, r.text[:300])
+            assert ["body", *where] in [d["loc"] for d in r.json()["detail"]], r.text[:300]
+
+    run()

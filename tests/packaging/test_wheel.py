@@ -1,0 +1,210 @@
+"""The wheel is the application: built with `python -m build`, installed into a new
+virtual environment with no clone on its path, it migrates a database, serves the
+console (pages, modules, uPlot, /docs, the guide) with the worker and the spawned UDP
+device simulator, and runs a small virtual study.
+
+Speed: the new environment borrows the dependencies already installed in the test's
+own environment (a `.pth` line naming its site-packages, which adds the folder without
+running the editable install's hook there), and the wheel goes in with `--no-deps`, so
+the test costs the build and the runs, not a download of numpy and scipy.
+`EXOSTUDY_WHEEL_TEST_FULL=1` installs the dependencies from the index instead, as a
+user's `pip install` does.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import sysconfig
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.polling import free_tcp_port, free_udp_port, wait_for
+
+ROOT = Path(__file__).resolve().parents[2]
+PASSWORD = "wheel-test-password-7841"
+
+pytestmark = pytest.mark.slow
+
+
+@dataclass(frozen=True)
+class Installed:
+    """A virtual environment holding the wheel, and a clean environment to run it in."""
+
+    venv: Path
+    env: dict[str, str]
+    cwd: Path
+    data: Path
+    wheel: Path
+
+    def run(self, *args: str, stdin: str | None = None, timeout: float = 300
+            ) -> subprocess.CompletedProcess[str]:
+        proc = subprocess.run([str(self.venv / "bin" / "exostudy"), *args], cwd=self.cwd,
+                              env=self.env, input=stdin, capture_output=True, text=True,
+                              timeout=timeout, check=False)
+        assert proc.returncode == 0, (args, proc.stdout[-3000:], proc.stderr[-3000:])
+        return proc
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
+    """Build the wheel from this clone and install it into a new venv."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    dist = tmp / "dist"
+    build_env = {k: v for k, v in os.environ.items() if not k.startswith("EXOSTUDY_")}
+    build_env["NO_MKDOCS_2_WARNING"] = "1"
+    proc = subprocess.run([sys.executable, "-m", "build", "--wheel", "--outdir", str(dist),
+                           str(ROOT)], cwd=ROOT, env=build_env, capture_output=True,
+                          text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    wheels = list(dist.glob("exostudy-*-py3-none-any.whl"))
+    assert len(wheels) == 1, wheels
+
+    venv = tmp / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    install = [sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet",
+               "--no-compile"]
+    if os.environ.get("EXOSTUDY_WHEEL_TEST_FULL") == "1":
+        subprocess.run([*install, str(wheels[0])], check=True, timeout=1200)
+    else:
+        purelib = Path(sysconfig.get_paths()["purelib"])
+        new_purelib = Path(subprocess.run(
+            [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+            capture_output=True, text=True, check=True).stdout.strip())
+        (new_purelib / "zz_borrowed_dependencies.pth").write_text(f"{purelib}\n")
+        subprocess.run([*install, "--no-deps", str(wheels[0])], check=True, timeout=600)
+
+    cwd = tmp / "elsewhere"
+    cwd.mkdir()
+    data = tmp / "xdg-data"
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("EXOSTUDY_", "PYTHON", "VIRTUAL_ENV"))}
+    env.update(HOME=str(tmp / "home"), XDG_DATA_HOME=str(data), EXOSTUDY_LSL_ENABLED="false",
+               PATH=f"{venv / 'bin'}:{env.get('PATH', '/usr/bin:/bin')}")
+    return Installed(venv, env, cwd, data, wheels[0])
+
+
+def test_the_wheel_carries_the_application_and_not_the_clone(installed: Installed) -> None:
+    version = installed.run("--version").stdout.strip()
+    assert re.fullmatch(r"exostudy \d+\.\d+\.\d+\S*", version), version
+    assert installed.wheel.name.startswith(f"exostudy-{version.split()[1]}-")
+    where = subprocess.run(
+        [str(installed.venv / "bin" / "python"), "-c",
+         "import backend, controller; from backend.core import resources as r; "
+         "print(backend.__file__, controller.__file__, r.installed(), r.frontend_dir(), "
+         "r.migrations_dir(), r.guide_dir(), r.data_dir())"],
+        cwd=installed.cwd, env=installed.env, capture_output=True, text=True, check=True)
+    backend_file, controller_file, bundled, *dirs = where.stdout.split()
+    site = str(installed.venv)
+    assert backend_file.startswith(site) and controller_file.startswith(site)
+    assert bundled == "True"
+    front, migrations, guide, data = (Path(d) for d in dirs)
+    for d in (front, migrations, guide):
+        assert str(d).startswith(site) and d.is_dir(), d
+    assert data == installed.data / "exostudy"
+    assert (migrations / "env.py").is_file() and list((migrations / "versions").glob("0*.py"))
+    assert (front / "node_modules" / "uplot" / "LICENSE").is_file()
+
+
+def test_db_upgrade_makes_the_database_in_the_data_folder(installed: Installed) -> None:
+    out = installed.run("db", "upgrade").stdout
+    db = installed.data / "exostudy" / "exostudy.db"
+    assert db.is_file() and str(db) in out
+    head = re.search(r"at revision (\w+)", out)
+    assert head and head.group(1) != "None"
+    assert installed.run("db", "current").stdout.strip() == head.group(1)
+
+
+@pytest.fixture(scope="module")
+def served(installed: Installed) -> Iterator[str]:
+    """`exostudy serve` from the wheel, with its worker and a spawned UDP simulator."""
+    installed.run("db", "upgrade")
+    installed.run("user", "add", "wheel", "--admin", stdin=PASSWORD + "\n")
+    port = free_tcp_port()
+    env = dict(installed.env, EXOSTUDY_DEMO="false",
+               EXOSTUDY_DEVICE_ADDRESS=f"127.0.0.1:{free_udp_port()}")
+    log = installed.cwd / "serve.log"
+    with open(log, "wb") as out:
+        proc = subprocess.Popen([str(installed.venv / "bin" / "exostudy"), "serve", "--port",
+                                 str(port), "--log-level", "warning"], cwd=installed.cwd,
+                                env=env, stdout=out, stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+
+    def up() -> bool:
+        if proc.poll() is not None:
+            raise AssertionError(f"server exited: {log.read_text()[-3000:]}")
+        try:
+            return httpx.get(f"{base}/api/health", timeout=5).status_code == 200
+        except httpx.HTTPError:
+            return False
+
+    try:
+        wait_for(up, 180, "the installed server to answer", poll=0.2)
+        yield base
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
+
+
+def test_serve_from_the_wheel(installed: Installed, served: str) -> None:
+    with httpx.Client(base_url=served, timeout=30) as c:
+        login = c.get("/login")
+        assert login.status_code == 200 and 'id="password"' in login.text
+        assert c.get("/console", follow_redirects=False).status_code == 303  # login first
+        r = c.post("/api/auth/login", json={"username": "wheel", "password": PASSWORD})
+        assert r.status_code == 200, r.text
+        console = c.get("/console")
+        assert console.status_code == 200 and "/static/guard.js" in console.text
+        for path, marker in (("/static/api.js", "export"),
+                             ("/static/favicon.svg", "<svg"),
+                             ("/static/vocabulary.js", "export"),
+                             ("/vendor/uplot/uPlot.esm.js", "uPlot"),
+                             ("/vendor/uplot/uPlot.min.css", ".uplot"),
+                             ("/docs", "swagger-ui"),
+                             ("/docs-assets/swagger-ui-bundle.js", "SwaggerUIBundle"),
+                             ("/guide/index.html", "ExoStudy"),
+                             ("/guide/search/search_index.json", "getting-started")):
+            r = c.get(path)
+            assert r.status_code == 200 and marker in r.text, (path, r.status_code)
+        health = c.get("/api/health").json()
+        assert health["version"] == installed.run("--version").stdout.split()[1]
+        # The worker runs from the wheel and the spawned UDP simulator sends samples.
+        wait_for(lambda: c.get("/api/health").json()["device"]["alive"], 120,
+                 "samples from the wheel's device simulator", poll=0.5)
+
+
+def test_a_small_virtual_study_from_the_wheel(installed: Installed) -> None:
+    out = installed.cwd / "vs"
+    installed.run("virtual-study", "--participants", "1", "--data-participants", "2",
+                  "--eumc", "0", "--rates", "paper-rates", "--no-model-evaluation",
+                  "--collection-speed", "400", "--out", str(out), timeout=900)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exostudy_version"] == installed.run("--version").stdout.split()[1]
+    assert (out / "paper-rates" / "performance.md").is_file()
+    # One evaluation participant, UMC and PEC: two trials, each with its ticks.
+    assert len(summary["trials"]) == 2, summary["trials"]
+
+
+def test_the_installed_python_path_holds_no_part_of_the_clone(installed: Installed) -> None:
+    """Only the borrowed dependencies may lie under the clone (its .venv), never its code."""
+    paths = json.loads(subprocess.run(
+        [str(installed.venv / "bin" / "python"), "-c", "import json, sys; "
+         "print(json.dumps(sys.path))"], cwd=installed.cwd, env=installed.env,
+        capture_output=True, text=True, check=True).stdout)
+    inside = [p for p in paths if p and Path(p).resolve().is_relative_to(ROOT)]
+    assert all(Path(p).resolve().is_relative_to(Path(sys.prefix).resolve()) for p in inside), \
+        inside
+    assert not (installed.venv / "var").exists()
