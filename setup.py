@@ -44,8 +44,12 @@ class BuildWithAssets(build_py):
     """build_py, then the application's non-Python files into backend/_bundled/."""
 
     def run(self) -> None:
+        editable = getattr(self, "editable_mode", False)
+        if not editable and not ROOT.is_relative_to(Path(self.build_lib).resolve()):
+            # A module deleted since the last build must not reach the wheel.
+            shutil.rmtree(self.build_lib, ignore_errors=True)
         super().run()
-        if getattr(self, "editable_mode", False):
+        if editable:
             return  # an editable install reads the clone's own folders
         bundle = Path(self.build_lib) / "backend" / "_bundled"
         shutil.rmtree(bundle, ignore_errors=True)

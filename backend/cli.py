@@ -23,6 +23,8 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from controller.help_format import DefaultsHelpFormatter
+
 
 def _serve(args: argparse.Namespace) -> int:
     import uvicorn
@@ -142,19 +144,12 @@ def _user(args: argparse.Namespace) -> int:
 
 
 def _virtual_study(args: argparse.Namespace) -> int:
-    from backend.analysis.virtual_study import (
-        COLLECTION_SPEED,
-        DEFAULT_SPEED,
-        VirtualStudyConfig,
-        run,
-    )
+    from backend.analysis.virtual_study import VirtualStudyConfig, run
 
     cfg = VirtualStudyConfig(
         out=Path(args.out), participants=args.participants,
         data_participants=args.data_participants, eumc=args.eumc, seed=args.seed,
-        speed=args.speed if args.speed is not None else DEFAULT_SPEED,
-        collection_speed=(args.collection_speed if args.collection_speed is not None
-                          else COLLECTION_SPEED),
+        speed=args.speed, collection_speed=args.collection_speed,
         rates=tuple(args.rates.split(",")), model_evaluation=not args.no_model_evaluation)
     report = run(cfg, log=lambda m: print(m, flush=True))
     print(f"virtual study done in {report.wall_s:.0f} s; {len(report.trials)} trials; "
@@ -264,21 +259,27 @@ def _replicate(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     p = argparse.ArgumentParser(prog="exostudy", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+                                formatter_class=DefaultsHelpFormatter)
+    from backend.analysis.virtual_study_speeds import COLLECTION_SPEED, DEFAULT_SPEED
+    from backend.core.config import Settings
     from backend.core.resources import version
 
     p.add_argument("--version", action="version", version=f"exostudy {version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("serve", help="start the server")
-    s.add_argument("--host", default=None)
-    s.add_argument("--port", type=int, default=None)
-    s.add_argument("--log-level", default="info")
+    server = Settings.model_fields
+    s.add_argument("--host", default=None, help="address to listen on (default: "
+                   f"EXOSTUDY_HOST, else {server['host'].default})")
+    s.add_argument("--port", type=int, default=None, help="TCP port (default: "
+                   f"EXOSTUDY_PORT, else {server['port'].default})")
+    s.add_argument("--log-level", default="info", help="uvicorn's log level")
     s.set_defaults(func=_serve)
 
     d = sub.add_parser("db", help="database schema migrations")
     d.add_argument("action", choices=["upgrade", "downgrade", "current"])
-    d.add_argument("revision", nargs="?", default=None)
+    d.add_argument("revision", nargs="?", default=None,
+                   help="target revision (default: head to upgrade, base to downgrade)")
     d.set_defaults(func=_db)
 
     sub.add_parser("device-sim", help="run the simulated exoskeleton on the wire (UDP); "
@@ -312,13 +313,11 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--data-participants", type=int, default=6,
                    help="data-collection participants whose demonstrations fit the models")
     v.add_argument("--eumc", type=int, default=3, help="the first N also evaluate the E-UMC")
-    v.add_argument("--seed", type=int, default=1)
-    v.add_argument("--speed", type=float, default=None,
-                   help="simulator speed-up in the trials (default: "
-                   "backend.analysis.virtual_study.DEFAULT_SPEED)")
-    v.add_argument("--collection-speed", type=float, default=None,
-                   help="simulator speed-up while demonstrations are recorded (default: "
-                   "backend.analysis.virtual_study.COLLECTION_SPEED)")
+    v.add_argument("--seed", type=int, default=1, help="seed of the virtual participants")
+    v.add_argument("--speed", type=float, default=DEFAULT_SPEED,
+                   help="simulator speed-up in the trials (the simulator's maximum)")
+    v.add_argument("--collection-speed", type=float, default=COLLECTION_SPEED,
+                   help="simulator speed-up while demonstrations are recorded")
     v.add_argument("--rates", default="paper-rates,100hz",
                    help="comma-separated rate settings: paper-rates, 100hz")
     v.add_argument("--no-model-evaluation", action="store_true",
@@ -388,6 +387,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(`exostudy hardware --help`)")
     sub.add_parser("replay", help="replay recorded angles through a controller; "
                    "see `exostudy replay --help`")
+    # Every subcommand's help shows default values (not the names they come from).
+    for parser in sub.choices.values():
+        parser.formatter_class = DefaultsHelpFormatter
     return p
 
 

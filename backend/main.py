@@ -12,9 +12,9 @@ from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
-from backend import console_pages, guide
+from backend import console_pages
 from backend.analysis import jobs
-from backend.api import docs_assets, json_text, log_redaction, web_surface
+from backend.api import docs_assets, guide, json_text, log_redaction, web_surface
 from backend.api.deps import authorize, document_access
 from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors

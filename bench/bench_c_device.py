@@ -220,6 +220,9 @@ def main(argv: list[str] | None = None) -> int:
     row("  on the device clock", lambda r: "{:.1f} / {:.1f} / {:.1f} ms".format(
         min(r["host"]["watchdog_device_ms"]), _pct(r["host"]["watchdog_device_ms"], 50),
         max(r["host"]["watchdog_device_ms"])))
+    row("wearer step max / over 1 ms (C)", lambda r: (
+        f"{r['device']['wearer_step_max_ms']:.2f} ms / {r['device']['wearer_slow_steps']}"
+        if "wearer_step_max_ms" in r["device"] else "(in process)"))
     row("device watchdog releases", lambda r: str(r["device"]["watchdog_releases"]))
     print()
     for name, r in results.items():

@@ -1,4 +1,4 @@
-"""Safety figures for the README's safety table, measured on the real processes.
+"""Safety figures for the safety table (docs/safety.md), measured on the real processes.
 
 - server SIGKILL: `exostudy serve` (UDP simulator it spawns) is killed at a random
   moment of its flush cycle; the data lost is the time between the kill and the last

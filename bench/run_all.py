@@ -1,8 +1,9 @@
 """Run every benchmark in turn and print what each reports (`make bench`).
 
 Timing figures depend on the machine and on what else runs: each benchmark measures a
-baseline in the same run where one exists, and the README records the figures with the
-conditions they were measured under. Nothing here is a test: it never fails the build.
+baseline in the same run where one exists, and the guide (docs/benchmarks.md and the
+pages it names) records the figures with the conditions they were measured under.
+Nothing here is a test: it never fails the build.
 """
 
 from __future__ import annotations

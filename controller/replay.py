@@ -241,8 +241,10 @@ def build(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`exostudy replay`."""
+    from controller.help_format import DefaultsHelpFormatter
+
     p = argparse.ArgumentParser(prog="exostudy replay", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+                                formatter_class=DefaultsHelpFormatter)
     p.add_argument("--angles", required=True, type=Path)
     p.add_argument("--controller", required=True, choices=controller_names())
     p.add_argument("--models", type=Path)

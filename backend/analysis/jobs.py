@@ -26,6 +26,7 @@ from sqlalchemy import select, update
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
+from backend.core.errors import ConflictError
 from backend.db.cohorts import CohortRecord
 from backend.db.evidence_tables import Job, ModelSetRecord, UtilitySetRecord
 
@@ -100,7 +101,7 @@ class _Lane:
     def put(self, entry: _Entry) -> None:
         with self._cond:
             if self._closed:
-                raise RuntimeError("the server is shutting down: no new jobs")
+                raise ConflictError("server", "the server is shutting down: no new jobs")
             self._queues.setdefault(entry.owner, deque()).append(entry)
             self._cond.notify()
 
@@ -161,7 +162,8 @@ class JobRunner:
                owner_id: int | None = None) -> tuple[int, Future[None]]:
         """Queue `work(progress) -> message` in `lane`; returns the job id and a future
         that completes when the job has ended, however it ended. `on_failure(reason)`
-        is called when the job fails or is cancelled, to leave its product final."""
+        is called when the job fails or is cancelled, to leave its product final.
+        Refused (`ConflictError`, a 409) once the server is shutting down."""
         if lane not in self._lanes:
             raise ValueError(f"unknown job lane {lane!r}; choose from {', '.join(LANES)}")
         with self.sessions() as db:
@@ -174,7 +176,7 @@ class JobRunner:
         self._entries[job_id] = entry
         try:
             self._lanes[lane].put(entry)
-        except RuntimeError:
+        except ConflictError:
             self._end(entry, "cancelled", "the server is shutting down: not started")
             raise
         return job_id, entry.future

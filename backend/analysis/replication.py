@@ -199,7 +199,9 @@ def run_study_seed(cfg: ReplicationConfig, seed: int, log: Callable[[str], None]
                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
     if code != 0 or not (folder / "summary.json").is_file():
         # Kept for inspection, out of the way of the next attempt.
-        folder.rename(folder.with_name(f"{folder.name}.failed-{time.strftime('%Y%m%d-%H%M%S')}"))
+        if folder.exists():
+            folder.rename(folder.with_name(
+                f"{folder.name}.failed-{time.strftime('%Y%m%d-%H%M%S')}"))
         raise RuntimeError(f"seed {seed}: the virtual study failed (exit {code}); see "
                            f"{cfg.out / f'seed-{seed}.log'}")
     return db

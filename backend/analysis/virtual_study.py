@@ -54,21 +54,11 @@ import numpy as np
 
 from backend.analysis import tick_queries
 from backend.analysis.results import FIGURE_NAMES
+from backend.analysis.virtual_study_speeds import COLLECTION_SPEED, DEFAULT_SPEED
 from backend.core.resources import version
 from backend.live.local_server import ApiClient, Response, serving
 from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
-#: Requested simulator speed-up during the evaluation trials: the simulator's maximum
-#: (`controller.device.simulated.MAX_SPEED`).
-#: The worker never runs ahead of what the server stores (it holds a sped-up simulation
-#: while ticks queue, `backend.worker.process._hold`), so asking for more than a loaded
-#: machine delivers costs nothing and loses nothing; on a quiet 2-core machine 80x gave a
-#: median of 6,200 ticks/s. See README "Results and the virtual study".
-DEFAULT_SPEED = MAX_SPEED
-#: Speed-up while demonstrations are recorded: a recording starts a moment after the new
-#: wearer does, and at 80x that moment costs a lift or two per recording (103 instead
-#: of 126 segments in the default study); at 30x it costs none of the lifts measured.
-COLLECTION_SPEED = 30.0
 RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}
 #: A wait on the worker fails only after this many seconds without progress (ticks,
 #: job progress): a loaded machine makes the study slower, never wrong.

@@ -17,8 +17,8 @@ import re
 #: to tell links apart, far from enough to guess one.
 KEPT = 6
 
-_TOKEN_PATH = re.compile(r"(/(?:api/participant-forms|forms)/)([A-Za-z0-9_-]{%d})"
-                         r"[A-Za-z0-9_-]+" % KEPT)
+_TOKEN_PATH = re.compile(r"(/(?:api/participant-forms|forms)/)([A-Za-z0-9_-]{"
+                         + str(KEPT) + r"})[A-Za-z0-9_-]+")
 
 
 def redact(text: str) -> str:

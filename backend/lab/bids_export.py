@@ -378,16 +378,14 @@ def _phenotype(db: Session, subs: dict[int, str]) -> Iterator[tuple[str, bytes]]
     for key, rs in by_key.items():
         items = sorted({str(k) for r in rs for k in r.answers})
         name = label(key).lower()
+        fixed = list(data_dictionary.BIDS_FILES["phenotype/*.tsv"][1])
         yield f"phenotype/{name}.tsv", _tsv(
-            ["participant_id", "condition_label", "instrument_version", "score", *items],
+            [*fixed, *items],
             [[f"sub-{subs[r.participant_id]}", r.condition_label, r.instrument_version,
               r.score, *[r.answers.get(i) for i in items]] for r in rs]).encode()
         doc: dict[str, Any] = {
             "MeasurementToolMetadata": {"Description": f"questionnaire {key}"},
-            "participant_id": {"Description": "pseudonymous participant code"},
-            "condition_label": {"Description": "blinded condition the answers are about"},
-            "instrument_version": {"Description": "version of the questionnaire definition"},
-            "score": {"Description": "total score computed at submission"},
+            **data_dictionary.bids_sidecar("phenotype/*.tsv"),
         }
         for i in items:
             doc[i] = {"Description": f"answer to item {i}"}

@@ -160,6 +160,9 @@ def check(data: bytes, max_decoded_bytes: int = MAX_DECODED_BYTES) -> XdfPlan:
 #: copies when it concatenates. Should the estimate above ever be wrong, the child
 #: fails with MemoryError instead of the server growing.
 CHILD_ADDRESS_SPACE = 512 * 1024**2 + 2 * MAX_DECODED_BYTES
+#: Longest a parse may take (a 64 MB file takes seconds; an assumption with a wide
+#: margin for a loaded machine).
+_CHILD_TIMEOUT_S = 600
 #: Exit status of a child that ran out of its allowed memory.
 _OUT_OF_MEMORY = 3
 
@@ -174,10 +177,14 @@ def load(data: bytes, address_space: int = CHILD_ADDRESS_SPACE) -> list[dict[str
         env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
                "PYTHONPATH": os.pathsep.join(filter(None, [str(_ROOT),
                                                            os.environ.get("PYTHONPATH")]))}
-        done = subprocess.run(
-            [sys.executable, "-m", "backend.lab.xdf_limits", str(source), str(target),
-             str(address_space)], env=env, capture_output=True, text=True, timeout=600,
-            check=False)
+        try:
+            done = subprocess.run(
+                [sys.executable, "-m", "backend.lab.xdf_limits", str(source), str(target),
+                 str(address_space)], env=env, capture_output=True, text=True,
+                timeout=_CHILD_TIMEOUT_S, check=False)
+        except subprocess.TimeoutExpired as exc:
+            raise ValueError(f"reading the XDF file took longer than {_CHILD_TIMEOUT_S} s"
+                             ) from exc
         if done.returncode == _OUT_OF_MEMORY:
             raise XdfRefusedError(f"reading the file needs more than {address_space} bytes of "
                              "memory")

@@ -243,6 +243,13 @@ BIDS_FILES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "HED": ("", "the event in Hierarchical Event Descriptors (HED 8.3.0): its kind and "
                 "side; n/a for a repeat of the row before it at the same onset"),
     }),
+    "phenotype/*.tsv": ("One file per questionnaire: one row per response, then one "
+                        "column per item (`answer to item <id>`).", {
+        "participant_id": ("", "pseudonymous participant code"),
+        "condition_label": ("", "blinded condition the answers are about"),
+        "instrument_version": ("", "version of the questionnaire definition"),
+        "score": ("", "total score computed at submission (SUS 0-100, EUS 0-10)"),
+    }),
 }
 
 #: Levels of categorical BIDS columns, for the sidecars.

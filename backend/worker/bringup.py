@@ -66,8 +66,18 @@ class _Step:
 
     def send(self, left: bool, right: bool) -> None:
         self._seq += 1
-        self.device.send(LockCommand(self._seq, left, right))
+        # Stamped before the send: a pause between the two can only make the measured
+        # watchdog delay longer (pessimistic), never shorter.
         self.last_command_s = self.now()
+        self.device.send(LockCommand(self._seq, left, right))
+
+    def device_time(self, worker_s: float) -> float:
+        """The device time at step time `worker_s`, at the latest: the device's times
+        minus their arrival times, at their largest (the sample that travelled fastest),
+        map the worker's clock onto the device's. Any delay on the way only makes a
+        sample look older, so this never places the device earlier than it was."""
+        lead = max(t - arrived for arrived, _, t, *_ in self.samples)
+        return worker_s + lead
 
     def result(self, request_id: int, ok: bool, message: str, **kw: object) -> BringupResult:
         return BringupResult(request_id, ok, message, tuple(self.samples),
@@ -235,9 +245,12 @@ def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
         st = Status(sample.status)
         if st & Status.WATCHDOG_RELEASED and not st & SOLENOIDS:
             release_s = step.samples[-1][0] - last
-            return step.result(cmd.request_id, True, f"released {1000 * release_s:.1f} ms "
-                               "after the last command", solenoid_seen=True,
-                               released_seen=True, release_s=release_s)
+            device_s = sample.t - step.device_time(last)
+            return step.result(cmd.request_id, True, f"released {1000 * device_s:.1f} ms "
+                               f"after the last command (device clock; "
+                               f"{1000 * release_s:.1f} ms to the worker)",
+                               solenoid_seen=True, released_seen=True, release_s=release_s,
+                               release_device_s=device_s)
     return step.result(cmd.request_id, False, f"the device did not release within "
                        f"{1000 * WATCHDOG_WAIT_S:.0f} ms of the last command",
                        solenoid_seen=True)

@@ -228,6 +228,11 @@ class BringupResult:
     #: Watchdog: seconds from the last command sent to the first sample with
     #: WATCHDOG_RELEASED and the solenoid off (NaN if it never came).
     release_s: float = float("nan")
+    #: Watchdog: the same on the device's clock: the released sample's device time minus
+    #: the device time at which the last command was sent (the worker's clock mapped onto
+    #: the device's through the fastest sample of the step). An upper bound on the
+    #: device's delay from the command's arrival, however late the worker read samples.
+    release_device_s: float = float("nan")
     #: Seconds (step clock, as in `samples`) of the last command sent (NaN: none).
     last_command_s: float = float("nan")
     #: The step did not start: controller not `none`, or the device showed a load or

@@ -372,7 +372,7 @@ CLAIMS: tuple[Claim, ...] = (
           "Squat peak torques of the UMC partly \"grouped along the horizontal axis\"; "
           "\"This behavior is no longer present with the E-UMC which generates symmetric "
           "peak support torques\": squat asymmetry UMC minus E-UMC > 0",
-          "umc_minus_eumc.squat_asymmetry", "ordinal", unit="|L-R|/(L+R)",
+          "umc_minus_eumc.squat_asymmetry", "ordinal", unit="abs(L-R)/(L+R)",
           figure="peak_torques"),
     Claim("umc_stoops_on_axis", "Figure \"peak torques\"",
           "\"During stoop left motions, only the left hip joint is supported\": the "

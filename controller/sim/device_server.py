@@ -416,9 +416,11 @@ class _Either:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`exostudy device-sim`: serve until interrupted; print the run's statistics as JSON."""
+    from controller.help_format import DefaultsHelpFormatter
+
     parser = argparse.ArgumentParser(
-        prog="exostudy device-sim", description="Simulated exoskeleton speaking the UDP protocol."
-    )
+        prog="exostudy device-sim", description="Simulated exoskeleton speaking the UDP protocol.",
+        formatter_class=DefaultsHelpFormatter)
     parser.add_argument("--port", type=int, default=DEFAULT_PORT, help="UDP port to listen on")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--script", default="paper-evaluation", help="simulated wearer's script")

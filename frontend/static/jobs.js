@@ -6,7 +6,9 @@ export async function waitForJob(jobId, onProgress, intervalMs = 300) {
     const job = await get(`/api/jobs/${jobId}`);
     onProgress(job);
     if (job.status === "done") return job;
-    if (job.status === "failed") throw new Error(job.message || "job failed");
+    if (job.status === "failed" || job.status === "cancelled") {
+      throw new Error(job.message || `job ${job.status}`);
+    }
     await new Promise((r) => setTimeout(r, intervalMs));
   }
 }

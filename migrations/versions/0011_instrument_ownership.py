@@ -125,11 +125,11 @@ def _data_up() -> None:
                                            _responses.c.participant_id)):
         if iid in used and pid in study_of:
             used[iid].add(study_of[pid])
-    for _, pid, forms in links:
+    for _link, owner, forms in links:
         for form in forms:
-            row = custom.get((form.get("instrument_key"), form.get("instrument_version")))
-            if row is not None and pid in study_of:
-                used[row["id"]].add(study_of[pid])
+            found = custom.get((form.get("instrument_key"), form.get("instrument_version")))
+            if found is not None and owner in study_of:
+                used[found["id"]].add(study_of[owner])
     # (key, version, study) -> the row that study's forms and responses now use.
     row_for: dict[tuple[str, str, int], int] = {}
     for (key, version), row in custom.items():
@@ -154,14 +154,14 @@ def _data_up() -> None:
                     _responses.c.instrument_id == row["id"],
                     _responses.c.participant_id.in_(members)).values(instrument_id=copy_id))
     for lid, pid, forms in links:
-        study = study_of.get(pid)
+        link_study = study_of.get(pid)
         changed = []
         for form in forms:
             kv = (form.get("instrument_key"), form.get("instrument_version"))
-            iid = built_in.get(kv)
-            if iid is None and study is not None:
-                iid = row_for.get((*kv, study))
-            changed.append({**form, "instrument_id": iid})
+            pinned: int | None = built_in.get(kv)
+            if pinned is None and link_study is not None:
+                pinned = row_for.get((*kv, link_study))
+            changed.append({**form, "instrument_id": pinned})
         if changed != forms:
             bind.execute(sa.update(_links).where(_links.c.id == lid)
                          .values(forms_due=changed))

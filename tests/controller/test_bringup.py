@@ -35,7 +35,7 @@ def test_zero_finds_each_encoders_count_at_standing(offsets: tuple[int, int, int
     layout = EncoderLayout(offsets, signs)
     rng = np.random.default_rng(seed)
     still = [rng.normal(0.0, math.radians(0.06), 200) for _ in range(4)]
-    z = calc.zero(rows(layout, *still))
+    z = calc.zero(rows(layout, still[0], still[1], still[2], still[3]))
     for got, want in zip(z.offsets, offsets, strict=True):
         # Within a count of the true zero, also across the wrap at 16383 -> 0.
         assert abs(int(calc.wrap(got - want))) <= 1
@@ -82,13 +82,13 @@ def test_direction_recovers_the_mounting_signs(offsets: tuple[int, int, int, int
 def test_direction_fails_clearly_when_the_wrong_side_moved() -> None:
     layout, moving, still = EncoderLayout(), flex(30.0), np.zeros(300)
     right_moved = rows(layout, still, still, moving, moving)
-    with pytest.raises(calc.BringupError, match="the right hip moved .*not the left"):
+    with pytest.raises(calc.BringupError, match=r"the right hip moved .*not the left"):
         calc.direction(right_moved, "left")
     both = rows(layout, moving, moving, moving, moving)
     with pytest.raises(calc.BringupError, match="both hips moved"):
         calc.direction(both, "left")
     small = rows(layout, flex(4.0), flex(4.0), still, still)
-    with pytest.raises(calc.BringupError, match="moved only 4.0 deg"):
+    with pytest.raises(calc.BringupError, match=r"moved only 4\.0 deg"):
         calc.direction(small, "left")
     locked = rows(layout, moving, still, still, still)
     with pytest.raises(calc.BringupError, match="cam link did not follow"):
@@ -113,7 +113,8 @@ def test_cam_offset_makes_alpha_zero_while_unlocked(offsets: tuple[int, int, int
     assert max(c.alpha_max_deg) < 0.05  # quantisation only
     fixed = EncoderLayout((offsets[0], c.cam_offsets[0], offsets[2], c.cam_offsets[1]), signs)
     for row in samples[::37]:
-        _, alpha_l, _, alpha_r = fixed.joint_angles(tuple(int(v) for v in row[3:7]))
+        c0, c1, c2, c3 = (int(v) for v in row[3:7])
+        _, alpha_l, _, alpha_r = fixed.joint_angles((c0, c1, c2, c3))
         assert abs(alpha_l) < 1e-3 and abs(alpha_r) < 1e-3
 
 

@@ -62,9 +62,10 @@ def _cohort_computing(s: Served, before: set[int]) -> tuple[dict[str, Any], int]
     wait_for(lambda: (j := s.client.get(f"/api/jobs/{cohort['job_id']}").json())
              ["status"] == "running" and j["progress"] > 0, 120,
              "the cohort's child process to report progress", poll=0.2)
-    new = children(s.proc.pid) - before
+    new = [pid for pid in children(s.proc.pid) - before
+           if b"multiprocessing.spawn" in Path(f"/proc/{pid}/cmdline").read_bytes()]
     assert len(new) == 1, f"expected one job process, got {new}"
-    return cohort, new.pop()
+    return cohort, new[0]
 
 
 def test_sigterm_cancels_a_running_cohort_within_seconds(

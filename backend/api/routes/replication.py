@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, HTTPException, Response
 from fastapi import Path as PathParam
 from fastapi.responses import FileResponse, HTMLResponse
+
 from backend.analysis import replication_jobs
 from backend.api.deps import CurrentUser, JobsDep, SessionDep, SettingsDep, access
 from backend.api.errors import AUTH_RESPONSES, NOT_FOUND

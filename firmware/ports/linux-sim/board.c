@@ -51,10 +51,16 @@ static void set_solenoids(void *ctx, int left, int right) {
      * reading repeated), as the Python device does. */
     if (b->drive_calls++ % (b->rate_factor ? b->rate_factor : 1u) != 0)
         return;
+    uint64_t t0 = linux_sim_now_us();
     if (plant_step(b->plant, b->solenoids[0], b->solenoids[1], &b->reading) != 0) {
         b->plant_failed = 1;
         return;
     }
+    uint64_t took = linux_sim_now_us() - t0;
+    if (took > b->step_max_us)
+        b->step_max_us = took;
+    if (took > LINUX_SIM_SLOW_STEP_US)
+        b->slow_steps++;
     b->have_reading = 1;
     b->periods++;
     for (int i = 0; i < 4; i++)
@@ -75,8 +81,6 @@ static int send_datagram(void *ctx, const uint8_t *data, size_t len, exo_endpoin
         return -1;
     }
     b->sends++;
-    if (b->finished && len > 3 && data[3] == 1 /* SAMPLE */)
-        b->finished_sent = 1;
     return 0;
 }
 
@@ -100,9 +104,7 @@ static long receive_datagram(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *
             continue; /* an empty datagram carries nothing; the protocol's minimum is 56 */
         from->ip = ntohl(addr.sin_addr.s_addr);
         from->port = ntohs(addr.sin_port);
-        if (from->ip != b->host_ip)
-            b->foreign++;
-        return (long)r;
+        return (long)r; /* the core checks the source address and counts foreign ones */
     }
 }
 

@@ -12,7 +12,9 @@
 #include "exo_board.h"
 #include "plant.h"
 
-#define LINUX_SIM_LATE_US 2000u /* a sample sent later than this after its period began */
+/* A step of the simulated wearer this long takes a good part of the 2 ms a sample may
+ * be late: counted, to tell the wearer's cost from the core's. */
+#define LINUX_SIM_SLOW_STEP_US 1000u
 
 typedef struct {
     int sock;
@@ -26,14 +28,15 @@ typedef struct {
     unsigned rate_factor;  /* fault probe: the plant steps once every this many samples */
     uint64_t drive_calls;  /* set_solenoids calls while running */
     int plant_failed;      /* the wearer is gone: the port exits */
-    int finished;          /* the script or file has ended (a sample showed it) */
-    int finished_sent;     /* ... and the sample that showed it was sent */
+    int finished;          /* the script or file has ended with this period's step; the
+                              core builds and sends that sample in the same poll */
     uint64_t periods;      /* sample periods the plant was stepped */
+    uint64_t step_max_us;  /* longest step of the wearer (pipe round trip included) */
+    uint64_t slow_steps;   /* steps longer than LINUX_SIM_SLOW_STEP_US */
     uint64_t spi_frames;
     uint64_t sends;
     uint64_t send_errors;
     uint64_t receive_errors;
-    uint64_t foreign;      /* datagrams from an address other than the host */
     uint32_t host_ip;      /* host byte order */
 } linux_sim_board;
 

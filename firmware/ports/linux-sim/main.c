@@ -292,21 +292,7 @@ int main(int argc, char **argv) {
     cfg.rate_factor = (uint32_t)o.rate_factor;
     cfg.bus = EXO_BUS_CHIP_SELECTS;
 
-    /* Signals: blocked except inside ppoll, so a SIGTERM can never slip in between the
-     * check of the flag and the wait. */
-    struct sigaction sa = {0};
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
     signal(SIGPIPE, SIG_IGN); /* a dead wearer shows as a failed write, not a kill */
-    sigset_t blocked, waitmask;
-    sigemptyset(&blocked);
-    sigaddset(&blocked, SIGINT);
-    sigaddset(&blocked, SIGTERM);
-    sigprocmask(SIG_BLOCK, &blocked, &waitmask);
-    sigdelset(&waitmask, SIGINT);
-    sigdelset(&waitmask, SIGTERM);
 
     if (o.realtime)
         fprintf(stderr, PROG ": %s\n", realtime());
@@ -341,6 +327,23 @@ int main(int argc, char **argv) {
         return 3;
     }
 
+    /* From here on the device has state to wind down: SIGINT and SIGTERM set a flag and
+     * are blocked except inside ppoll, so one can never slip in between the check of
+     * the flag and the wait. (Before, while the wearer starts, they end the process at
+     * once: nothing is energised yet, and the wearer dies with it.) */
+    struct sigaction sa = {0};
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    sigset_t blocked, waitmask;
+    sigemptyset(&blocked);
+    sigaddset(&blocked, SIGINT);
+    sigaddset(&blocked, SIGTERM);
+    sigprocmask(SIG_BLOCK, &blocked, &waitmask);
+    sigdelset(&waitmask, SIGINT);
+    sigdelset(&waitmask, SIGTERM);
+
     linux_sim_board ctx;
     exo_board board;
     linux_sim_board_init(&ctx, &board, sock, &wearer, host_ip);
@@ -374,8 +377,8 @@ int main(int argc, char **argv) {
             code = 3;
             break;
         }
-        if (!o.loop && ctx.finished_sent)
-            break;
+        if (!o.loop && ctx.finished)
+            break; /* the script's last sample went out in this poll */
         uint64_t now = linux_sim_now_us();
         if (now >= end)
             break;

@@ -59,12 +59,21 @@ static double percentile_ms(const linux_sim_series *s, double q) {
     return v;
 }
 
-/* A float as Python's json.dumps writes it (NaN as NaN). */
+/* A float as Python's json.dumps writes it: the shortest digits that read back as the
+ * same double, ".0" on a whole number, NaN as NaN. */
 static void put_float(FILE *out, const char *key, double v) {
-    if (isnan(v))
+    if (isnan(v)) {
         fprintf(out, "\"%s\": NaN", key);
-    else
-        fprintf(out, "\"%s\": %.17g", key, v);
+        return;
+    }
+    char text[40];
+    for (int digits = 1; digits <= 17; digits++) {
+        snprintf(text, sizeof text, "%.*g", digits, v);
+        if (strtod(text, NULL) == v)
+            break;
+    }
+    int plain = strpbrk(text, ".eni") == NULL; /* no point, exponent, inf or nan */
+    fprintf(out, "\"%s\": %s%s", key, text, plain ? ".0" : "");
 }
 
 void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out) {
@@ -113,8 +122,11 @@ void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out)
             (unsigned long long)st->watchdog_releases, (unsigned long long)st->host_changes,
             (unsigned long long)st->resyncs, (unsigned long long)st->send_errors, host);
     put_float(out, "streaming_s", st->host_known ? (double)st->streaming_us / 1e6 : 0.0);
-    fprintf(out, ", \"implementation\": \"c\", \"wearer_periods\": %llu, \"spi_frames\": %llu}\n",
-            (unsigned long long)s->board->periods, (unsigned long long)s->board->spi_frames);
+    fprintf(out, ", \"implementation\": \"c\", \"wearer_periods\": %llu, ",
+            (unsigned long long)s->board->periods);
+    put_float(out, "wearer_step_max_ms", (double)s->board->step_max_us / 1000.0);
+    fprintf(out, ", \"wearer_slow_steps\": %llu, \"spi_frames\": %llu}\n",
+            (unsigned long long)s->board->slow_steps, (unsigned long long)s->board->spi_frames);
     free(s->lateness.values);
     free(s->rtt.values);
     s->lateness.values = s->rtt.values = NULL;

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -15,6 +15,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from backend.analysis import job_process, jobs
 from backend.analysis.jobs import JobCancelledError, JobRunner, Reporter
+from backend.core.errors import ConflictError
 from backend.db import migrate
 from backend.db.cohorts import CohortRecord
 from backend.db.engine import make_engine, make_session_factory
@@ -53,9 +54,11 @@ def test_shutdown_cancels_running_and_queued_jobs_with_the_reason(
     runner = JobRunner(sessions)
     failures: dict[int, str] = {}
     ids = []
+    def told(target: int) -> Callable[[str], None]:
+        return lambda message: failures.__setitem__(target, message)
+
     for target in (1, 2):
-        job_id, _ = runner.submit("cohort", target, _until_cancelled,
-                                  lambda m, t=target: failures.__setitem__(t, m),
+        job_id, _ = runner.submit("cohort", target, _until_cancelled, told(target),
                                   lane="cohort", owner_id=None)
         ids.append(job_id)
     wait_for(lambda: _job(sessions, ids[0]).status == "running", 30, "the first job to run")
@@ -68,7 +71,7 @@ def test_shutdown_cancels_running_and_queued_jobs_with_the_reason(
     # What each job was producing is told the same reason (running and queued alike).
     assert set(failures) == {1, 2}
     assert all("server shut down" in m for m in failures.values())
-    with pytest.raises(RuntimeError, match="shutting down"):
+    with pytest.raises(ConflictError, match="shutting down"):
         runner.submit("cohort", 3, _until_cancelled, lane="cohort")
 
 
@@ -101,10 +104,14 @@ def test_accounts_take_turns_within_a_lane(sessions: sessionmaker[Session]) -> N
         return "gate"
 
     def record(name: str) -> jobs.Work:
-        return lambda progress: order.append(name) or name
+        def work(progress: Reporter) -> str:
+            order.append(name)
+            return name
+        return work
 
     try:
-        runner.submit("cohort", 0, blocked, lane="cohort", owner_id=owners[0])
+        gate_job, _ = runner.submit("cohort", 0, blocked, lane="cohort", owner_id=owners[0])
+        wait_for(lambda: _job(sessions, gate_job).status == "running", 30, "the gate job")
         futures = [runner.submit("cohort", n, record(f"a{n}"), lane="cohort",
                                  owner_id=owners[0])[1] for n in (1, 2, 3)]
         futures.append(runner.submit("cohort", 9, record("b1"), lane="cohort",
@@ -157,7 +164,7 @@ def test_a_child_job_is_terminated_when_cancelled(tmp_path: Path) -> None:
         try:
             job_process.run_in_child(report_pid_forever, (str(pid_file),), seen.append,
                                      cancelled)
-        except BaseException as exc:  # noqa: BLE001 - the test inspects it
+        except BaseException as exc:  # the test inspects it
             result.append(exc)
 
     thread = threading.Thread(target=run)

@@ -49,6 +49,15 @@ def _write(db_url: str, *rows: Any) -> list[int]:
     return ids
 
 
+def _finished(client: TestClient, job_id: int, timeout: float) -> dict[str, Any]:
+    """The job once it is final (done, failed or cancelled)."""
+    def final() -> dict[str, Any]:
+        job: dict[str, Any] = _ok(client.get(f"/api/jobs/{job_id}"))
+        return job if job["status"] in ("done", "failed", "cancelled") else {}
+
+    return wait_for(final, timeout, f"job {job_id} to finish", poll=0.1)
+
+
 def _study_session(client: TestClient) -> tuple[int, int]:
     study = _ok(client.post("/api/studies", json={"name": "jobs"}), 201)
     part = _ok(client.post(f"/api/studies/{study['id']}/participants",
@@ -64,8 +73,7 @@ def test_a_cohort_job_is_a_job_like_any_other(client: TestClient) -> None:
     job = _ok(client.get(f"/api/jobs/{cohort['job_id']}"))
     assert job["kind"] == "cohort" and job["target_id"] == cohort["id"]
     assert job["lane"] == "cohort" and job["status"] in ("queued", "running", "done")
-    done = wait_for(lambda: (j := _ok(client.get(f"/api/jobs/{cohort['job_id']}")))
-                    ["status"] in ("done", "failed") and j, 300, "the cohort job", poll=0.2)
+    done = _finished(client, cohort["job_id"], 300)
     assert done["status"] == "done", done["message"]
     assert done["progress"] == 1.0 and done["started_at"] and done["finished_at"]
     assert _ok(client.get(f"/api/cohorts/{cohort['id']}"))["status"] == "ready"
@@ -106,9 +114,7 @@ def test_cohorts_are_limited_per_account_and_study_jobs_pass_them(
         assert "cohort_jobs_per_account" in r.text and "at most 2" in r.text
         us = _ok(client.post(f"/api/studies/{study_id}/utility-sets",
                              json={"name": "u", "precompression_pct": 25}), 202)
-        done = wait_for(lambda: (j := _ok(client.get(f"/api/jobs/{us['job_id']}")))
-                        ["status"] in ("done", "failed") and j, 120, "the utility job",
-                        poll=0.1)
+        done = _finished(client, us["job_id"], 120)
         assert done["status"] == "done", done["message"]
         # It did not wait for the cohorts: they are still unfinished.
         statuses = [_ok(client.get(f"/api/jobs/{c['job_id']}"))["status"]

@@ -31,7 +31,7 @@ class _Closes:
 
     def _read(self) -> None:
         while True:
-            message: dict[str, Any] = self._ws.receive()
+            message = self._ws.receive()
             if message["type"] == "websocket.close":
                 self.code, self.reason = message.get("code", 1000), message.get("reason", "")
                 return

@@ -60,6 +60,13 @@ def test_the_api_refuses_a_quote_in_name_or_source_id(client: TestClient) -> Non
     assert client.get(url).json() == []
 
 
+def _recording_resolver(calls: list[str]) -> Any:
+    def resolve(query: str, **_: Any) -> list[Any]:
+        calls.append(query)
+        return []
+    return resolve
+
+
 def _inlet(name: str, source_id: str = "") -> tuple[MarkerInlet, list[str], list[float]]:
     failures: list[str] = []
     delays: list[float] = []
@@ -71,7 +78,7 @@ def _inlet(name: str, source_id: str = "") -> tuple[MarkerInlet, list[str], list
 def test_an_inlet_with_a_bad_name_fails_without_resolving(
         monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[str] = []
-    monkeypatch.setattr(pylsl, "resolve_bypred", lambda q, **_: calls.append(q) or [])
+    monkeypatch.setattr(pylsl, "resolve_bypred", _recording_resolver(calls))
     inlet, failures, _ = _inlet("a'b")
     inlet.start()
     wait_for(lambda: not inlet.alive, 10, "the inlet to end")
@@ -83,7 +90,7 @@ def test_a_resolver_that_returns_at_once_is_asked_with_backoff(
     # liblsl answers a query it refuses at once with nothing: before, the inlet asked
     # again immediately, for ever.
     calls: list[str] = []
-    monkeypatch.setattr(pylsl, "resolve_bypred", lambda q, **_: calls.append(q) or [])
+    monkeypatch.setattr(pylsl, "resolve_bypred", _recording_resolver(calls))
     inlet, _, delays = _inlet("Markers", "marker-src-1")
     waited = threading.Event()
 
@@ -118,7 +125,12 @@ def test_an_inlet_that_keeps_failing_is_closed_as_failed(
     monkeypatch.setattr(pylsl, "resolve_bypred", lambda q, **_: [object()])
     monkeypatch.setattr(pylsl, "StreamInlet", _Broken)
     inlet, failures, delays = _inlet("Markers")
-    monkeypatch.setattr(inlet, "_sleep", lambda s: delays.append(s) and False)
+
+    def sleep(seconds: float) -> bool:
+        delays.append(seconds)
+        return False
+
+    monkeypatch.setattr(inlet, "_sleep", sleep)
     inlet.start()
     wait_for(lambda: not inlet.alive, 10, "the inlet to give up")
     assert len(failures) == 1 and "failed attempts" in failures[0]

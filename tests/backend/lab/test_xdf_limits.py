@@ -15,7 +15,7 @@ import pyxdf
 from fastapi.testclient import TestClient
 
 from backend.lab import xdf_limits
-from tests.backend.lab.xdf_writer import XdfStream, _chunk, _varlen, write_xdf
+from tests.backend.lab.xdf_writer import XdfStream, _chunk, write_xdf
 
 
 def _header(sid: int, channels: int, fmt: str) -> bytes:

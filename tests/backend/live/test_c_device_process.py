@@ -5,9 +5,13 @@ and printing the same statistics as the Python device on SIGTERM."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
@@ -15,7 +19,10 @@ from fastapi.testclient import TestClient
 from backend.core.config import Settings
 from backend.live import device_process
 from backend.main import create_app
-from controller.device.auth import create_key
+from controller.device.auth import create_key, load_key
+from controller.device.base import LockCommand, Sample, Status
+from controller.device.udp import UdpDevice
+from controller.sim.device_server import ServerStats
 from tests import c_device
 from tests.login import log_in
 from tests.polling import free_udp_port, wait_for
@@ -69,6 +76,10 @@ def test_the_c_device_holds_its_port_and_a_later_server_reclaims_it(
     stats = json.loads([line for line in log.read_text().splitlines()
                         if line.startswith("{")][-1])
     assert stats["implementation"] == "c" and stats["samples_sent"] == 0
+    # The same summary as the Python device: every key, with the same JSON types.
+    python = ServerStats().summary()
+    assert set(python) <= set(stats)
+    assert {k: type(v) for k, v in python.items()} == {k: type(stats[k]) for k in python}
     assert stats["host"] == "" and stats["watchdog_releases"] == 0
 
 
@@ -123,3 +134,69 @@ def test_the_server_streams_from_the_c_device_and_restarts_it_for_a_new_simulati
                         > ticks + 100 and b, 60, "100 more ticks from the new C device")
         assert body["device"]["alive"] and body["device"]["link_drops"]["device_replay"] == 0
         assert body["device"]["link_drops"]["device_auth"] == 0
+
+
+def _play(command: list[str], port: int, key_file: Path) -> tuple[list[Sample], dict[str, Any]]:
+    """Run a device to the end of its script, answering every sample without a lock;
+    every sample it sent, and its statistics."""
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    samples: list[Sample] = []
+    try:
+        wait_for(lambda: device_process.udp_port_bound(port) or proc.poll() is not None, 60,
+                 "the device to bind its port")
+        dev = UdpDevice("127.0.0.1", port, key=load_key(key_file))
+        dev.open()
+        try:
+            while proc.poll() is None or dev_has_more(dev, samples):
+                s = dev.read(0.5)
+                if s is not None:
+                    samples.append(s)
+                    dev.send(LockCommand(s.seq, False, False))
+        finally:
+            dev.close()
+        out, _ = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return samples, json.loads(out.strip().splitlines()[-1])
+
+
+def dev_has_more(dev: UdpDevice, samples: list[Sample]) -> bool:
+    """After the device exited: take what is still queued on the socket."""
+    s = dev.read(0.2)
+    if s is None:
+        return False
+    samples.append(s)
+    return True
+
+
+@pytest.mark.slow
+def test_the_c_device_plays_the_same_wearer_as_the_python_device(key_file: Path) -> None:
+    """Same seed and script, no lock commanded: the two devices send the same counts,
+    status and ground truth, sample for sample, and both stop at the script's end."""
+    args = ["--seed", "2", "--script", "hip-flex-left", "--no-loop", "--key-file",
+            str(key_file)]
+    ports = free_udp_port(), free_udp_port()
+    commands = [
+        [sys.executable, "-m", "controller.sim.device_server", "--port", str(ports[0]), *args],
+        [str(c_device.device_binary()), "--port", str(ports[1]), *args,
+         "--python", sys.executable],
+    ]
+    with ThreadPoolExecutor(2) as pool:
+        (py, py_stats), (c, c_stats) = pool.map(_play, commands, ports, [key_file] * 2)
+    assert len(py) == len(c) == py_stats["samples_sent"] == c_stats["samples_sent"] > 1000
+    assert [s.seq for s in c] == list(range(len(c)))
+    # The solenoid and watchdog bits depend on when commands arrived; the rest may not.
+    timing = Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT | Status.WATCHDOG_RELEASED
+
+    def seen(s: Sample) -> tuple[object, ...]:
+        t = s.truth
+        assert t is not None
+        progress = None if math.isnan(t.progress) else t.progress  # NaN != NaN
+        return s.seq, s.t, s.counts, s.status & ~timing, t.activity, t.lift_index, progress
+
+    assert [seen(s) for s in c] == [seen(s) for s in py]
+    assert not any(s.status & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for s in c)
+    assert len({s.counts for s in c}) > 100  # the wearer moved

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from backend import guide
+from backend.api import guide
 from backend.api.web_surface import CSP
 from backend.core import resources
 

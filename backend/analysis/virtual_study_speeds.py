@@ -1,0 +1,18 @@
+"""The virtual study's simulator speed-ups, apart from the study itself so that the
+command line's help can show them without importing the whole analysis stack."""
+
+from __future__ import annotations
+
+from controller.device.base import MAX_SPEED
+
+#: Requested simulator speed-up during the evaluation trials: the simulator's maximum
+#: (`controller.device.simulated.MAX_SPEED`).
+#: The worker never runs ahead of what the server stores (it holds a sped-up simulation
+#: while ticks queue, `backend.worker.process._hold`), so asking for more than a loaded
+#: machine delivers costs nothing and loses nothing; on a quiet 2-core machine 80x gave a
+#: median of 6,200 ticks/s. See README "Results and the virtual study".
+DEFAULT_SPEED: float = MAX_SPEED
+#: Speed-up while demonstrations are recorded: a recording starts a moment after the new
+#: wearer does, and at 80x that moment costs a lift or two per recording (103 instead
+#: of 126 segments in the default study); at 30x it costs none of the lifts measured.
+COLLECTION_SPEED: float = 30.0
