@@ -219,7 +219,7 @@ def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None =
     if len(set(subs.values())) != len(subs):
         subs = {p.id: f"{label(p.code)}{p.id}" for p in participants}
     yield "participants.tsv", _tsv(
-        ["participant_id", "age", "sex", "height", "weight"],
+        list(data_dictionary.BIDS_FILES["participants.tsv"][1]),
         [[f"sub-{subs[p.id]}", p.age, p.sex, p.height_m, p.mass_kg]
          for p in participants]).encode()
     yield "participants.json", _json(data_dictionary.bids_sidecar("participants.tsv")).encode()

@@ -1,7 +1,8 @@
 """The wheel is the application: built with `python -m build`, installed into a new
 virtual environment with no clone on its path, it migrates a database, serves the
 console (pages, modules, uPlot, /docs, the guide) with the worker and the spawned UDP
-device simulator, and runs a small virtual study.
+device simulator, runs a small virtual study, and writes that study's results, its BIDS
+export and a small virtual cohort.
 
 Speed: the new environment borrows the dependencies already installed in the test's
 own environment (a `.pth` line naming its site-packages, which adds the folder without
@@ -193,16 +194,44 @@ def test_serve_from_the_wheel(installed: Installed, served: str) -> None:
                  "samples from the wheel's device simulator", poll=0.5)
 
 
-def test_a_small_virtual_study_from_the_wheel(installed: Installed) -> None:
+@pytest.fixture(scope="module")
+def virtual_study(installed: Installed) -> Path:
+    """The smallest virtual study the command accepts, run from the wheel."""
     out = installed.cwd / "vs"
     installed.run("virtual-study", "--participants", "1", "--data-participants", "2",
                   "--eumc", "0", "--rates", "paper-rates", "--no-model-evaluation",
                   "--collection-speed", "400", "--out", str(out), timeout=900)
-    summary = json.loads((out / "summary.json").read_text())
+    return out
+
+
+def test_a_small_virtual_study_from_the_wheel(installed: Installed, virtual_study: Path
+                                              ) -> None:
+    summary = json.loads((virtual_study / "summary.json").read_text())
     assert summary["exostudy_version"] == installed.run("--version").stdout.split()[1]
-    assert (out / "paper-rates" / "performance.md").is_file()
+    assert (virtual_study / "paper-rates" / "performance.md").is_file()
     # One evaluation participant, UMC and PEC: two trials, each with its ticks.
     assert len(summary["trials"]) == 2, summary["trials"]
+    assert all(t["ticks"] > 0 for t in summary["trials"])
+
+
+def test_results_export_and_cohort_from_the_wheel(installed: Installed, virtual_study: Path
+                                                  ) -> None:
+    version = installed.run("--version").stdout.split()[1]
+    db = str(virtual_study / "study.db")
+    results = installed.cwd / "results"
+    installed.run("results", "--study", "1", "--db", db, "--out", str(results),
+                  "--no-timelines")
+    assert json.loads((results / "results.json").read_text())["exostudy_version"] == version
+    assert (results / "performance.md").is_file() and (results / "peak_torques.svg").is_file()
+    bids = installed.cwd / "bids"
+    installed.run("export", "--study", "1", "--bids", str(bids), "--db", db)
+    described = json.loads((bids / "dataset_description.json").read_text())
+    assert described["GeneratedBy"][0]["Version"] == version
+    assert list(bids.glob("sub-*/ses-*/motion/*_motion.tsv"))
+    cohort = installed.cwd / "cohort"
+    installed.run("cohort", "--participants", "2", "--controllers", "pec", "--out",
+                  str(cohort))
+    assert (cohort / "metrics.csv").is_file() and (cohort / "README.md").is_file()
 
 
 def test_the_installed_python_path_holds_no_part_of_the_clone(installed: Installed) -> None:

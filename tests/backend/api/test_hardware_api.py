@@ -93,9 +93,10 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
         res = w.json()["result"]
         assert res["values"]["solenoid_seen"] and res["values"]["released_seen"]
         # The device cannot release before its 100 ms; whether it passed is the 110 ms
-        # rule on the device's clock.
+        # rule on the device's clock (a sample's time is when it was due, so a late one
+        # can read a little under 100 there).
         assert res["values"]["release_ms"] >= 100.0
-        assert res["values"]["device_release_ms"] >= 100.0
+        assert res["values"]["device_release_ms"] <= res["values"]["release_ms"]
         assert res["passed"] == (res["values"]["device_release_ms"] <= 110.0)
 
         link = client.post("/api/hardware/link").json()

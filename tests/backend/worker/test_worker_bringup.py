@@ -94,7 +94,6 @@ def test_capture_pulse_and_watchdog(worker: BringupWorker) -> None:
     assert dog.solenoid_seen and dog.released_seen
     # The device holds the solenoid at least its 100 ms after the last command.
     assert dog.release_s >= 0.100
-    assert dog.release_device_s >= 0.100
     released = next(s for s in dog.samples if Status(s[7]) & Status.WATCHDOG_RELEASED)
     lead = max(s[2] - s[0] for s in dog.samples)  # device time minus arrival, fastest
     assert dog.release_device_s == pytest.approx(released[2] - (dog.last_command_s + lead))
