@@ -3,11 +3,11 @@ with its analysis once it is ready."""
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from backend.schemas.fields import UtcDatetime
 from controller.evaluation.cohort import COHORT_CONTROLLERS
 
 #: A console cohort runs on the server's job thread: bounded so one request cannot hold
@@ -48,8 +48,8 @@ class CohortOut(BaseModel):
     status: str
     error: str
     wall_s: float | None
-    created_at: datetime
-    finished_at: datetime | None
+    created_at: UtcDatetime
+    finished_at: UtcDatetime | None
     job_id: int | None = None
     #: The job's progress, 0..1 (also at `GET /api/jobs/{job_id}`).
     progress: float | None = None

@@ -3,12 +3,11 @@ and trials (the ORM rows stay in `backend.db.evidence_tables`)."""
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from backend.schemas.fields import MAX_ID
+from backend.schemas.fields import MAX_ID, UtcDatetime
 
 SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
 
@@ -29,8 +28,8 @@ class RecordingOut(BaseModel):
     run_id: int | None
     label: str
     status: str
-    started_at: datetime
-    ended_at: datetime | None
+    started_at: UtcDatetime
+    ended_at: UtcDatetime | None
     first_tick_id: int | None
     last_tick_id: int | None
     notes: str
@@ -71,7 +70,7 @@ class SegmentOut(BaseModel):
     end: int
     label: str
     source: str
-    updated_at: datetime
+    updated_at: UtcDatetime
 
 
 class TrialSegmentOut(BaseModel):
@@ -85,7 +84,7 @@ class TrialSegmentOut(BaseModel):
     end: int
     label: str
     source: str
-    updated_at: datetime
+    updated_at: UtcDatetime
 
 
 class RecordingAngles(BaseModel):
@@ -118,7 +117,7 @@ class ModelSetOut(BaseModel):
     params: dict[str, Any]
     segment_ids: list[int]
     error: str
-    created_at: datetime
+    created_at: UtcDatetime
     job_id: int | None = None
 
 
@@ -141,7 +140,7 @@ class UtilitySetOut(BaseModel):
     human_source: str
     status: str
     error: str
-    created_at: datetime
+    created_at: UtcDatetime
     job_id: int | None = None
 
 
@@ -170,9 +169,9 @@ class JobOut(BaseModel):
     lane: str
     progress: float
     message: str
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
+    created_at: UtcDatetime
+    started_at: UtcDatetime | None
+    finished_at: UtcDatetime | None
 
 
 class TrialPlanIn(BaseModel):
@@ -221,8 +220,8 @@ class TrialOut(BaseModel):
     utility_set_id: int | None
     run_id: int | None
     config_snapshot: dict[str, Any] | None
-    started_at: datetime | None
-    ended_at: datetime | None
+    started_at: UtcDatetime | None
+    ended_at: UtcDatetime | None
     end_reason: str
     #: Ticks stored for the trial, set when it ends (also when interrupted).
     tick_count: int | None = None

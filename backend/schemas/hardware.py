@@ -3,10 +3,11 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from backend.schemas.fields import UtcDatetime
 
 Side = Literal["left", "right"]
 STEP_NAMES: tuple[str, ...] = ("zero", "direction_left", "direction_right", "offset",
@@ -62,7 +63,7 @@ class StepOut(BaseModel):
 
     passed: bool
     message: str
-    at: datetime
+    at: UtcDatetime
     values: dict[str, Any] = Field(default_factory=dict)
 
 
@@ -80,8 +81,8 @@ class ProfileOut(BaseModel):
     encoder_directions: list[int]
     cam_output_offsets: list[int]
     steps: dict[str, StepOut]
-    created_at: datetime
-    completed_at: datetime | None
+    created_at: UtcDatetime
+    completed_at: UtcDatetime | None
     created_by: int | None
 
 

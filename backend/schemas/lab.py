@@ -3,12 +3,12 @@ and the marker message on the live WebSocket (the rows stay in `backend.db.lab`)
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from backend.lab.lsl_names import LSL_TEXT_PATTERN
+from backend.schemas.fields import UtcDatetime
 
 #: The marker buttons a study starts with; a study can change them.
 DEFAULT_MARKER_LABELS: tuple[str, ...] = ("box dropped", "participant paused",
@@ -46,7 +46,7 @@ class MarkerOut(BaseModel):
     note: str
     source: str
     stream_id: int | None
-    created_at: datetime
+    created_at: UtcDatetime
 
 
 class LiveMarker(BaseModel):
@@ -108,7 +108,7 @@ class MarkerStreamOut(BaseModel):
     source_id: str
     hostname: str
     active: bool
-    created_at: datetime
+    created_at: UtcDatetime
     connected: bool = False
     error: str = Field(default="", description="why the server closed the subscription")
 
@@ -142,4 +142,4 @@ class XdfAttachmentOut(BaseModel):
     size_bytes: int
     sha256: str
     streams: list[dict[str, Any]]
-    created_at: datetime
+    created_at: UtcDatetime

@@ -1,9 +1,9 @@
 """MkDocs hook of the guide: benchmark tables from the benchmarks' own result files.
 
-A page writes `<!-- bench: NAME -->` on a line of its own where a table belongs; the build puts there the
-table of `bench/results/NAME.json` (written by the benchmark, see bench/record.py) with
-the command and the conditions it was measured under. A marker without its file fails
-the build, so a page never shows a table that no benchmark wrote.
+A page writes `<!-- bench: NAME -->` on a line of its own where a table belongs; the
+build puts there the table of `bench/results/NAME.json` (written by the benchmark, see
+bench/record.py) with the command and the conditions it was measured under. A marker
+without its file fails the build, so a page never shows a table that no benchmark wrote.
 
 The offline plugin adds a script from a CDN (a web-worker shim for pages opened from
 disk); ExoStudy loads nothing from the internet, so the hook takes it out again. Served

@@ -12,6 +12,7 @@ from fastapi import APIRouter, Depends
 
 from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, access, current_user
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, NOT_FOUND
+from backend.api.params import HardwareProfileId
 from backend.db.hardware import HardwareProfile
 from backend.schemas.hardware import (
     CaptureIn,
@@ -44,7 +45,7 @@ def profiles(db: SessionDep) -> list[HardwareProfile]:
 
 @router.get("/profiles/{profile_id}", response_model=ProfileOut, responses=NOT_FOUND,
             openapi_extra=access("experimenter"))
-def profile(profile_id: int, db: SessionDep) -> HardwareProfile:
+def profile(profile_id: HardwareProfileId, db: SessionDep) -> HardwareProfile:
     """One hardware profile."""
     return hw.get(db, profile_id)
 

@@ -1,6 +1,6 @@
 """The role matrix, route by route: every operation in the OpenAPI schema is called by
 an outsider, a viewer, an experimenter, an owner and an admin, and answers 403 exactly
-when its rule (`x-exostudy-access`) does not allow the role. The README's table is
+when its rule (`x-exostudy-access`) does not allow the role. The table in docs/access.md is
 checked against the same schema."""
 
 from __future__ import annotations
@@ -169,9 +169,9 @@ def test_a_site_limited_member_sees_and_reaches_only_their_site(
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "site"]
 
 
-def test_the_readme_role_matrix_is_the_schema(client: TestClient) -> None:
-    readme = (Path(__file__).resolve().parents[3] / "README.md").read_text()
-    section = readme.split("## Access and roles", 1)[1].split("\n## ", 1)[0]
+def test_the_documented_role_matrix_is_the_schema(client: TestClient) -> None:
+    page = (Path(__file__).resolve().parents[3] / "docs" / "access.md").read_text()
+    section = page.split("## Access and roles", 1)[1].split("\n## ", 1)[0]
     rows = dict(re.findall(r"^\| `(\w+ [^`]+)` \| (\w+) \|", section, re.M))
     schema = client.app.openapi()  # type: ignore[attr-defined]
     expected = {f"{m.upper()} {p}": rule for m, p, rule in _operations(schema)}
@@ -179,7 +179,7 @@ def test_the_readme_role_matrix_is_the_schema(client: TestClient) -> None:
 
 
 def matrix_markdown(schema: dict[str, Any]) -> str:
-    """The README's role matrix, from the schema (`python -m tests.backend.api.test_roles`)."""
+    """The role matrix of docs/access.md, from the schema (`python -m tests.backend.api.test_roles`)."""
     columns = ("member", *ROLES[1:])
     lines = ["| operation | needs | " + " | ".join(columns) + " |",
              "|---|---|" + "---|" * len(columns)]
