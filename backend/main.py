@@ -14,10 +14,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from backend import console_pages
 from backend.analysis import jobs
-from backend.api import docs_assets, guide, json_text, log_redaction, web_surface
+from backend.api import docs_assets, guide, json_text, log_redaction, viewer, web_surface
 from backend.api.deps import authorize, document_access
 from backend.api.errors import install_handlers
-from backend.api.openapi import document_framework_errors
+from backend.api.openapi import document_framework_errors, name_operations
 from backend.api.routes import (
     audit,
     auth,
@@ -46,7 +46,6 @@ from backend.core.config import Settings, get_settings
 from backend.core.resources import version
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
-from backend.live import viewer
 from backend.live.runtime import Runtime
 from backend.questionnaires.catalog import ensure_built_ins
 from backend.study import accounts, activity
@@ -166,6 +165,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(viewer.router)
     document_framework_errors(app)
     document_access(app)
+    name_operations(app)  # operationIds: the console client's names
     upload_paths.extend(web_surface.file_routes(app))
 
     static = settings.frontend_dir / "static"

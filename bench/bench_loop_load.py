@@ -31,6 +31,7 @@ from backend import bootstrap  # noqa: E402
 from backend.schemas.live import LoopReport  # noqa: E402
 from backend.worker.messages import WorkerConfig  # noqa: E402
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor  # noqa: E402
+from controller.spec import ControllerSpec  # noqa: E402
 
 HOG = "while True:\n    pass\n"
 
@@ -59,9 +60,9 @@ def main() -> int:
     bootstrap.ensure_models(models)
     utilities = bootstrap.utilities_path(tmp, 25.0)
     bootstrap.ensure_utilities(utilities, 25.0)
-    cfg = WorkerConfig(device_kind="sim", device_script="paper-evaluation", controller="umc",
-                       controller_config={"models_path": str(models),
-                                          "utilities_path": str(utilities)},
+    cfg = WorkerConfig(device_kind="sim", device_script="paper-evaluation",
+                       spec=ControllerSpec("umc", models_path=str(models),
+                                           utilities_path=str(utilities)),
                        models_path=str(models))
     sup = WorkerSupervisor(cfg, WorkerCallbacks())
     sup.start()

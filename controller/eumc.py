@@ -22,7 +22,7 @@ from controller.kernel.tick import (
     window_full,
 )
 from controller.motion_model import ModelSet
-from controller.registry import register
+from controller.registry import PlanPlace, register
 from controller.spec import ControllerSpec
 from controller.umc import UMC, evaluate
 from controller.utilities import UtilitySet
@@ -84,7 +84,9 @@ class EUMC(UMC):
         return ticks_per_run(c.eumc_triggered_rate_hz)
 
 
-@register("eumc", needs_models=True)
+@register("eumc", needs_models=True, needs_calibration=True, estimates_intent=True,
+          label="E-UMC", colour="#9467bd", marker="^",
+          plan=PlanPlace(rank=1, counterbalanced=False, optional=True))
 def build(spec: ControllerSpec) -> EUMC:
     """The E-UMC of a specification."""
     return EUMC(load_models(spec), load_utilities(spec), spec.settings)

@@ -75,7 +75,7 @@ class PassThroughController(Controller):
         )
 
 
-@register("none")
+@register("none", label="none", idle=True)
 def build(spec: ControllerSpec) -> PassThroughController:
     """Recording mode with the specification's encoder layout."""
     return PassThroughController(spec.settings.layout)

@@ -12,7 +12,7 @@ from numba import njit
 from controller.config import ControllerConfig, ticks_per_run
 from controller.kernel import Compiled, Kernel, KernelController
 from controller.kernel.tick import LOCK_BOTH, NO_LOCK, begin, finish, replay_sample
-from controller.registry import register
+from controller.registry import PlanPlace, register
 from controller.spec import ControllerSpec
 
 
@@ -54,7 +54,7 @@ class PEC(KernelController):
         super().__init__(c, Kernel(c, COMPILED, ticks_per_run(c.pec_rate_hz)))
 
 
-@register("pec")
+@register("pec", label="PEC", colour="#ff7f0e", marker="o", plan=PlanPlace(rank=2))
 def build(spec: ControllerSpec) -> PEC:
     """The PEC of a specification."""
     return PEC(spec.settings)

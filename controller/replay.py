@@ -32,6 +32,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from controller import registry
 from controller.base import Controller
 from controller.calibration import calibrate
 from controller.config import ControllerConfig
@@ -221,7 +222,8 @@ def build(
     rec: AngleRecording,
     calibrate_seconds: float = 2.0,
 ) -> Controller:
-    """The controller for a replay, calibrated from the recording's start for E-UMC."""
+    """The controller for a replay; one that needs a calibration (the E-UMC) is
+    calibrated from the recording's start, against the model set's start posture."""
     if name not in controller_names():
         raise ValueError(f"unknown controller {name!r}; choose one of {controller_names()}")
     if needs_models(name) and (models is None or utilities is None):
@@ -229,7 +231,10 @@ def build(
     spec = ControllerSpec(name, settings,
                           models_path=None if models is None else str(models),
                           utilities_path=None if utilities is None else str(utilities))
-    if name == "eumc" and settings.calibration is None:
+    if registry.needs_calibration(name) and settings.calibration is None:
+        if models is None:
+            raise ValueError(f"controller {name} calibrates from the recording's start "
+                             "against the models' start posture: give --models")
         mset = load_models(spec)
         start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
         n = round(calibrate_seconds / SAMPLE_PERIOD_S)

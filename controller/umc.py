@@ -31,7 +31,7 @@ from controller.kernel.tick import (
 )
 from controller.motion_model import ModelSet
 from controller.onset import ModelBank, OnsetCriteria, _bank_kernel, window_start
-from controller.registry import register
+from controller.registry import PlanPlace, register
 from controller.spec import ControllerSpec
 from controller.tick import MODEL_NAMES
 from controller.utilities import UtilitySet
@@ -174,7 +174,8 @@ class UMC(KernelController):
         super().warm_up()
 
 
-@register("umc", needs_models=True)
+@register("umc", needs_models=True, estimates_intent=True, label="UMC", colour="#1f77b4",
+          marker="s", plan=PlanPlace(rank=0))
 def build(spec: ControllerSpec) -> UMC:
     """The UMC of a specification."""
     return UMC(load_models(spec), load_utilities(spec), spec.settings)

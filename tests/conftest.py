@@ -31,7 +31,7 @@ DATABASE_FACING = {
     "test_migrations", "test_study_records_migration", "test_recorder", "test_studies",
     "test_participants", "test_sessions", "test_questionnaires", "test_preferences",
     "test_audit", "test_auth", "test_access", "test_data_protection", "test_export",
-    "test_instrument_ownership_migration",
+    "test_instrument_ownership_migration", "test_job_lanes_migration",
 }
 
 

@@ -1,34 +1,98 @@
-"""The layers import in one direction only (docs/architecture.md draws them).
+"""The layers import in one direction only, exactly as docs/architecture.md draws them.
 
-Read from the source with `ast`, so the rules hold for code that is imported lazily
-inside a function as well. A rule broken here is a design change: change the diagram
-first, then this list.
+The rules are read from the document, not restated here: its mermaid diagram (which
+package may import which) and its exceptions table (one module, one more import, by full
+path). Imports are read from the source with `ast`, so the rules hold for code that is
+imported lazily inside a function as well.
 """
 
 from __future__ import annotations
 
 import ast
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "architecture.md"
 WEB = ("fastapi", "starlette", "uvicorn")
-#: Modules that may use the web framework outside backend/api: the application factory,
-#: the command line (serves it with uvicorn), the console's page shells, the 3D viewer's
-#: page and WebSocket, and the virtual study's local server (a separate small app).
-WEB_OUTSIDE_API = {"backend.main", "backend.cli", "backend.console_pages", "viewer",
-                   "local_server"}
+#: The bare packages: `from backend import x` is checked as `backend.x`.
+ROOTS = ("backend", "controller")
+
+
+@dataclass(frozen=True)
+class Rules:
+    """The document's rules: each node's module prefixes, the arrows between nodes, and
+    the exceptions (importer module, imported module or package)."""
+
+    nodes: dict[str, tuple[str, ...]]
+    arrows: frozenset[tuple[str, str]]
+    exceptions: frozenset[tuple[str, str]]
+
+    def node_of(self, module: str) -> str | None:
+        """The node whose prefix matches `module` most closely."""
+        best, length = None, -1
+        for node, prefixes in self.nodes.items():
+            for p in prefixes:
+                if _under(module, (p,)) and len(p) > length:
+                    best, length = node, len(p)
+        return best
+
+
+def _under(name: str, prefixes: tuple[str, ...]) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in prefixes)
+
+
+def _path_module(path: str) -> str:
+    """`backend/api/` -> `backend.api`, `backend/main.py` -> `backend.main`."""
+    return path.rstrip("/").removesuffix(".py").replace("/", ".")
+
+
+def read_rules(text: str) -> Rules:
+    """Parse the diagram and the exceptions table of docs/architecture.md."""
+    chart = re.search(r"```mermaid\n(.*?)```", text, re.S)
+    assert chart, "docs/architecture.md has no mermaid diagram"
+    nodes: dict[str, tuple[str, ...]] = {}
+    arrows: set[tuple[str, str]] = set()
+    for line in chart.group(1).splitlines():
+        line = line.strip()
+        for node, label in re.findall(r'(\w+)\["([^"]*)"\]', line):
+            paths = re.findall(r"(?:backend|controller)/[\w/]*(?:\.py)?", label.split("(")[0])
+            if paths:
+                nodes[node] = tuple(_path_module(p) for p in paths)
+        bare = re.sub(r'\["[^"]*"\]', "", line)
+        if "-.-" in bare or "-->" not in bare:
+            continue  # a dotted arrow is not an import
+        sides = [re.findall(r"\w+", part) for part in bare.split("-->")]
+        for left, right in zip(sides, sides[1:], strict=False):
+            arrows.update((a, b) for a in left for b in right)
+    section = text.split("### Exceptions", 1)[1].split("\n## ", 1)[0]
+    exceptions = set()
+    for row in section.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].startswith("`"):
+            exceptions.add((cells[0].strip("`"), cells[1].strip("`")))
+    return Rules(nodes, frozenset(arrows), frozenset(exceptions))
+
+
+def _is_module(name: str) -> bool:
+    """Whether `name` is a module or package of this tree."""
+    path = ROOT.joinpath(*name.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
 
 
 def _imports(path: Path) -> set[str]:
-    """Every module `path` imports (absolute imports; with `from a import b`, both `a`
-    and `a.b`, since `b` may be a module)."""
+    """Every module `path` imports (absolute imports). `from a import b` imports `a.b`
+    when that is a module of this tree (`from backend.study import audit` imports the
+    audit module, not the whole package), else `a`."""
     found: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            found.add(node.module)
-            found.update(f"{node.module}.{a.name}" for a in node.names)
+            for a in node.names:
+                sub = f"{node.module}.{a.name}"
+                found.add(sub if _is_module(sub) else node.module)
     return found
 
 
@@ -41,63 +105,132 @@ def _modules(package: str) -> dict[str, set[str]]:
     return out
 
 
-def _under(name: str, prefixes: tuple[str, ...]) -> bool:
-    return any(name == p or name.startswith(p + ".") for p in prefixes)
+def _third_party_rule(mod: str, target: str) -> str | None:
+    """The rules the arrows cannot say: which third-party packages a layer may use."""
+    if _under(mod, ("controller",)) and _under(target, ("sqlalchemy", "viser", *WEB)):
+        return "the controller knows nothing of the server"
+    if _under(mod, ("backend.worker",)) and _under(target, ("sqlalchemy", *WEB)):
+        return "the worker process runs the controller and the device only"
+    if _under(target, WEB) and not _under(mod, ("backend.api",)):
+        return "only backend/api speaks HTTP"
+    return None
 
 
-def violations(graph: dict[str, set[str]]) -> list[str]:
-    """Each import that breaks a rule, as `importer -> imported (rule)`."""
-    bad = []
-    for mod, imported in graph.items():
+def violations(graph: dict[str, set[str]], rules: Rules) -> tuple[list[str], set[tuple[str, str]]]:
+    """Each import that breaks a rule, as `importer -> imported (rule)`; and the
+    exceptions that were used."""
+    bad, used = [], set()
+    for mod, imported in sorted(graph.items()):
+        if mod in ROOTS:
+            continue
+        here = rules.node_of(mod)
+        if here is None:
+            bad.append(f"{mod} (not in the document's diagram)")
+            continue
         for target in sorted(imported):
-            rule = None
-            if _under(mod, ("controller",)) and _under(
-                    target, ("backend", "sqlalchemy", "viser", *WEB)):
-                rule = "the controller knows nothing of the server"
-            elif _under(mod, ("backend.worker",)) and _under(
-                    target, ("backend", "sqlalchemy", *WEB)) \
-                    and not _under(target, ("backend.worker", "backend.schemas")):
-                # The schemas: the reports it sends have one typed definition, shared
-                # with the server.
-                rule = "the worker process runs the controller and the device only"
-            elif _under(target, WEB) and not _under(mod, ("backend.api",)) \
-                    and mod not in WEB_OUTSIDE_API \
-                    and mod.rsplit(".", 1)[-1] not in WEB_OUTSIDE_API:
-                rule = "only backend/api speaks HTTP"
-            elif _under(target, ("backend.api",)) and not _under(mod, ("backend.api",)) \
-                    and mod not in WEB_OUTSIDE_API \
-                    and mod.rsplit(".", 1)[-1] not in WEB_OUTSIDE_API:
-                rule = "services do not call the routes"
-            elif _under(mod, ("backend.db", "backend.core", "backend.schemas")) and _under(
-                    target, ("backend.study", "backend.analysis", "backend.live",
-                             "backend.live.runtime", "backend.api")):
-                rule = "storage, settings and schemas sit below the services"
-            if rule:
+            if target in ROOTS:
+                continue
+            excused = [e for e in rules.exceptions if e[0] == mod and _under(target, (e[1],))]
+            if _under(target, ROOTS):
+                there = rules.node_of(target)
+                rule = (None if there == here or (here, there) in rules.arrows
+                        else f"no arrow {here} --> {there}")
+            else:
+                rule = _third_party_rule(mod, target)
+            if rule is None:
+                continue
+            if excused:
+                used.update(excused)
+            else:
                 bad.append(f"{mod} -> {target} ({rule})")
-    return bad
+    return bad, used
 
 
-def test_the_tree_keeps_the_import_directions() -> None:
+def _acyclic(rules: Rules) -> list[str]:
+    """The nodes on a cycle of arrows (a layering has none)."""
+    graph = {n: {b for a, b in rules.arrows if a == n} for n in rules.nodes}
+    state: dict[str, int] = {}
+    cyclic: list[str] = []
+
+    def visit(n: str) -> None:
+        state[n] = 1
+        for m in graph.get(n, ()):
+            if state.get(m) == 1:
+                cyclic.append(f"{n} --> {m}")
+            elif m not in state:
+                visit(m)
+        state[n] = 2
+
+    for n in graph:
+        if n not in state:
+            visit(n)
+    return cyclic
+
+
+def test_the_tree_keeps_the_documents_import_directions() -> None:
+    rules = read_rules(DOC.read_text(encoding="utf-8"))
     graph = _modules("controller") | _modules("backend")
     assert "backend.api.deps" in graph and "controller.factory" in graph
-    assert violations(graph) == []
+    bad, used = violations(graph, rules)
+    assert bad == []
+    assert sorted(rules.exceptions - used) == [], "exceptions no import needs any more"
+
+
+def test_the_document_draws_a_layering() -> None:
+    rules = read_rules(DOC.read_text(encoding="utf-8"))
+    assert rules.nodes["api"] == ("backend.api",)
+    assert rules.nodes["cli"][0] == "backend.cli"
+    assert ("study", "analysis") in rules.arrows and ("analysis", "study") not in rules.arrows
+    assert ("worker", "controller") in rules.arrows
+    assert not [a for a in rules.arrows if a[0] == "controller"]
+    assert {b for a, b in rules.arrows if a == "worker"} == {"schemas", "controller"}
+    assert _acyclic(rules) == []
+    named = {m for pair in rules.exceptions for m in pair}
+    assert all("." in m or m in WEB for m in named), "exceptions name full module paths"
+
+
+TOY = """
+```mermaid
+flowchart TD
+    browser["frontend/"] -. "HTTP" .-> api
+    api["backend/api/"] --> study & db
+    study["backend/study/"] --> db
+    worker["backend/worker/"] --> controller
+    db["backend/db/"]
+    controller["controller/"]
+```
+### Exceptions
+
+| module | may also import | why |
+|---|---|---|
+| `backend.db.models` | `backend.study.audit` | a toy exception |
+| `backend.study.old` | `backend.api.errors` | no longer needed |
+"""
 
 
 def test_each_rule_can_fail() -> None:
+    rules = read_rules(TOY)
+    assert rules.arrows == {("api", "study"), ("api", "db"), ("study", "db"),
+                            ("worker", "controller")}
     graph = {
-        "controller.umc": {"backend.db.models"},
-        "backend.worker.process": {"backend.db.engine"},
-        "backend.study.audit": {"fastapi"},
-        "backend.analysis.results": {"backend.api.errors", "backend.study.audit"},
-        "backend.db.models": {"backend.study.access"},
-        "backend.api.routes.trials": {"fastapi", "backend.study.trials"},  # allowed
-        "backend.live.viewer": {"fastapi", "backend.api.deps"},  # allowed
+        "controller.umc": {"backend.db.models", "sqlalchemy"},
+        "backend.worker.process": {"backend.db.engine", "controller.loop"},
+        "backend.study.audit": {"fastapi", "backend.db.models"},
+        "backend.study.trials": {"backend.api.errors"},
+        "backend.db.models": {"backend.study.audit", "backend.study.access"},
+        "backend.api.routes.trials": {"fastapi", "backend.study.trials", "backend.db"},
+        "backend.guide": {"backend.api"},
     }
-    rules = [v.split("(")[1] for v in violations(graph)]
-    assert rules == [
-        "the controller knows nothing of the server)",
-        "the worker process runs the controller and the device only)",
-        "only backend/api speaks HTTP)",
-        "services do not call the routes)",
-        "storage, settings and schemas sit below the services)",
+    bad, used = violations(graph, rules)
+    assert bad == [
+        "backend.db.models -> backend.study.access (no arrow db --> study)",
+        "backend.guide (not in the document's diagram)",
+        "backend.study.audit -> fastapi (only backend/api speaks HTTP)",
+        "backend.study.trials -> backend.api.errors (no arrow study --> api)",
+        "backend.worker.process -> backend.db.engine (no arrow worker --> db)",
+        "controller.umc -> backend.db.models (no arrow controller --> db)",
+        "controller.umc -> sqlalchemy (the controller knows nothing of the server)",
     ]
+    assert used == {("backend.db.models", "backend.study.audit")}
+    assert rules.exceptions - used == {("backend.study.old", "backend.api.errors")}
+    assert _acyclic(Rules(rules.nodes, rules.arrows | {("db", "api")}, frozenset()))

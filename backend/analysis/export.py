@@ -13,10 +13,9 @@ from typing import Any
 
 from sqlalchemy import Engine, Table, select
 
-from backend.analysis import tick_queries
+from backend.analysis import data_dictionary, tick_queries
 from backend.core.resources import version
 from backend.db.tables import Base
-from backend.study import data_dictionary
 from controller import spreadsheet
 
 #: Columns left out of the CSVs: large documents (written as JSON files instead), and

@@ -84,6 +84,11 @@ _FIELDS = ("t", "controller_ran", "action", "lock_left", "lock_right", "post_squ
            "post_stoop_left", "post_stoop_right", "post_other", "s_curr_squat",
            "s_curr_stoop_left", "s_curr_stoop_right", "torque_left", "torque_right",
            "truth_activity", "truth_lift", "truth_progress", "q_left", "q_right")
+#: The paper's protocol (data about the paper's study, not a property of the
+#: controllers): every participant used the UMC and the PEC in this order, the first
+#: `eumc` participants also the E-UMC, whose trials the paper's timeline figure shows.
+PAPER_CONTROLLERS = ("umc", "pec")
+PAPER_EXTRA = "eumc"
 #: Published stair kinematics compared with the simulation (see docs/replication.md).
 PUBLISHED_STAIRS: dict[str, dict[str, Any]] = {
     "stairs_up": {"hip_rom_deg": (55.0, 70.0), "cadence_spm": (85.0, 100.0),
@@ -265,6 +270,7 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     """The protocol of one seed replayed through the controllers in this process: the
     virtual study's participants (`seed*100 + 1 + j`) and data-collection seeds
     (`seed*100 + 50 + i`), each controller on its own repetition of the script."""
+    from controller import registry
     from controller.config import ControllerConfig
     from controller.evaluation.cohort import _calibrated, default_utilities, trial_recording
     from controller.factory import make_from_spec, needs_models
@@ -283,10 +289,11 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     for j in range(cfg.participants):
         pseed = seed * 100 + 1 + j
         p = VirtualParticipant.from_seed(pseed)
-        ctls = ["umc", "pec"] + (["eumc"] if j < cfg.eumc else [])
+        ctls = [*PAPER_CONTROLLERS, *([PAPER_EXTRA] if j < cfg.eumc else [])]
         for i, name in enumerate(ctls):
             rec = trial_recording(p, pseed, "paper-evaluation", repetition=i)
-            s = _calibrated(settings, rec, start)[0] if name == "eumc" else settings
+            s = (_calibrated(settings, rec, start)[0] if registry.needs_calibration(name)
+                 else settings)
             sets = needs_models(name)
             spec = ControllerSpec(name, s, models=docs[0] if sets else None,
                                   utilities=docs[1] if sets else None)
@@ -313,7 +320,7 @@ def _timeline(trials: Sequence[tuple[TickData, RecordingEvaluation]],
               models: ModelSet | None) -> tuple[bytes, bytes] | None:
     """The paper's five-panel figure: the first five asymmetric stoops of participant 3
     with the E-UMC (or the first E-UMC participant if there is no third)."""
-    eumc = [(c, e) for c, e in trials if e.controller == "eumc"]
+    eumc = [(c, e) for c, e in trials if e.controller == PAPER_EXTRA]
     if not eumc:
         return None
     cols, ev = next(((c, e) for c, e in eumc if e.participant.endswith("03")), eumc[-1])

@@ -53,6 +53,7 @@ from backend.db.models import (
 )
 from backend.live import trial_quality
 from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfOut
+from controller import registry
 from controller.config import ControllerConfig, SettingError
 from controller.evaluation import (
     DecisionOutcome,
@@ -66,6 +67,7 @@ from controller.evaluation import (
     RecordingEvaluation,
     Table,
     TickData,
+    controller_label,
     controller_output_figure,
     evaluate_lifts,
     evaluate_recording,
@@ -89,6 +91,8 @@ from controller.tick import ACTION_NAMES, MODEL_NAMES, Action
 from controller.tick_codec import FIELD_NAMES
 
 TruthSource = Literal["simulation", "segments", "task", "none"]
+#: The truth source of a trial whose lifts are unknown.
+NO_TRUTH: TruthSource = "none"
 #: Tasks whose whole trial is a gait trial when the ticks carry no truth.
 GAIT_TASKS: dict[str, str] = {"walking": "walking", "stairs": "stair_walking",
                               "stair_walking": "stair_walking"}
@@ -96,9 +100,15 @@ GAIT_TASKS: dict[str, str] = {"walking": "walking", "stairs": "stair_walking",
 TABLE_NAMES = ("performance", "performance_by_kind", "false_positives", "questionnaires",
                "onset_to_lock", "lifts")
 FIGURE_NAMES = ("peak_torques", "onset_to_lock")
-#: Controller order of the paper's tables.
-PERFORMANCE_CONTROLLERS = ("umc", "eumc")
-FP_CONTROLLERS = ("pec", "umc", "eumc")
+
+
+def table_controllers(intent_only: bool = False) -> tuple[str, ...]:
+    """The planned controllers (`controller.registry.PlanPlace`) in the order of the
+    paper's tables: those that estimate no intent first (the PEC), then the others by
+    plan rank (UMC, E-UMC); `intent_only`: only those that estimate intent (the
+    performance table: no intent, no recognised or correct lifts)."""
+    regs = [r for r in registry.planned() if r.estimates_intent or not intent_only]
+    return tuple(r.name for r in sorted(regs, key=lambda r: r.estimates_intent))
 
 
 class ResultsError(ValueError):
@@ -154,15 +164,15 @@ class StudyResults:
         """One of `TABLE_NAMES` as a `Table` (the paper's wide layout where it has one)."""
         evs = self.evaluations
         if name == "performance":
-            return PerformanceTable.from_evaluations(evs, PERFORMANCE_CONTROLLERS).wide()
+            return PerformanceTable.from_evaluations(evs, table_controllers(True)).wide()
         if name == "performance_by_kind":
-            return PerformanceTable.from_evaluations(evs, PERFORMANCE_CONTROLLERS,
+            return PerformanceTable.from_evaluations(evs, table_controllers(True),
                                                      by_kind=True).long()
         if name == "false_positives":
-            return FalsePositiveTable.from_evaluations(evs, FP_CONTROLLERS).wide()
+            return FalsePositiveTable.from_evaluations(evs, table_controllers()).wide()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  ("pec", "umc", "eumc")).wide()
+                                                  table_controllers()).wide()
         if name == "onset_to_lock":
             return onset_to_lock_table(evs)
         if name == "lifts":
@@ -174,12 +184,12 @@ class StudyResults:
         """A table as CSV: the long form (every count) where the paper's is wide."""
         evs = self.evaluations
         if name == "performance":
-            return PerformanceTable.from_evaluations(evs, PERFORMANCE_CONTROLLERS).to_csv()
+            return PerformanceTable.from_evaluations(evs, table_controllers(True)).to_csv()
         if name == "false_positives":
-            return FalsePositiveTable.from_evaluations(evs, FP_CONTROLLERS).to_csv()
+            return FalsePositiveTable.from_evaluations(evs, table_controllers()).to_csv()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  ("pec", "umc", "eumc")).to_csv()
+                                                  table_controllers()).to_csv()
         return self.table(name).to_csv()
 
     def markdown(self, name: str) -> str:
@@ -418,7 +428,7 @@ def _table_json(table: Table) -> dict[str, Any]:
 def results_document(res: StudyResults) -> StudyResultsOut:
     """The body of `GET /api/studies/{id}/results` (and `results.json` in the files)."""
     tables = {name: _table_json(res.table(name)) for name in TABLE_NAMES if name != "lifts"}
-    no_truth = [t.trial_id for t in res.trials if t.truth.source == "none"]
+    no_truth = [t.trial_id for t in res.trials if t.truth.source == NO_TRUTH]
     notes = []
     if no_truth:
         notes.append(f"lifts unknown for trials {no_truth}: no truth columns and no "
@@ -490,8 +500,8 @@ def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure
         if ms is not None and ms.document is not None:
             models = ModelSet.from_json(ms.document)
     part = _participant_of(db, trial)
-    title = f"Trial {trial.id}: {part.code}, {trial.controller.upper()}, {trial.task}"
-    from backend.lab.markers import trial_markers
+    title = f"Trial {trial.id}: {part.code}, {controller_label(trial.controller)}, {trial.task}"
+    from backend.analysis.markers import trial_markers
 
     marks = [(m.t, m.label) for m in trial_markers(db, trial.id)
              if m.t is not None and m.source != "system"]
@@ -545,9 +555,10 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
         except SettingError as exc:
             raise ResultsError("rate_hz", exc.problem) from exc
     sets = needs_models(controller)
-    if controller == "eumc" and config.calibration is None:
-        raise ResultsError("settings", "the E-UMC needs a calibration: the trial has none; "
-                           "give settings.calibration [offset_left, offset_right] (rad)")
+    if registry.needs_calibration(controller) and config.calibration is None:
+        raise ResultsError("settings", f"the {controller_label(controller)} needs a "
+                           "calibration: the trial has none; give settings.calibration "
+                           "[offset_left, offset_right] (rad)")
     try:
         spec = ControllerSpec(
             controller, config,
@@ -566,11 +577,10 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
     replayed = TickData(replay_columns(rec, ctl, config.precompression_pct))
     truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     original = summary(evaluate_lifts(cols, truth.lifts,
-                                      None if trial.controller not in ("pec", "umc", "eumc")
-                                      else trial.controller != "pec"),
+                                      registry.estimates_intent(trial.controller)),
                        cols, truth.gait, trial.controller)
-    again = summary(evaluate_lifts(replayed, truth.lifts, controller != "pec"), replayed,
-                    truth.gait, controller)
+    again = summary(evaluate_lifts(replayed, truth.lifts, registry.estimates_intent(controller)),
+                    replayed, truth.gait, controller)
     return WhatIfOut.model_validate({
             "trial_id": trial.id, "truth": truth.source, "truth_note": truth.note,
             "original": original, "replay": again,

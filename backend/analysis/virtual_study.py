@@ -57,6 +57,7 @@ from backend.analysis.results import FIGURE_NAMES
 from backend.analysis.virtual_study_speeds import COLLECTION_SPEED, DEFAULT_SPEED
 from backend.core.resources import version
 from backend.live.local_server import ApiClient, Response, serving
+from controller import registry
 from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
 RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}
@@ -231,8 +232,8 @@ class _Driver:
             job = _ok(self.c.get(f"/api/jobs/{job_id}"))
             if job["status"] == "done":
                 return
-            if job["status"] == "failed":
-                raise VirtualStudyError(f"job {job_id} failed: {job['message']}")
+            if job["status"] in ("failed", "cancelled"):
+                raise VirtualStudyError(f"job {job_id} {job['status']}: {job['message']}")
             state = (str(job["status"]), float(job.get("progress") or 0.0))
             if state != last:
                 last, since = state, time.monotonic()
@@ -325,7 +326,9 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
         d.simulate(seed, cfg.eval_script, cfg.speed)
         # One calibration per participant, as per donning: the runtime keeps it for
         # every later E-UMC trial of this participant.
-        attempts = d.calibrate() if j < cfg.eumc else 0
+        calibrating = any(registry.needs_calibration(t["controller"])
+                          for _, plan in plans for t in plan)
+        attempts = d.calibrate() if calibrating else 0
         trial_s = _script_s(seed, cfg.eval_script) + cfg.margin_s
         for label, plan in plans:
             rate = RATE_SETTINGS[label]
@@ -342,8 +345,8 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
                 n, gaps = _gaps(engine, stopped["run_id"])
                 report.trials.append(TrialTiming(trial["id"], label, code, trial["controller"],
                                                  round(wall, 2), n, round(n / wall, 1), gaps,
-                                                 attempts if trial["controller"] == "eumc"
-                                                 else 0))
+                                                 attempts if registry.needs_calibration(
+                                                     trial["controller"]) else 0))
         d.log(f"evaluation: {code} done ({sum(len(p) for _, p in plans)} trials)")
 
 
@@ -375,8 +378,8 @@ def _outputs(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id
             for fmt in ("png", "svg"):
                 r = d.c.get(f"/api/studies/{sid}/figures/{fig}.{fmt}")
                 _write(folder / f"{fig}.{fmt}", _ok_bytes(r), report)
-        first = next((t for t in report.trials if t.study == label and t.controller == "umc"),
-                     None)
+        first = next((t for t in report.trials
+                      if t.study == label and registry.estimates_intent(t.controller)), None)
         if first is not None:
             for fmt in ("png", "svg"):
                 r = d.c.get(f"/api/trials/{first.trial_id}/figures/timeline.{fmt}")

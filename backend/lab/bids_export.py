@@ -21,7 +21,7 @@ Sessions are named by kind and order (`ses-evaluation1`, `ses-datacollection1`),
 visit has the same name for every subject. The blinding key leaves only in an owner's
 export (`unblind`): otherwise files are named by the blinded label (`acq-A`) and
 `*_scans.tsv` has neither `controller` nor `trial_id`. The sidecars of the tabular
-files come from `backend.study.data_dictionary`, the definition the export's README is
+files come from `backend.analysis.data_dictionary`, the definition the export's README is
 written from.
 """
 
@@ -37,7 +37,7 @@ from typing import Any
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend.analysis import tick_queries
+from backend.analysis import data_dictionary, tick_queries
 from backend.core.resources import version
 from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
 from backend.db.lab import Marker, XdfAttachment
@@ -49,7 +49,6 @@ from backend.db.models import (
     Study,
     StudySession,
 )
-from backend.study import data_dictionary
 from controller import spreadsheet
 from controller.device.base import SAMPLE_RATE_HZ
 

@@ -68,8 +68,3 @@ def trial_fields(db: Session, trial: Trial) -> dict[str, Any]:
     return {"trial_id": trial.id, "task": trial.task, "controller": trial.controller,
             "blinded_label": label}
 
-
-def trial_markers(db: Session, trial_id: int) -> list[Marker]:
-    """A trial's markers in time order."""
-    return list(db.scalars(select(Marker).where(Marker.trial_id == trial_id)
-                           .order_by(Marker.t, Marker.id)))

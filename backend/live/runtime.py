@@ -40,6 +40,7 @@ from backend.worker.messages import (
     WorkerConfig,
 )
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller import registry
 from controller.config import ControllerConfig
 from controller.device.auth import load_or_create_key
 from controller.encoders import EncoderLayout
@@ -171,7 +172,8 @@ class Runtime:
         if self.encoder_layout is not None:
             settings["encoder_offsets"] = list(self.encoder_layout.offsets)
             settings["encoder_directions"] = list(self.encoder_layout.directions)
-        if name == "eumc" and self.calibration is not None and self.calibration.ok:
+        if (registry.needs_calibration(name) and self.calibration is not None
+                and self.calibration.ok):
             settings["calibration"] = [self.calibration.offset_left,
                                        self.calibration.offset_right]
         settings.update(overrides or {})
@@ -182,12 +184,12 @@ class Runtime:
 
     def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
         """Switch the worker's controller (a new run starts)."""
-        self.supervisor.set_controller(name, self.controller_spec(name, overrides).to_config())
+        self.supervisor.set_controller(self.controller_spec(name, overrides))
 
     def release(self) -> None:
         """Back to controller `none` without waiting: nothing locks until a new switch
         (what a refused or failed start leaves the worker with)."""
-        self.supervisor.set_controller("none", self.controller_spec("none").to_config())
+        self.supervisor.set_controller(self.controller_spec(registry.idle()))
 
     async def switch_controller(
         self, spec: ControllerSpec, timeout: float = COMMAND_TIMEOUT_S,
@@ -201,7 +203,7 @@ class Runtime:
         if not self.supervisor.state.alive:
             raise RuntimeError("the worker is not running: restart it first")
         fut = self._command_future()
-        rid = self.supervisor.set_controller(name, spec.to_config(), max_ticks)
+        rid = self.supervisor.set_controller(spec, max_ticks)
         answer = await self._answer(rid, fut, f"start {name}", timeout)
         if not answer.ok:
             raise RuntimeError(answer.message)
@@ -213,7 +215,7 @@ class Runtime:
         if not self.supervisor.state.alive:
             return
         try:
-            await self.switch_controller(self.controller_spec("none"))
+            await self.switch_controller(self.controller_spec(registry.idle()))
         except RuntimeError:
             pass
 
@@ -372,8 +374,7 @@ class Runtime:
         await asyncio.to_thread(self.load_hardware_layout)
         self.worker_config = replace(
             self.worker_config,
-            controller=self.settings.controller,
-            controller_config=self.controller_spec(self.settings.controller).to_config(),
+            spec=self.controller_spec(self.settings.controller),
         )
         self.supervisor.config = self.worker_config
         self.recorder.start()

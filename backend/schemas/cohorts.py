@@ -8,7 +8,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from backend.schemas.fields import UtcDatetime
-from controller.evaluation.cohort import COHORT_CONTROLLERS
+from controller.evaluation.cohort import cohort_controllers
 
 #: A console cohort runs on the server's job thread: bounded so one request cannot hold
 #: it for long (1,000 participants take a few minutes; the CLI has no such limit).
@@ -21,18 +21,20 @@ class CohortIn(BaseModel):
     name: str = Field(default="", max_length=200)
     participants: int = Field(default=100, ge=2, le=MAX_API_PARTICIPANTS)
     seed: int = Field(default=1, ge=0, le=99_999)
-    controllers: list[str] = Field(default_factory=lambda: list(COHORT_CONTROLLERS),
-                                   min_length=1, max_length=3)
+    # Bounded by the validator: each registered plan controller at most once.
+    controllers: list[str] = Field(default_factory=lambda: list(cohort_controllers()),
+                                   min_length=1)
     rate_hz: float | None = Field(default=None, ge=1.0, le=100.0, description=(
         "every controller at this rate; null: the paper's rates"))
 
     @field_validator("controllers")
     @classmethod
     def _known(cls, v: list[str]) -> list[str]:
-        unknown = [c for c in v if c not in COHORT_CONTROLLERS]
+        known = cohort_controllers()
+        unknown = [c for c in v if c not in known]
         if unknown:
             raise ValueError(f"unknown controller(s) {unknown}; choose from "
-                             f"{', '.join(COHORT_CONTROLLERS)}")
+                             f"{', '.join(known)}")
         if len(set(v)) != len(v):
             raise ValueError("each controller once")
         return v

@@ -180,7 +180,8 @@ class TrialPlanIn(BaseModel):
     tasks: list[str] = Field(default_factory=lambda: ["squat-sequence", "stoop-sequence",
                                                       "walking", "stairs"],
                              min_length=1, max_length=20)
-    include_eumc: bool = True
+    include_eumc: bool = Field(default=True, description=(
+        "plan the controllers registered as optional in a plan too (the E-UMC)"))
     # Ids within what the id columns hold: a larger one is a 422, not a driver overflow.
     model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
     utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)

@@ -22,7 +22,6 @@ from pydantic import BaseModel, Field
 from backend.schemas.evidence import SegmentLabel
 from backend.schemas.live import STREAM_FIELDS, DatabaseHealth, DeviceHealth, WorkerHealth
 from controller import registry
-from controller.evaluation import controller_label
 from controller.evaluation.lifts import CORRECT_ACTION
 from controller.sim.scripts import SCRIPT_NAMES
 from controller.tick import (
@@ -48,9 +47,6 @@ PLAUSIBILITY_LABELS: dict[Plausibility, str] = {
 }
 assert set(PLAUSIBILITY_LABELS) == {p for p in Plausibility if p}, "a Plausibility bit has no label"
 
-#: The order the paper presents its controllers in; any other registered controller
-#: follows them, and "none" (no locks) comes last.
-_PAPER_ORDER = ("umc", "eumc", "pec")
 
 
 class Named(BaseModel):
@@ -70,6 +66,17 @@ class ControllerName(Named):
     """A controller the worker can run."""
 
     needs_models: bool = Field(description="needs a model set and a utility set")
+    needs_calibration: bool = Field(
+        description="runs only with calibration offsets (standing still first)")
+    estimates_intent: bool = Field(
+        description="records posteriors: its lifts are judged recognised and correct")
+    colour: str | None = Field(description="its colour in figures and pages (#rrggbb); "
+                               "null: the page picks one")
+    in_plan: bool = Field(description="enters a study's counterbalanced trial plan")
+    plan_optional: bool = Field(
+        description="planned only when the plan includes the optional controllers")
+    idle: bool = Field(description="the resting controller: never locks; the worker "
+                       "starts with it and returns to it")
 
 
 class ActionName(Named):
@@ -130,15 +137,14 @@ def _bits(flag: type[enum.IntFlag], labels: dict[int, str] | None = None) -> lis
     return out
 
 
-def _controller_order(name: str) -> tuple[int, str]:
-    if name in _PAPER_ORDER:
-        return _PAPER_ORDER.index(name), name
-    return (len(_PAPER_ORDER) + (1 if name == "none" else 0)), name
-
-
-def _needs_models(name: str) -> bool:
-    reg = registry.lookup(name)
-    return reg is not None and reg.needs_models
+def _controller(name: str) -> ControllerName:
+    """What a controller declares about itself (`controller.registry.Registration`)."""
+    r = registry.get(name)
+    return ControllerName(name=name, label=r.shown, needs_models=r.needs_models,
+                          needs_calibration=r.needs_calibration,
+                          estimates_intent=r.estimates_intent, colour=r.colour or None,
+                          in_plan=r.plan is not None,
+                          plan_optional=r.plan is not None and r.plan.optional, idle=r.idle)
 
 
 def vocabulary() -> Vocabulary:
@@ -156,9 +162,8 @@ def vocabulary() -> Vocabulary:
                             lock_left=a.locks[0], lock_right=a.locks[1]) for a in Action],
         tick_flags=_bits(TickFlag),
         plausibility=_bits(Plausibility, {int(p): t for p, t in PLAUSIBILITY_LABELS.items()}),
-        controllers=[ControllerName(name=n, label=controller_label(n),
-                                    needs_models=_needs_models(n))
-                     for n in sorted(registry.names(), key=_controller_order)],
+        # The planned controllers in plan rank order, then the others, the idle one last.
+        controllers=[_controller(n) for n in registry.display_order()],
         scripts=list(SCRIPT_NAMES),
         health=HealthFields(worker=list(WorkerHealth.model_fields),
                             device=list(DeviceHealth.model_fields),

@@ -1,23 +1,38 @@
-"""The paper's evaluation order: UMC and PEC in balanced order across the study's
-participants, E-UMC after them; and the blinded labels participants see.
+"""The evaluation order and the blinded labels participants see.
 
-A participant's position in the study (by enrolment, i.e. id order) decides: even
-positions get UMC first, odd positions PEC first, so any two consecutive participants
-balance each other. Labels are letters in the order the participant meets the
-controllers ("A" first), so the label itself says nothing about the controller.
+Which controllers a plan holds and where is what each controller declares when it
+registers (`controller.registry.PlanPlace`): the paper's plan is UMC and PEC in
+balanced order across the study's participants, E-UMC (optional) after them.
+
+A participant's position in the study (by enrolment, i.e. id order) decides: the
+counterbalanced controllers, in plan rank order, are rotated by the position, so with
+two of them even positions get the first (UMC) first and odd positions the other (PEC),
+and any two consecutive participants balance each other (with more, every controller
+leads equally often over as many consecutive participants). The others follow in rank
+order. Labels are letters in the order the participant meets the controllers ("A"
+first), so the label itself says nothing about the controller.
 """
 
 from __future__ import annotations
 
-LABELS = ("A", "B", "C")
+import string
+
+from controller import registry
+
+LABELS = tuple(string.ascii_uppercase)
 
 
-def controller_order(position: int, include_eumc: bool = True) -> list[str]:
-    """Controllers in the order participant number `position` (0-based) evaluates them."""
+def controller_order(position: int, include_optional: bool = True) -> list[str]:
+    """Controllers in the order participant number `position` (0-based) evaluates them;
+    `include_optional`: with the controllers registered as optional in a plan."""
     if position < 0:
         raise ValueError("position must be >= 0")
-    first = ["umc", "pec"] if position % 2 == 0 else ["pec", "umc"]
-    return [*first, "eumc"] if include_eumc else first
+    planned = [r for r in registry.planned()
+               if r.plan is not None and (include_optional or not r.plan.optional)]
+    rotated = [r.name for r in planned if r.plan is not None and r.plan.counterbalanced]
+    k = position % len(rotated) if rotated else 0
+    following = [r.name for r in planned if r.plan is not None and not r.plan.counterbalanced]
+    return [*rotated[k:], *rotated[:k], *following]
 
 
 def blinded_labels(order: list[str]) -> dict[str, str]:

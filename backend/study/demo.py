@@ -21,6 +21,7 @@ from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, Study, StudySession, User
 from backend.study import accounts, audit
 from backend.study.counterbalance import blinded_labels, controller_order
+from controller.factory import needs_models
 from controller.motion_model import ModelSet
 from controller.sim.participant import VirtualParticipant
 from controller.utilities import UtilitySet
@@ -89,7 +90,7 @@ def ensure_demo(db: Session, models: ModelSet, utilities: UtilitySet,
     n = 0
     for controller in order:
         for task in TASKS:
-            needs = controller in ("umc", "eumc")
+            needs = needs_models(controller)
             db.add(Trial(session_id=sess.id, controller=controller, task=task, planned_order=n,
                          status="planned", model_set_id=ms.id if needs else None,
                          utility_set_id=us.id if needs else None))

@@ -44,6 +44,7 @@ from backend.worker.messages import (
     BringupWatchdog,
 )
 from controller import bringup as calc
+from controller import registry
 from controller.device.auth import load_key
 from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
 
@@ -184,9 +185,9 @@ def _ensure_free(db: Session, runtime: Runtime) -> None:
         raise ConflictError("hardware", f"{busy} is running: bring-up needs the device "
                             "to itself; stop it first")
     ctl = runtime.supervisor.config.controller
-    if ctl != "none":
-        raise ConflictError("hardware", f"controller {ctl!r} is active: switch to 'none' "
-                            "before the bring-up")
+    if ctl != registry.idle():
+        raise ConflictError("hardware", f"controller {ctl!r} is active: switch to "
+                            f"{registry.idle()!r} before the bring-up")
     if not runtime.supervisor.state.alive:
         raise ConflictError("worker", "the worker is not running: restart it first")
 
@@ -408,6 +409,7 @@ async def finish(db: Session, user: User, runtime: Runtime, body: FinishIn) -> H
         db.refresh(profile)
         if profile.status == "complete":
             runtime.load_hardware_layout()
-            if activity.running(db) is None and runtime.supervisor.config.controller == "none":
+            if (activity.running(db) is None
+                    and runtime.supervisor.config.controller == registry.idle()):
                 await runtime.idle()  # `none` again, decoding with the new layout
         return profile

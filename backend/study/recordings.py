@@ -15,6 +15,7 @@ from backend.db.models import StudySession, User
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import RecordingIn
 from backend.study import activity, audit
+from controller import registry
 
 
 async def start(db: Session, user: User, runtime: Runtime, session_id: int,
@@ -37,7 +38,7 @@ async def _start(db: Session, user: User, runtime: Runtime, session_id: int,
         raise NotFoundError("session", session_id)
     activity.ensure_idle(db)
     try:
-        run_id = await runtime.switch_controller(runtime.controller_spec("none"))
+        run_id = await runtime.switch_controller(runtime.controller_spec(registry.idle()))
     except RuntimeError as exc:
         raise ConflictError("worker", str(exc)) from exc
     rec = Recording(session_id=session_id, run_id=run_id, label=body.label, notes=body.notes,

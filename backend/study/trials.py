@@ -22,6 +22,7 @@ from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
 from backend.study import activity, audit, hardware_profiles
 from backend.study.counterbalance import blinded_labels, controller_order
+from controller import registry
 from controller.config import SettingError
 from controller.device.base import SAMPLE_PERIOD_S
 from controller.factory import needs_models
@@ -159,9 +160,10 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
                                    "human_source": us.human_source,
                                    "other_rule": us.document.get("meta", {}).get("other_rule")}
     settings = spec.settings.to_json()
-    if trial.controller == "eumc" and settings.get("calibration") is None:
-        raise ConflictError("calibration", "the E-UMC needs a calibration: have the "
-                            "participant stand still and POST /api/worker/calibrate")
+    if registry.needs_calibration(trial.controller) and settings.get("calibration") is None:
+        raise ConflictError("calibration", f"the {registry.label(trial.controller)} needs a "
+                            "calibration: have the participant stand still and POST "
+                            "/api/worker/calibrate")
     snapshot["settings"] = settings
     return spec, snapshot
 

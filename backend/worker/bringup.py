@@ -84,12 +84,10 @@ class _Step:
                              last_command_s=self.last_command_s, **kw)  # type: ignore[arg-type]
 
 
-def handle(cmd: BringupCommand, device: Device, controller: str) -> BringupResult:
-    """Run one bring-up command on `device`; always answered, always released after."""
-    if controller != "none":
-        return BringupResult(cmd.request_id, False,
-                             f"controller {controller!r} is running: bring-up needs 'none'",
-                             refused=True)
+def handle(cmd: BringupCommand, device: Device) -> BringupResult:
+    """Run one bring-up command on `device`; always answered, always released after.
+    Only an idle worker runs it (its state machine refuses it otherwise,
+    `backend.worker.machine.RULES`)."""
     step = _Step(device)
     try:
         if isinstance(cmd, BringupCapture):

@@ -8,8 +8,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from backend.schemas.live import DeviceReport, LoopReport
+from controller.spec import ControllerSpec
 from controller.tick import TickRecord
 from controller.tick_codec import TickBlock, pack, unpack
+
+
+def _no_controller() -> ControllerSpec:
+    return ControllerSpec("none")
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,12 +31,18 @@ class WorkerConfig:
     precompression_pct: float = 25.0
     #: In-process simulator only: samples this many times faster than real time.
     device_speed: float = 1.0
-    controller: str = "none"
-    controller_config: dict[str, Any] = field(default_factory=dict)
+    #: The controller to start with, validated by the server; it crosses the pipe as
+    #: this type (the worker validates it once more before building it).
+    spec: ControllerSpec = field(default_factory=_no_controller)
     #: The model set used for calibration when the running controller has none.
     models_path: str = ""
     #: Seconds between status reports.
     status_interval: float = 0.25
+
+    @property
+    def controller(self) -> str:
+        """The name of the controller the worker starts with."""
+        return self.spec.name
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -98,11 +109,15 @@ class SetController:
     device samples, so a timed trial holds exactly that much data however late the
     server gets round to stopping it."""
 
-    name: str
-    config: dict[str, Any] = field(default_factory=dict)
+    spec: ControllerSpec
     max_ticks: int | None = None
     #: Answered by a `CommandResult` with this id (0: nobody waits for the answer).
     request_id: int = 0
+
+    @property
+    def name(self) -> str:
+        """The name of the controller asked for."""
+        return self.spec.name
 
 
 @dataclass(frozen=True, slots=True)
@@ -241,6 +256,9 @@ class BringupResult:
 
 
 BringupCommand = BringupCapture | BringupPulse | BringupWatchdog
+
+#: Everything the server sends the worker (`backend.worker.machine` has a handler each).
+WorkerCommand = SetController | SetSimulation | Calibrate | StopWorker | BringupCommand
 
 WorkerMessage = (TickBatch | WorkerStatus | RunStarted | WorkerError | CalibrationResult
                  | CommandResult | BringupResult)

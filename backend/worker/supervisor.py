@@ -34,6 +34,7 @@ from backend.worker.messages import (
     WorkerStatus,
 )
 from backend.worker.process import worker_main
+from controller.spec import ControllerSpec
 
 log = logging.getLogger(__name__)
 
@@ -100,7 +101,7 @@ class WorkerSupervisor:
             if self.state.started_at is not None:
                 # A restarted worker never resumes the controller of a trial that has
                 # ended with its predecessor: it begins unlocked, with "none".
-                self.config = replace(self.config, controller="none", controller_config={})
+                self.config = replace(self.config, spec=ControllerSpec("none"))
             out_parent, out_child = self._ctx.Pipe(duplex=False)
             cmd_child, cmd_parent = self._ctx.Pipe(duplex=False)
             proc = self._ctx.Process(
@@ -160,19 +161,18 @@ class WorkerSupervisor:
         self._request_id += 1
         return self._request_id
 
-    def set_controller(self, name: str, config: dict[str, Any] | None = None,
-                       max_ticks: int | None = None) -> int:
+    def set_controller(self, spec: ControllerSpec, max_ticks: int | None = None) -> int:
         """Switch controller in the running worker; it takes effect at the next tick (and
         ends after `max_ticks` samples, if given). Returns the request id the worker's
-        `CommandResult` will carry, 0 when no worker runs (the configuration then
+        `CommandResult` will carry, 0 when no worker runs (the specification then
         applies at the next start)."""
         with self._lock:
-            self.config = replace(self.config, controller=name, controller_config=config or {})
+            self.config = replace(self.config, spec=spec)
             if self._cmd is None or not self.state.alive:
                 return 0
             rid = self._next_request_id()
             try:
-                self._cmd.send(SetController(name, config or {}, max_ticks, rid))
+                self._cmd.send(SetController(spec, max_ticks, rid))
             except (BrokenPipeError, OSError):
                 return 0
             return rid

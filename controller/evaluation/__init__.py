@@ -48,8 +48,6 @@ from controller.evaluation.metrics import (
 )
 from controller.evaluation.rendering import RenderedFigure, render_figure
 from controller.evaluation.study import (
-    CONTROLLER_LABELS,
-    ESTIMATES_INTENT,
     RecordingEvaluation,
     controller_label,
     evaluate_recording,
@@ -69,9 +67,7 @@ from controller.evaluation.timeline import ModelSetLike, controller_output_figur
 from controller.evaluation.torques import recompute_torques
 
 __all__ = [
-    "CONTROLLER_LABELS",
     "CORRECT_ACTION",
-    "ESTIMATES_INTENT",
     "LIFT_KINDS",
     "RECOGNITION_THRESHOLD",
     "TRIAL_KINDS",

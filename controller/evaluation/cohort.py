@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from controller import registry
 from controller.calibration import CalibrationError, calibrate
 from controller.config import ControllerConfig
 from controller.evaluation.columns import TickData
@@ -48,7 +49,13 @@ from controller.sim.scripts import get_script, realise
 from controller.spec import ControllerSpec
 from controller.utilities import UtilitySet
 
-COHORT_CONTROLLERS: tuple[str, ...] = ("umc", "eumc", "pec")
+
+def cohort_controllers() -> tuple[str, ...]:
+    """The controllers a cohort runs by default and may run: those that enter a trial
+    plan (`controller.registry.PlanPlace`), in plan rank order."""
+    return tuple(r.name for r in registry.planned())
+
+
 MAX_PARTICIPANTS = 10_000
 SEED_BASE = 1_000_000
 #: The live calibration's window (1 s at 100 Hz) and the step between retries (0.5 s).
@@ -94,7 +101,7 @@ class CohortConfig:
 
     participants: int = 100
     seed: int = 1
-    controllers: tuple[str, ...] = COHORT_CONTROLLERS
+    controllers: tuple[str, ...] = field(default_factory=cohort_controllers)
     script: str = "paper-evaluation"
     #: None: the paper's rates (UMC 10 Hz, PEC 100 Hz, E-UMC 100/10 Hz); else every
     #: controller at this rate.
@@ -107,9 +114,10 @@ class CohortConfig:
                              f"{self.participants}")
         if not 0 <= self.seed <= 99_999:
             raise ValueError(f"seed: must be within 0..99999, got {self.seed}")
-        unknown = [c for c in self.controllers if c not in COHORT_CONTROLLERS]
+        known = cohort_controllers()
+        unknown = [c for c in self.controllers if c not in known]
         if unknown or not self.controllers:
-            raise ValueError(f"controllers: choose from {','.join(COHORT_CONTROLLERS)}, got "
+            raise ValueError(f"controllers: choose from {','.join(known)}, got "
                              f"{','.join(self.controllers) or 'none'}")
         if len(set(self.controllers)) != len(self.controllers):
             raise ValueError("controllers: each controller once")
@@ -245,7 +253,7 @@ def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
     for i, name in enumerate(cfg.controllers):
         rec = trial_recording(p, seed, cfg.script, repetition=i)
         s = settings
-        if name == "eumc":
+        if registry.needs_calibration(name):
             s, attempts = _calibrated(settings, rec, start)
         sets = needs_models(name)
         spec = ControllerSpec(name, s, models=models_doc if sets else None,

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from controller.evaluation.cohort import METRICS, Cohort, MetricSpec
+from controller.evaluation.cohort import METRICS, Cohort, MetricSpec, cohort_controllers
 from controller.evaluation.cohort_stats import (
     ALPHA,
     POWER_RESAMPLES,
@@ -78,7 +78,7 @@ def analyse(cohort: Cohort, seed: int = 0, resamples: int = POWER_RESAMPLES,
                 summaries.append(summarise(c, m.name, v, rng))
     comparisons = []
     # Pairs in the order the main comparisons name them, then the rest.
-    order = {c: i for i, c in enumerate(("umc", "eumc", "pec"))}
+    order = {c: i for i, c in enumerate(cohort_controllers())}
     pairs = [tuple(sorted(p, key=lambda c: order.get(c, 9))) for p in combinations(ctls, 2)]
     for m in METRICS:
         for a, b in pairs:

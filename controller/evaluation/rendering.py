@@ -20,6 +20,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.typing import RcKeyType
 
+from controller import registry
+
 #: Pixels per inch of the PNG; figure sizes are given in inches.
 DEFAULT_DPI = 100
 
@@ -36,8 +38,6 @@ KIND_LABELS: dict[str, str] = {
     "stoop_right": "stoop right",
     "other": "other",
 }
-_CONTROLLER_MARKERS: dict[str, str] = {"pec": "o", "umc": "s", "eumc": "^"}
-_CONTROLLER_COLOURS: dict[str, str] = {"pec": "#ff7f0e", "umc": "#1f77b4", "eumc": "#9467bd"}
 _SPARE_MARKERS = ("D", "v", "P", "X", "*", "<", ">")
 _SPARE_COLOURS = ("#8c564b", "#e377c2", "#17becf", "#bcbd22", "#7f7f7f")
 
@@ -50,13 +50,18 @@ _RC: dict[RcKeyType, Any] = {
 
 
 def controller_marker(name: str, order: int = 0) -> str:
-    """The scatter marker of a controller (PEC circle, UMC square, E-UMC triangle)."""
-    return _CONTROLLER_MARKERS.get(name.lower(), _SPARE_MARKERS[order % len(_SPARE_MARKERS)])
+    """The scatter marker a controller registered (`controller.registry`), else a spare
+    one by its order of appearance."""
+    reg = registry.lookup(name.lower())
+    return (reg.marker if reg is not None and reg.marker
+            else _SPARE_MARKERS[order % len(_SPARE_MARKERS)])
 
 
 def controller_colour(name: str, order: int = 0) -> str:
-    """The line colour of a controller in histograms."""
-    return _CONTROLLER_COLOURS.get(name.lower(), _SPARE_COLOURS[order % len(_SPARE_COLOURS)])
+    """The line colour a controller registered, else a spare one by its order."""
+    reg = registry.lookup(name.lower())
+    return (reg.colour if reg is not None and reg.colour
+            else _SPARE_COLOURS[order % len(_SPARE_COLOURS)])
 
 
 def new_figure(width_in: float, height_in: float, dpi: int = DEFAULT_DPI) -> Figure:

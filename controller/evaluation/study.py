@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from controller import registry
 from controller.evaluation.columns import Columns, TickData
 from controller.evaluation.lifts import GaitTrial, Lift
 from controller.evaluation.metrics import (
@@ -20,19 +21,11 @@ from controller.evaluation.metrics import (
     evaluate_lifts,
 )
 
-#: How tables and figures name the project's controllers (others are shown as given).
-CONTROLLER_LABELS: dict[str, str] = {"pec": "PEC", "umc": "UMC", "eumc": "E-UMC"}
-
-
-#: Which of the project's controllers estimate intent (record posteriors). Known by
-#: name rather than inferred from a recording: an E-UMC whose trigger never fired in a
-#: trial computed no posterior, yet its lifts were not recognised (False, not None).
-ESTIMATES_INTENT: dict[str, bool] = {"pec": False, "umc": True, "eumc": True}
-
 
 def controller_label(name: str) -> str:
-    """The display name of a controller ("eumc" -> "E-UMC")."""
-    return CONTROLLER_LABELS.get(name.lower(), name)
+    """The display name a controller registered (`controller.registry`); an unknown
+    name is shown as given."""
+    return registry.label(name.lower())
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,11 +60,15 @@ def evaluate_recording(
     (`count_false_positives`). A lifting trial passes only `lifts`, a walking trial
     only `trials`; a simulated whole protocol can pass both.
 
-    `with_intent`: whether the controller estimates intent; None takes it from
-    `ESTIMATES_INTENT` for a known controller name, else infers it from the data.
+    `with_intent`: whether the controller estimates intent; None takes what a
+    registered controller declares (`Registration.estimates_intent`), else infers it
+    from the data. Declared rather than inferred for a known controller: an E-UMC whose
+    trigger never fired in a trial computed no posterior, yet its lifts were not
+    recognised (False, not None).
     """
     cols = TickData.of(columns)
-    intent = ESTIMATES_INTENT.get(controller.lower()) if with_intent is None else with_intent
+    intent = (registry.estimates_intent(controller.lower()) if with_intent is None
+              else with_intent)
     return RecordingEvaluation(
         participant=str(participant),
         controller=str(controller),

@@ -1,10 +1,10 @@
 // Accounts: one's own password and logins; for an admin, every account (create,
 // role, disable or enable, new password).
-import { get, patch, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 
 async function loadUsers(me) {
-  const users = await get("/api/users");
+  const users = await api.accounts.listUsers();
   $("#users tbody").replaceChildren(...users.map((u) => h("tr", { "data-user": u.username },
     h("td", {}, u.username),
     h("td", {}, u.role),
@@ -14,7 +14,7 @@ async function loadUsers(me) {
       type: "button",
       class: "toggle-active",
       onclick: (ev) => act(ev.target, $("#users-msg"), async () => {
-        await patch(`/api/users/${u.id}`, { active: !u.active });
+        await api.accounts.updateUser(u.id, { active: !u.active });
         await loadUsers(me);
         return `${u.username} ${u.active ? "disabled" : "enabled"}`;
       }),
@@ -22,14 +22,14 @@ async function loadUsers(me) {
 }
 
 async function main() {
-  const me = await get("/api/auth/me");
+  const me = await api.auth.me();
   if (me.role === "admin") {
     $("#admin-only").hidden = false;
     await loadUsers(me);
     $("#user-form").addEventListener("submit", (ev) => {
       ev.preventDefault();
       act($("#user-create"), $("#user-msg"), async () => {
-        const u = await post("/api/users", formData(ev.target));
+        const u = await api.accounts.addUser(formData(ev.target));
         ev.target.reset();
         await loadUsers(me);
         return `created ${u.username}`;
@@ -38,20 +38,22 @@ async function main() {
   } else {
     $("#not-admin").hidden = false;
   }
+  const members = api.studies.setMember;
+  $("#members-route").textContent = `${members.method} ${members.path}`;
   document.body.dataset.ready = "true";
 }
 
 $("#password-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#password-change"), $("#password-msg"), async () => {
-    await post("/api/auth/password", formData(ev.target));
+    await api.auth.changePassword(formData(ev.target));
     ev.target.reset();
     return "password changed; your other logins ended";
   });
 });
 
 $("#revoke-all").addEventListener("click", async () => {
-  await post("/api/auth/revoke-all");
+  await api.auth.revokeAll();
   location.assign("/login");
 });
 

@@ -1,4 +1,6 @@
-// The console's one way to call the REST API: JSON in and out, errors as readable text.
+// How the console talks to the server: JSON in and out, errors as readable text. The
+// pages do not call this directly: they call the generated client (api_client.js),
+// whose operations are made here, so that no page spells a route of its own.
 
 export class ApiError extends Error {
   constructor(status, message) {
@@ -31,7 +33,7 @@ async function send(method, path, body) {
   return r;
 }
 
-export async function api(method, path, body) {
+export async function request(method, path, body) {
   const r = await send(method, path, body);
   if (r.status === 204) return null;
   const data = await r.json().catch(() => null);
@@ -39,14 +41,70 @@ export async function api(method, path, body) {
   return data;
 }
 
-export const get = (path) => api("GET", path);
-export const post = (path, body = {}) => api("POST", path, body);
-export const patch = (path, body) => api("PATCH", path, body);
-export const del = (path) => api("DELETE", path);
-
 // A text download (CSV): the body as a string.
 export async function getText(path) {
   const r = await send("GET", path);
   if (!r.ok) throw new ApiError(r.status, `${path}: ${r.status}`);
   return r.text();
+}
+
+// One operation of the generated client. Its arguments: the path parameters in path
+// order, then the body if it takes one, then an object of query parameters if it has
+// any. A missing path parameter, an extra argument or an unknown query parameter
+// throws at once, naming the operation, instead of asking the server for a wrong path.
+export function operation(name, method, template, { params = [], query = [], body = false } = {}) {
+  const fail = (why) => { throw new Error(`${name}: ${why}`); };
+  function address(values, q) {
+    let path = template;
+    params.forEach((p, i) => {
+      const v = values[i];
+      if (v === undefined || v === null || v === "") fail(`${p} is missing`);
+      path = path.replace(`{${p}}`, encodeURIComponent(String(v)));
+    });
+    if (q === undefined || q === null) return path;
+    if (typeof q !== "object" || Array.isArray(q)) fail("the query parameters must be an object");
+    const search = new URLSearchParams();
+    for (const [k, v] of Object.entries(q)) {
+      if (!query.includes(k)) fail(`no query parameter ${k} (it has: ${query.join(", ") || "none"})`);
+      if (v === undefined || v === null) continue;
+      for (const one of Array.isArray(v) ? v : [v]) search.append(k, String(one));
+    }
+    const text = search.toString();
+    return text ? `${path}?${text}` : path;
+  }
+  function split(given, withBody) {
+    // Trailing undefined arguments are absent ones (an optional body or query left out).
+    const args = [...given];
+    while (args.length && args[args.length - 1] === undefined) args.pop();
+    const most = params.length + (withBody ? 1 : 0) + (query.length ? 1 : 0);
+    if (args.length > most) fail(`takes at most ${most} arguments, got ${args.length}`);
+    const rest = args.slice(params.length);
+    return {
+      path: address(args.slice(0, params.length), rest[withBody ? 1 : 0]),
+      payload: withBody ? rest[0] : undefined,
+    };
+  }
+  const call = (...args) => {
+    const { path, payload } = split(args, body);
+    return request(method, path, payload);
+  };
+  call.url = (...args) => split(args, false).path;
+  call.text = (...args) => getText(split(args, false).path);
+  call.method = method;
+  call.path = template;
+  call.operation = name;
+  return Object.freeze(call);
+}
+
+// A reader of live WebSocket messages: the JSON text, checked to be a known `type`
+// carrying every field its Python model sends (`fields`, generated from the models).
+export function messageReader(fields) {
+  return (text) => {
+    const msg = JSON.parse(text);
+    const expected = msg && typeof msg === "object" ? fields[msg.type] : undefined;
+    if (!expected) throw new Error(`live message of unknown type ${JSON.stringify(msg && msg.type)}`);
+    const missing = expected.filter((f) => !(f in msg));
+    if (missing.length) throw new Error(`live ${msg.type} message without ${missing.join(", ")}`);
+    return msg;
+  };
 }

@@ -1,6 +1,6 @@
 // Virtual cohorts: start one as a background job, follow its progress, show its tables
-// and power curves (everything comes from GET /api/cohorts/{id}).
-import { get, post } from "/static/api.js";
+// and power curves (everything comes from api.cohorts.get).
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, h, showFatal } from "/static/dom.js";
 import { progressView } from "/static/jobs.js";
 import { controllerLabel, STUDY_CONTROLLERS } from "/static/names.js";
@@ -46,23 +46,23 @@ function show(cohort) {
   fill($("#summaries"), ["metric", "unit", "controller", "n", "mean", "95 % CI", "SD", "median"],
     doc.summaries.map((s) => [s.metric, units[s.metric], controllerLabel(s.controller), String(s.n),
       fmt(s.mean), `[${fmt(s.ci_low)}, ${fmt(s.ci_high)}]`, fmt(s.sd), fmt(s.median)]));
-  const base = `/api/cohorts/${cohort.id}`;
-  $("#power-figure").src = `${base}/figures/power.svg`;
-  $("#distributions-figure").src = `${base}/figures/distributions.svg`;
+  const figure = (name, kind) => api.cohorts.cohortFigure.url(cohort.id, name, kind);
+  $("#power-figure").src = figure("power", "svg");
+  $("#distributions-figure").src = figure("distributions", "svg");
   $("#downloads").replaceChildren("Download: ", ...["participants", "metrics", "comparisons",
-    "power"].flatMap((t) => [h("a", { href: `${base}/tables/${t}.csv` }, `${t}.csv`), " "]),
-    h("a", { href: `${base}/figures/power.png` }, "power.png"));
+    "power"].flatMap((t) => [h("a", { href: api.cohorts.cohortTable.url(cohort.id, t, "csv") }, `${t}.csv`), " "]),
+    h("a", { href: figure("power", "png") }, "power.png"));
   document.body.dataset.shown = String(cohort.id);
 }
 
 async function open(id) {
-  const cohort = await get(`/api/cohorts/${id}`);
+  const cohort = await api.cohorts.get(id);
   if (cohort.status === "ready") show(cohort);
   else if (cohort.status === "failed") $("#cohort-msg").textContent = cohort.error;
 }
 
 async function load() {
-  const rows = await get("/api/cohorts");
+  const rows = await api.cohorts.list();
   $("#cohorts tbody").replaceChildren(...rows.map((c) => h("tr", { "data-cohort": c.id },
     h("td", {}, c.status === "ready"
       ? h("a", { href: `#${c.id}`, onclick: () => open(c.id).catch(showFatal) }, c.name)
@@ -79,7 +79,7 @@ $("#cohort-form").addEventListener("submit", (ev) => {
     const controllers = [...document.querySelectorAll("#cohort-controllers input:checked")]
       .map((box) => box.value);
     const rate = $("#cohort-rate").value;
-    const cohort = await post("/api/cohorts", {
+    const cohort = await api.cohorts.start({
       participants: Number($("#cohort-participants").value),
       seed: Number($("#cohort-seed").value), controllers,
       rate_hz: rate === "" ? null : Number(rate),
@@ -89,7 +89,7 @@ $("#cohort-form").addEventListener("submit", (ev) => {
     const view = progressView(bar, $("#cohort-progress-text"));
     // A cohort belongs to no study: its progress comes with the cohort itself.
     for (;;) {
-      const c = await get(`/api/cohorts/${cohort.id}`);
+      const c = await api.cohorts.get(cohort.id);
       view({ status: c.status, progress: c.progress ?? 0, message: c.error });
       if (c.status === "failed") throw new Error(c.error || "the cohort failed");
       if (c.status === "ready") break;

@@ -1,9 +1,9 @@
 // Studies: list them and create one.
-import { get, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 
 async function load() {
-  const studies = await get("/api/studies");
+  const studies = await api.studies.list();
   const body = $("#studies tbody");
   body.replaceChildren(...studies.map((s) => h("tr", { "data-study": s.id },
     h("td", {}, h("a", { href: `/console/studies/${s.id}` }, s.name)),
@@ -18,7 +18,7 @@ async function load() {
 $("#study-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#study-create"), $("#study-msg"), async () => {
-    const s = await post("/api/studies", formData(ev.target));
+    const s = await api.studies.create(formData(ev.target));
     ev.target.reset();
     location.assign(`/console/studies/${s.id}`);
     return `created ${s.name}`;

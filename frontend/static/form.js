@@ -6,8 +6,9 @@
 // 1, "Strongly agree" over 5), the page says which form of how many this is, the
 // choices are large enough to tap on a tablet, and answers given so far survive a
 // reload (kept in this tab's sessionStorage until the form is sent).
+import * as api from "/static/api_client.js";
+
 const token = location.pathname.split("/").pop();
-const api = `/api/participant-forms/${encodeURIComponent(token)}`;
 const root = document.getElementById("forms");
 
 function el(tag, attrs = {}, ...children) {
@@ -17,8 +18,10 @@ function el(tag, attrs = {}, ...children) {
   return node;
 }
 
-async function post(path, body) {
-  const r = await fetch(api + path, {
+// The participant has no login: the page reads the answers itself (a 410 is a closed
+// link, not a reason to go to the login page).
+async function post(url, body) {
+  const r = await fetch(url, {
     method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
   });
   const data = await r.json().catch(() => ({}));
@@ -83,7 +86,7 @@ function renderForm(form, step, total) {
       answers[item.id] = checked ? Number(checked.value) : null;
     }
     try {
-      await post("/responses", { form: form.index, answers });
+      await post(api.participantForms.submitAnswers.url(token), { form: form.index, answers });
       sessionStorage.removeItem(draftKey(form.index));
       load();
     } catch (err) {
@@ -109,14 +112,14 @@ function renderPreference(pref, step, total) {
     event.preventDefault();
     const checked = card.querySelector("input[name=choice]:checked");
     if (!checked) { msg.textContent = "please choose one"; return; }
-    try { await post("/preference", { choice: checked.value }); load(); }
+    try { await post(api.participantForms.submitPreference.url(token), { choice: checked.value }); load(); }
     catch (err) { msg.textContent = err.message; }
   });
   return card;
 }
 
 async function load() {
-  const r = await fetch(api);
+  const r = await fetch(api.participantForms.get.url(token));
   const data = await r.json().catch(() => ({}));
   root.replaceChildren();
   if (!r.ok) {

@@ -24,7 +24,9 @@
   };
 
   async function warn() {
-    const r = await original("/api/auth/me");
+    // A classic script cannot import statically; the client is a module like the pages.
+    const { auth } = await import("/static/api_client.js");
+    const r = await original(auth.me.url());
     if (!r.ok) return;
     const me = await r.json();
     const who = document.getElementById("who");

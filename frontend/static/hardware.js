@@ -1,25 +1,25 @@
-// Hardware bring-up: the steps in order, each run through POST /api/hardware/<step>, its
-// verdict shown in its row; the profile they build, stored with POST /api/hardware/profile.
-import { get, post } from "/static/api.js";
+// Hardware bring-up: the steps in order, each run through its api.hardware operation, its
+// verdict shown in its row; the profile they build, stored with api.hardware.finish.
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, h, showFatal } from "/static/dom.js";
 
 // Each step: its stored name, what it asks of the experimenter, its request.
 const STEPS = [
   { name: "zero", label: "a. Encoder zero", ask: "stand still, upright",
-    path: "zero", body: () => ({ seconds: 2 }) },
+    op: api.hardware.zero, body: () => ({ seconds: 2 }) },
   { name: "direction_left", label: "b. Direction, left", ask: "flex the left hip during the capture",
-    path: "direction", body: () => ({ side: "left", seconds: 4 }) },
+    op: api.hardware.direction, body: () => ({ side: "left", seconds: 4 }) },
   { name: "direction_right", label: "b. Direction, right", ask: "flex the right hip during the capture",
-    path: "direction", body: () => ({ side: "right", seconds: 4 }) },
+    op: api.hardware.direction, body: () => ({ side: "right", seconds: 4 }) },
   { name: "offset", label: "c. Cam-to-output offset", ask: "both sides unlocked",
-    path: "offset", body: () => ({ seconds: 2 }) },
+    op: api.hardware.offset, body: () => ({ seconds: 2 }) },
   { name: "pulse_left", label: "d. Solenoid pulse, left", ask: "nobody wearing it", wearing: true,
-    path: "pulse", body: () => ({ side: "left", duration_ms: 300, nobody_wearing: nobody() }) },
+    op: api.hardware.pulse, body: () => ({ side: "left", duration_ms: 300, nobody_wearing: nobody() }) },
   { name: "pulse_right", label: "d. Solenoid pulse, right", ask: "nobody wearing it", wearing: true,
-    path: "pulse", body: () => ({ side: "right", duration_ms: 300, nobody_wearing: nobody() }) },
+    op: api.hardware.pulse, body: () => ({ side: "right", duration_ms: 300, nobody_wearing: nobody() }) },
   { name: "watchdog", label: "e. Watchdog test", ask: "nobody wearing it", wearing: true,
-    path: "watchdog", body: () => ({ side: "left", nobody_wearing: nobody() }) },
-  { name: "link", label: "f. Link statistics", ask: "", path: "link", body: () => undefined },
+    op: api.hardware.watchdog, body: () => ({ side: "left", nobody_wearing: nobody() }) },
+  { name: "link", label: "f. Link statistics", ask: "", op: api.hardware.link, body: () => undefined },
 ];
 
 const nobody = () => $("#nobody-wearing").checked;
@@ -53,7 +53,7 @@ function profileRow(p) {
 }
 
 async function refresh() {
-  const [state, profiles] = await Promise.all([get("/api/hardware"), get("/api/hardware/profiles")]);
+  const [state, profiles] = await Promise.all([api.hardware.hardwareState(), api.hardware.profiles()]);
   $("#device").textContent = `device: ${state.device}` + (state.simulated ? " (simulated)" : "") +
     (state.active ? ` · profile in effect: ${state.active.id}` : " · no profile in effect");
   $("#applied").textContent = `applied encoder offsets ${state.applied_offsets.join(", ")}, ` +
@@ -69,7 +69,7 @@ $("#step-table tbody").replaceChildren(...STEPS.map((s) => {
     if (s.wearing && !nobody()) {
       throw new Error("tick “nobody wears the exoskeleton” first: a solenoid is energised");
     }
-    const out = await post(`/api/hardware/${s.path}`, s.body());
+    const out = await s.op(s.body());
     showResult(s.name, out.result);
     await refresh();
     return `${s.label}: ${out.result.passed ? "passed" : "failed"}`;
@@ -83,7 +83,7 @@ $("#finish-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#finish"), $("#finish-msg"), async () => {
     const version = $("#firmware-version").value.trim();
-    const p = await post("/api/hardware/profile", { firmware_version: version || null });
+    const p = await api.hardware.finish({ firmware_version: version || null });
     await refresh();
     return `profile ${p.id}: ${p.status}`;
   });

@@ -1,9 +1,9 @@
 // Background jobs (model fitting, utilities): poll until done, reporting progress.
-import { get } from "/static/api.js";
+import * as api from "/static/api_client.js";
 
 export async function waitForJob(jobId, onProgress, intervalMs = 300) {
   for (;;) {
-    const job = await get(`/api/jobs/${jobId}`);
+    const job = await api.models.getJob(jobId);
     onProgress(job);
     if (job.status === "done") return job;
     if (job.status === "failed" || job.status === "cancelled") {

@@ -1,12 +1,13 @@
 // Live console: one WebSocket, ring buffers, uPlot redrawn at most ~30 times a second.
 // With ?trial=ID the same plots replay a stored trial, scrubbed with a slider.
-import { ApiError, get, post } from "/static/api.js";
+import { ApiError } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { connectLive, Ring } from "/static/livestream.js";
 import { createTimePlots } from "/static/timeplots.js";
 import { addProgress, displayValue, lastTick, PLOT_COLUMNS } from "/static/tickdata.js";
 import { createStateStrip } from "/static/statestrip.js";
 import { createMarkerBar, markDrawn, noteMarker } from "/static/markers.js";
-import { CATEGORY_NAMES, controllerLabel, CONTROLLER_NAMES, MODEL_NAMES, tickColumn } from "/static/names.js";
+import { CATEGORY_NAMES, controllerLabel, CONTROLLER_NAMES, IDLE_CONTROLLER, MODEL_NAMES, tickColumn } from "/static/names.js";
 
 const RATE_HZ = 100;
 const STRIP_COLUMNS = ["lock_left", "lock_right", "locked_left", "locked_right", "action", "trigger"]
@@ -224,8 +225,8 @@ async function startReplay(id) {
   $("replay-bar").hidden = false;
   setConn("replay", `replay of trial ${id}`);
   const [trial, body] = await Promise.all([
-    get(`/api/trials/${id}`),
-    get(`/api/trials/${id}/ticks.json`).catch((err) => {
+    api.trials.get(id),
+    api.trials.trialTicksJson(id).catch((err) => {
       if (err instanceof ApiError && err.status === 404) {
         throw new Error(`trial ${id} has no stored ticks (it has not run)`);
       }
@@ -239,7 +240,7 @@ async function startReplay(id) {
     `${trial.task} · ${trial.status}`;
   const disp = Object.fromEntries(PLOTTED.map((n) => [n, (raw[n] || []).map((v) => displayValue(n, v))]));
   replay = { raw, disp, n: raw.t.length, index: 0 };
-  get(`/api/trials/${id}/markers`).catch(() => []).then((list) => {
+  api.lab.trialMarkers(id).catch(() => []).then((list) => {
     list.forEach(noteMarker);
     plots.setMarkers(list);
   });
@@ -318,20 +319,20 @@ function showHealth(h) {
   $("device-detail").textContent = d.faults.length ? "faults: " + d.faults.join("; ") : "no faults";
 }
 
-// The controllers the worker can run, from the vocabulary ("none" records without locks).
-// "none" first: the worker starts with it.
-const noneFirst = [...CONTROLLER_NAMES].sort((a, b) => Number(b === "none") - Number(a === "none"));
-controllerSel.replaceChildren(...noneFirst.map((name) => {
+// The controllers the worker can run, from the vocabulary (the idle one records without
+// locks). The idle one first: the worker starts with it.
+const idleFirst = [...CONTROLLER_NAMES].sort((a, b) => Number(b === IDLE_CONTROLLER) - Number(a === IDLE_CONTROLLER));
+controllerSel.replaceChildren(...idleFirst.map((name) => {
   const option = document.createElement("option");
   option.value = name;
-  option.textContent = name === "none" ? "none (recording, no locks)" : controllerLabel(name);
+  option.textContent = name === IDLE_CONTROLLER ? `${controllerLabel(name)} (recording, no locks)` : controllerLabel(name);
   return option;
 }));
 
 controllerSel.addEventListener("change", async () => {
   controllerMsg.textContent = `switching to ${controllerSel.value}…`;
   try {
-    await post("/api/worker/controller", { name: controllerSel.value });
+    await api.worker.setController({ name: controllerSel.value });
     controllerMsg.textContent = `requested ${controllerSel.value}`;
   } catch (err) {
     controllerMsg.textContent = `refused: ${err.message}`;
@@ -342,7 +343,7 @@ $("calibrate").addEventListener("click", async (ev) => {
   ev.target.disabled = true;
   controllerMsg.textContent = "calibrating: the wearer stands still…";
   try {
-    const res = await post("/api/worker/calibrate", { seconds: 3 });
+    const res = await api.worker.calibrate({ seconds: 3 });
     controllerMsg.dataset.calibrated = "true";
     controllerMsg.textContent = `calibrated: offsets ${res.offset_left_deg.toFixed(1)}°, ` +
       `${res.offset_right_deg.toFixed(1)}° (std ${res.std_left_deg.toFixed(2)}°, ${res.std_right_deg.toFixed(2)}°)`;
@@ -357,7 +358,7 @@ $("calibrate").addEventListener("click", async (ev) => {
 $("restart").addEventListener("click", async (ev) => {
   ev.target.disabled = true;
   try {
-    showHealth(await post("/api/worker/restart"));
+    showHealth(await api.worker.restart());
   } catch (err) {
     controllerMsg.textContent = `restart failed: ${err.message}`;
   } finally {

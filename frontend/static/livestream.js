@@ -1,6 +1,8 @@
-// The /ws/live stream for any page: reconnects, counts messages, gaps and drops.
-// Message formats: backend/schemas/live.py (LiveTicks, LiveStatus) and
-// backend/schemas/lab.py (LiveMarker).
+// The live WebSocket for any page: reconnects, counts messages, gaps and drops. Its
+// path and message types come from the generated client (api_client.js), from the
+// Python models backend/schemas/live.py (LiveTicks, LiveStatus) and
+// backend/schemas/lab.py (LiveMarker); a message missing a field of its model throws.
+import { readLiveMessage, sockets } from "/static/api_client.js";
 
 export function connectLive({ onTicks, onStatus, onState, onMarker }) {
   const counts = { messages: 0, samples: 0, gaps: 0, dropped: 0 };
@@ -11,10 +13,10 @@ export function connectLive({ onTicks, onStatus, onState, onMarker }) {
 
   function open() {
     const proto = location.protocol === "https:" ? "wss:" : "ws:";
-    ws = new WebSocket(`${proto}//${location.host}/ws/live`);
+    ws = new WebSocket(`${proto}//${location.host}${sockets.live}`);
     ws.onopen = () => { retryMs = 500; onState && onState("live"); };
     ws.onmessage = (ev) => {
-      const msg = JSON.parse(ev.data);
+      const msg = readLiveMessage(ev.data);
       if (msg.type === "ticks") {
         counts.messages += 1;
         counts.samples += msg.columns.t.length;

@@ -1,5 +1,7 @@
 // Log in with the JSON endpoint (it sets the httponly session cookie), then go back to
 // the page that sent us here. Only same-site paths are followed, never another origin.
+import * as api from "/static/api_client.js";
+
 const form = document.getElementById("login");
 const error = document.getElementById("login-error");
 
@@ -24,7 +26,8 @@ form.addEventListener("submit", async (event) => {
     username: document.getElementById("username").value,
     password: document.getElementById("password").value,
   };
-  const r = await fetch("/api/auth/login", {
+  // Not through api.auth.login(): a refused login must stay here, not go to the login page.
+  const r = await fetch(api.auth.login.url(), {
     method: "POST",
     headers: { "Content-Type": "application/json" },
     body: JSON.stringify(body),

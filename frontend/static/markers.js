@@ -1,9 +1,9 @@
 // Event markers from the console: one button per label of the study (hotkeys 1-9), a
 // free note, and the marker list of the session. The server stamps a marker with the
 // newest tick, stores it with the running trial, sends it on the LSL marker stream and
-// to every console (`/ws/live` message "marker", backend/schemas/lab.py LiveMarker);
+// to every console (live WebSocket message "marker", backend/schemas/lab.py LiveMarker);
 // the plots draw markers at their tick time.
-import { api, del, get, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { act, h } from "/static/dom.js";
 
 // What the browser tests read: markers stored from this page and seen on the stream.
@@ -17,7 +17,7 @@ function typing(ev) {
 
 // Builds the bar in `container` for session `sessionId`.
 export async function createMarkerBar(container, sessionId) {
-  const labels = (await get(`/api/sessions/${sessionId}/marker-labels`)).labels;
+  const labels = (await api.lab.sessionMarkerLabels(sessionId)).labels;
   state.labels = labels;
   const msg = h("span", { class: "msg", id: "marker-msg" });
   const note = h("input", { id: "marker-note", size: 28, placeholder: "note (optional)",
@@ -26,7 +26,7 @@ export async function createMarkerBar(container, sessionId) {
     msg.className = "msg";
     msg.textContent = "…";
     try {
-      const m = await post(`/api/sessions/${sessionId}/markers`, { label, note: note.value });
+      const m = await api.lab.addMarker(sessionId, { label, note: note.value });
       state.stored.push(m);
       note.value = "";
       msg.textContent = `marked "${m.label}" at ${m.t == null ? "–" : m.t.toFixed(2) + " s"}` +
@@ -78,11 +78,11 @@ export function createStreamPicker(container, sessionId) {
   const found = h("ul", { id: "lsl-found", class: "plain-list" });
   const subs = h("ul", { id: "lsl-subs", class: "plain-list" });
   async function showSubs() {
-    const list = await get(`/api/sessions/${sessionId}/marker-streams`);
+    const list = await api.lab.listMarkerStreams(sessionId);
     subs.replaceChildren(...list.filter((s) => s.active).map((s) => h("li", {},
       `${s.name} ${s.source_id ? `(${s.source_id})` : ""} · ${s.connected ? "connected" : "waiting"} `,
       h("button", { type: "button", onclick: async () => {
-        await del(`/api/sessions/${sessionId}/marker-streams/${s.id}`);
+        await api.lab.unsubscribe(sessionId, s.id);
         await showSubs();
       } }, "Stop"))));
   }
@@ -90,14 +90,13 @@ export function createStreamPicker(container, sessionId) {
     msg.className = "msg";
     msg.textContent = "looking for LSL streams (1 s)…";
     try {
-      const list = await get(`/api/sessions/${sessionId}/lsl-streams`);
+      const list = await api.lab.visibleStreams(sessionId);
       const others = list.filter((s) => !s.own);
       found.replaceChildren(...others.map((s) => h("li", {},
         `${s.name} · ${s.type} · ${s.hostname} `,
         s.type === "Markers" ? h("button", { type: "button", onclick: async () => {
           try {
-            await post(`/api/sessions/${sessionId}/marker-streams`,
-              { name: s.name, source_id: s.source_id });
+            await api.lab.subscribe(sessionId, { name: s.name, source_id: s.source_id });
             await showSubs();
           } catch (err) { msg.textContent = err.message; msg.classList.add("msg-bad"); }
         } }, "Listen") : null)));
@@ -121,11 +120,11 @@ export function createStreamPicker(container, sessionId) {
 export async function createLabelEditor(container, studyId) {
   const input = h("input", { id: "marker-labels-input", size: 60 });
   const msg = h("span", { class: "msg", id: "marker-labels-msg" });
-  input.value = (await get(`/api/studies/${studyId}/marker-labels`)).labels.join(", ");
+  input.value = (await api.lab.getMarkerLabels(studyId)).labels.join(", ");
   const save = h("button", { type: "button", id: "marker-labels-save", onclick: () =>
     act(save, msg, async () => {
       const labels = input.value.split(",").map((s) => s.trim()).filter(Boolean);
-      const out = await api("PUT", `/api/studies/${studyId}/marker-labels`, { labels });
+      const out = await api.lab.putMarkerLabels(studyId, { labels });
       input.value = out.labels.join(", ");
       return `saved ${out.labels.length} labels`;
     }) }, "Save labels");

@@ -11,14 +11,21 @@ export const MODEL_NAMES = names(VOCABULARY.models);
 export const CATEGORY_NAMES = names(VOCABULARY.categories);
 export const SEGMENT_LABELS = names(VOCABULARY.segment_labels);
 export const CONTROLLER_NAMES = names(VOCABULARY.controllers);
-// The controllers a study compares (every one but "none", which never locks).
-export const STUDY_CONTROLLERS = VOCABULARY.controllers.filter((c) => c.name !== "none").map((c) => c.name);
+// The controllers a study compares (every one but the idle one, which never locks).
+export const STUDY_CONTROLLERS = VOCABULARY.controllers.filter((c) => !c.idle).map((c) => c.name);
+// The resting controller the worker starts with and returns to (it never locks).
+export const IDLE_CONTROLLER = VOCABULARY.controllers.find((c) => c.idle)?.name ?? null;
 export const SCRIPTS = VOCABULARY.scripts;
 
 const controllers = byName(VOCABULARY.controllers);
 const models = byName([...VOCABULARY.categories, ...VOCABULARY.segment_labels]);
 const actionsByValue = new Map(VOCABULARY.actions.map((a) => [a.value, a]));
 const actionsByName = byName(VOCABULARY.actions);
+
+// What a controller declares about itself (label, colour, capabilities), or null.
+export function controllerInfo(name) {
+  return controllers.get(name) ?? null;
+}
 
 // "eumc" -> "E-UMC"; a name the vocabulary does not know is shown as given.
 export function controllerLabel(name) {

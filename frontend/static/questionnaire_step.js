@@ -1,6 +1,6 @@
 // The session page's questionnaire step: make a participant link for the chosen forms
 // and conditions, and show the scored answers (unblinded) as they arrive.
-import { get, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, h } from "/static/dom.js";
 import { controllerLabel } from "/static/names.js";
 
@@ -30,8 +30,8 @@ function renderChoices() {
 async function refreshAnswers() {
   if (participantId == null) return;
   const [responses, preferences] = await Promise.all([
-    get(`/api/participants/${participantId}/responses`),
-    get(`/api/participants/${participantId}/preferences`)]);
+    api.questionnaires.listResponses(participantId),
+    api.preferences.list(participantId)]);
   state.polls += 1;
   if (responses.length === state.responses.length && preferences.length === state.preferences.length) return;
   state.responses = responses;
@@ -47,12 +47,12 @@ async function refreshAnswers() {
 }
 
 async function load() {
-  const session = await get(`/api/sessions/${sessionId}`);
+  const session = await api.sessions.get(sessionId);
   if (session.kind !== "evaluation") return;
   participantId = session.participant_id;
   [instruments, conditions] = await Promise.all([
-    get(`/api/participants/${participantId}/instruments`),
-    get(`/api/participants/${participantId}/conditions`)]);
+    api.questionnaires.listParticipantInstruments(participantId),
+    api.participants.listConditions(participantId)]);
   // The newest version of each instrument the study may use; the link names it.
   const newest = new Map();
   for (const i of instruments) newest.set(i.key, i);
@@ -67,7 +67,7 @@ async function load() {
 // A plan made on this page adds the conditions: pick them up.
 document.addEventListener("exostudy:planned", async () => {
   if (participantId == null) return;
-  conditions = await get(`/api/participants/${participantId}/conditions`);
+  conditions = await api.participants.listConditions(participantId);
   $("#link-msg").textContent = "";
   renderChoices();
 });
@@ -79,7 +79,7 @@ $("#link-form").addEventListener("submit", (ev) => {
       const [key, version, label] = x.value.split("|");
       return { instrument_key: key, instrument_version: version, condition_label: label };
     });
-    const link = await post(`/api/participants/${participantId}/links`,
+    const link = await api.questionnaires.createLink(participantId,
       { forms, preference: $("#link-preference").checked });
     $("#link-url").href = link.url;
     $("#link-url").textContent = link.url;

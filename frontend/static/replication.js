@@ -1,6 +1,6 @@
 // The replication report: start one as a background job, follow it, show the newest
-// report's claims (everything from GET /api/replication).
-import { get, post } from "/static/api.js";
+// report's claims (everything from api.replication.latest).
+import * as api from "/static/api_client.js";
 import { $, act, h, showFatal } from "/static/dom.js";
 import { progressView } from "/static/jobs.js";
 
@@ -22,6 +22,7 @@ function show(report) {
   $("#rep-result").hidden = report == null;
   $("#rep-empty").hidden = report != null;
   if (report == null) return;
+  $("#rep-open").href = api.replication.reportPage.url();
   $("#rep-title").textContent = `Newest report · ${report.folder}` +
     (report.wall_s != null ? ` · ${Math.round(report.wall_s)} s` : "");
   $("#rep-claims tbody").replaceChildren(...report.claims.map((c) => h("tr",
@@ -31,7 +32,7 @@ function show(report) {
 }
 
 async function load() {
-  const state = await get("/api/replication");
+  const state = await api.replication.latest();
   show(state.report);
   document.body.dataset.ready = "true";
   return state;
@@ -40,7 +41,7 @@ async function load() {
 $("#rep-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#rep-run"), $("#rep-msg"), async () => {
-    const started = await post("/api/replication", {
+    const started = await api.replication.start({
       seeds: Number($("#rep-seeds").value),
       participants: Number($("#rep-participants").value),
     });
@@ -48,7 +49,7 @@ $("#rep-form").addEventListener("submit", (ev) => {
     bar.hidden = false;
     const view = progressView(bar, $("#rep-progress-text"));
     for (;;) {
-      const state = await get("/api/replication");
+      const state = await api.replication.latest();
       const job = state.job && state.job.id === started.job_id ? state.job : null;
       if (job) view(job);
       if (job && (job.status === "failed" || job.status === "cancelled")) {

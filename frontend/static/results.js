@@ -1,9 +1,9 @@
 // A study's results: the paper's tables and figures from the stored trials, the trials
 // with their replay, timeline and what-if replay, and the leave-one-out model evaluation.
-import { api, get, getText, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
 import { cellNode, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
-import { CONTROLLER_NAMES, controllerKey, controllerLabel, correctAction, SEGMENT_LABELS } from "/static/names.js";
+import { CONTROLLER_NAMES, controllerInfo, controllerKey, controllerLabel, correctAction, SEGMENT_LABELS, STUDY_CONTROLLERS } from "/static/names.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
 $("#whatif-controller").replaceChildren(...CONTROLLER_NAMES.map((c) => h("option", { value: c }, controllerLabel(c))));
@@ -91,8 +91,8 @@ function tableCard(spec, table, wide) {
   return h("section", { class: "card", "data-table": spec.name, "data-layout": wide ? "paper" : "long" },
     h("h2", {}, spec.longOnly ? spec.title : table.title || spec.title),
     h("p", { class: "small" },
-      h("a", { href: `/api/studies/${studyId}/results/${spec.name}.csv`, download: "" }, "CSV"), " · ",
-      h("a", { href: `/api/studies/${studyId}/results/${spec.name}.md`, download: "" }, "Markdown"),
+      h("a", { href: api.results.studyTable.url(studyId, spec.name, "csv"), download: "" }, "CSV"), " · ",
+      h("a", { href: api.results.studyTable.url(studyId, spec.name, "md"), download: "" }, "Markdown"),
       h("span", { class: "muted" }, ` · ${view.rows.length} of ${table.rows.length} rows`)),
     tableView(`${spec.name}:${layout}`, view.header, view.rows, labelled(view.header), spec.name),
     table.rows.length ? null : h("p", { class: "muted small" }, "nothing to count yet"),
@@ -121,8 +121,8 @@ function renderTables() {
     const view = filtered(lifts, false);
     $("#lifts-count").textContent = `(${view.rows.length} of ${lifts.rows.length} lifts)`;
     $("#lifts").replaceChildren(h("p", { class: "small" },
-      h("a", { href: `/api/studies/${studyId}/results/lifts.csv`, download: "" }, "CSV"), " · ",
-      h("a", { href: `/api/studies/${studyId}/results/lifts.md`, download: "" }, "Markdown"),
+      h("a", { href: api.results.studyTable.url(studyId, "lifts", "csv"), download: "" }, "CSV"), " · ",
+      h("a", { href: api.results.studyTable.url(studyId, "lifts", "md"), download: "" }, "Markdown"),
       h("span", { class: "muted" }, " · the data behind both figures; times in seconds from the lift's onset, torques in Nm")),
     tableView("lifts", view.header, view.rows, labelled(view.header), "lifts"));
   }
@@ -134,7 +134,7 @@ const TRIAL_HEADER = ["trial", "participant", "controller", "task", "ground trut
 function trialLinks(t) {
   return [
     h("a", { href: `/live?trial=${t.trial_id}`, class: "replay-link" }, "Replay ›"), " ",
-    h("a", { href: `/api/trials/${t.trial_id}/figures/timeline.svg`, class: "timeline-link", target: "_blank" }, "timeline"), " ",
+    h("a", { href: api.results.trialTimeline.url(t.trial_id, "svg"), class: "timeline-link", target: "_blank" }, "timeline"), " ",
     h("button", { type: "button", class: "open", onclick: () => openTrial(t) }, "Open"),
   ];
 }
@@ -174,20 +174,20 @@ function render() {
 
 async function loadLong() {
   const names = ["lifts", ...TABLES.filter((t) => t.wide || t.longOnly).map((t) => t.name)];
-  const texts = await Promise.all(names.map((n) => getText(`/api/studies/${studyId}/results/${n}.csv`)));
+  const texts = await Promise.all(names.map((n) => api.results.studyTable.text(studyId, n, "csv")));
   long = Object.fromEntries(names.map((n, i) => [n, parseCsv(texts[i])]));
 }
 
 async function loadResults() {
   const [study, results] = await Promise.all([
-    get(`/api/studies/${studyId}`), get(`/api/studies/${studyId}/results`)]);
+    api.studies.get(studyId), api.results.study(studyId)]);
   doc = results;
   await loadLong();
   document.title = `ExoStudy · results · ${study.name}`;
   $("#study-title").textContent = study.name;
   $("#study-link").textContent = study.name;
   $("#study-link").href = `/console/studies/${studyId}`;
-  $("#export").href = `/api/studies/${studyId}/export.zip`;
+  $("#export").href = api.trials.exportStudy.url(studyId);
   const fill = (sel, values, label = (v) => v) => {
     const current = sel.value;
     sel.replaceChildren(h("option", { value: "" }, "all"),
@@ -211,30 +211,39 @@ async function loadResults() {
   const stamp = Date.now();
   $("#figures").replaceChildren(...FIGURES.map(([n, title]) => {
     const msg = h("p", { class: "msg small" }, "drawing…");
-    const img = h("img", { src: `/api/studies/${studyId}/figures/${n}.svg?v=${stamp}`, alt: title, style: "width:100%;height:auto" });
+    const img = h("img", { src: `${api.results.studyFigure.url(studyId, n, "svg")}?v=${stamp}`, alt: title, style: "width:100%;height:auto" });
     img.addEventListener("load", () => { msg.textContent = ""; });
     img.addEventListener("error", () => { msg.textContent = "the figure could not be drawn"; msg.classList.add("msg-bad"); });
     return h("figure", { "data-figure": n }, msg, img,
       h("figcaption", { class: "small" }, title, " · ",
-        h("a", { href: `/api/studies/${studyId}/figures/${n}.png`, download: "" }, "PNG"), " · ",
-        h("a", { href: `/api/studies/${studyId}/figures/${n}.svg`, download: "" }, "SVG")));
+        h("a", { href: api.results.studyFigure.url(studyId, n, "png"), download: "" }, "PNG"), " · ",
+        h("a", { href: api.results.studyFigure.url(studyId, n, "svg"), download: "" }, "SVG")));
   }));
   state.loaded += 1;
 }
 
 let currentTrial = null;
+// The what-if replay's first suggestion: a study controller that differs from the
+// trial's in whether it estimates intent (so the comparison shows what intent adds),
+// else any other study controller.
+function whatIfDefault(name) {
+  const others = STUDY_CONTROLLERS.filter((c) => c !== name);
+  const intent = controllerInfo(name)?.estimates_intent;
+  return others.find((c) => controllerInfo(c)?.estimates_intent !== intent) ?? others[0] ?? name;
+}
+
 function openTrial(t) {
   currentTrial = t;
   $("#trial-panel").hidden = false;
   $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${controllerLabel(t.controller)} · ${t.task}`;
   $("#panel-replay").href = `/live?trial=${t.trial_id}`;
-  $("#panel-timeline-svg").href = `/api/trials/${t.trial_id}/figures/timeline.svg`;
-  $("#panel-timeline-png").href = `/api/trials/${t.trial_id}/figures/timeline.png`;
+  $("#panel-timeline-svg").href = api.results.trialTimeline.url(t.trial_id, "svg");
+  $("#panel-timeline-png").href = api.results.trialTimeline.url(t.trial_id, "png");
   const msg = $("#panel-timeline-msg");
   msg.className = "msg small";
   msg.textContent = "drawing the timeline…";
-  $("#panel-timeline").src = `/api/trials/${t.trial_id}/figures/timeline.svg`;
-  $("#whatif-controller").value = t.controller === "pec" ? "umc" : "pec";
+  $("#panel-timeline").src = api.results.trialTimeline.url(t.trial_id, "svg");
+  $("#whatif-controller").value = whatIfDefault(t.controller);
   loadSegments().catch((err) => { $("#seg-msg").textContent = err.message; });
   $("#whatif").hidden = true;
   $("#whatif-msg").textContent = "";
@@ -265,7 +274,7 @@ function showSegments(list) {
 }
 
 async function loadSegments() {
-  showSegments(await get(`/api/trials/${currentTrial.trial_id}/segments`));
+  showSegments(await api.trials.listTrialSegments(currentTrial.trial_id));
 }
 
 $("#seg-add").addEventListener("click", () => {
@@ -274,12 +283,12 @@ $("#seg-add").addEventListener("click", () => {
 
 $("#seg-propose").addEventListener("click", () =>
   act($("#seg-propose"), $("#seg-msg"), async () => {
-    const path = `/api/trials/${currentTrial.trial_id}/segment`;
+    const id = currentTrial.trial_id;
     try {
-      showSegments(await post(path));
+      showSegments(await api.trials.autoSegment(id));
     } catch (err) {
       if (err.status !== 409 || !confirm("Replace the segments you set with a new proposal?")) throw err;
-      showSegments(await post(`${path}?replace=true`));
+      showSegments(await api.trials.autoSegment(id, { replace: true }));
     }
     return "proposed: check the edges and labels, then save";
   }));
@@ -292,7 +301,7 @@ $("#seg-save").addEventListener("click", () =>
       end: Number(tr.querySelector("[name=end]").value),
       label: tr.querySelector("[name=label]").value,
     }));
-    showSegments(await api("PUT", `/api/trials/${currentTrial.trial_id}/segments`, body));
+    showSegments(await api.trials.replaceTrialSegments(currentTrial.trial_id, body));
     await loadResults();
     return `saved ${body.length} segment${body.length === 1 ? "" : "s"}; the tables are recomputed`;
   }));
@@ -317,7 +326,7 @@ $("#whatif-form").addEventListener("submit", (ev) => {
   act($("#whatif-run"), $("#whatif-msg"), async () => {
     const body = formData(ev.target);
     for (const k of ["model_set_id", "utility_set_id"]) if (body[k] != null) body[k] = Number(body[k]);
-    const r = await post(`/api/trials/${currentTrial.trial_id}/what-if`, body);
+    const r = await api.results.trialWhatIf(currentTrial.trial_id, body);
     state.whatIf = r;
     const rate = body.rate_hz ? ` at ${body.rate_hz} Hz` : "";
     $("#whatif thead tr").replaceChildren(h("th", {}, "metric"),
@@ -352,7 +361,7 @@ $("#lopo-form").addEventListener("submit", (ev) => {
   act($("#lopo-run"), $("#lopo-msg"), async () => {
     const id = $("#lopo-model-set").value;
     if (!id) throw new Error("model set: this study has no ready model set");
-    const r = await get(`/api/studies/${studyId}/model-evaluation?model_set_id=${id}`);
+    const r = await api.results.modelEvaluation(studyId, { model_set_id: id });
     state.lopo = r;
     $("#lopo").replaceChildren(
       h("p", {}, `Recognition ${pct(r.recognition_accuracy)}, decisions ${pct(r.decision_accuracy)} over ${r.segments} segments.`),
@@ -370,7 +379,7 @@ $("#lopo-form").addEventListener("submit", (ev) => {
 
 async function loadModelSets() {
   const [models, utilities] = await Promise.all([
-    get(`/api/studies/${studyId}/model-sets`), get(`/api/studies/${studyId}/utility-sets`)]);
+    api.models.listModelSets(studyId), api.models.listUtilitySets(studyId)]);
   const ready = (xs) => xs.filter((m) => m.status === "ready");
   const option = (m) => h("option", { value: m.id }, `${m.id} · ${m.name}`);
   $("#lopo-model-set").replaceChildren(...ready(models).map(option));

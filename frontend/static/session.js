@@ -2,7 +2,7 @@
 // evaluation (plan, calibrate, run the trials); utilities for the session's
 // precompression in both. The live stream feeds a small angle plot, the state strip and
 // the stillness indicator.
-import { del, get, patch, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, h, showFatal } from "/static/dom.js";
 import { waitForJob, progressView } from "/static/jobs.js";
 import { connectLive, Ring } from "/static/livestream.js";
@@ -94,10 +94,10 @@ function showStillness() {
 
 // ------------------------------------------------------------ session header
 async function loadSession() {
-  session = await get(`/api/sessions/${sessionId}`);
-  participant = await get(`/api/participants/${session.participant_id}`);
+  session = await api.sessions.get(sessionId);
+  participant = await api.participants.get(session.participant_id);
   studyId = participant.study_id;
-  const study = await get(`/api/studies/${studyId}`);
+  const study = await api.studies.get(studyId);
   const kind = session.kind === "evaluation" ? "Evaluation" : "Data collection";
   document.title = `ExoStudy · ${participant.code} · ${kind}`;
   $("#session-title").textContent = `${kind} · participant ${participant.code}`;
@@ -115,7 +115,7 @@ async function loadSession() {
 $("#pct-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#pct-save"), $("#pct-msg"), async () => {
-    session = await patch(`/api/sessions/${sessionId}`, { precompression_pct: Number($("#pct").value) });
+    session = await api.sessions.update(sessionId, { precompression_pct: Number($("#pct").value) });
     $("#util-pct").textContent = session.precompression_pct;
     showUtilities(true);
     return `saved ${session.precompression_pct} %`;
@@ -138,7 +138,7 @@ $("#sim-form").addEventListener("submit", (ev) => {
 let simScript = null;
 async function applySimulation(script) {
   const before = latest ? latest.t : Infinity;
-  await post("/api/worker/simulation", { script, seed: Number($("#sim-seed").value) });
+  await api.worker.setSimulation({ script, seed: Number($("#sim-seed").value) });
   // The simulator restarts with its clock at zero: wait until the stream shows the new
   // one running, so that a recording or trial started next holds only its samples.
   await waitUntil(() => latest && latest.t < before && latest.t > 0.5, 10000);
@@ -166,7 +166,7 @@ const excluded = new Set();
 const segPlot = createSegmentPlot($("#seg-plot"), {
   async onEdgeMoved(seg, which, index, original) {
     try {
-      const updated = await patch(`/api/segments/${seg.id}`, { [which]: index });
+      const updated = await api.recordings.editSegment(seg.id, { [which]: index });
       Object.assign(seg, updated);
       $("#seg-msg").className = "msg msg-ok";
       $("#seg-msg").textContent = `lift ${seg.id}: ${which} moved to ${segTime(index)} s`;
@@ -192,10 +192,10 @@ let shownAngles = null;
 const segTime = (i) => (shownAngles && shownAngles.t[i] != null ? (shownAngles.t[i] - shownAngles.t[0]).toFixed(2) : "–");
 
 async function loadRecordings() {
-  recordings = await get(`/api/sessions/${sessionId}/recordings`);
+  recordings = await api.recordings.list(sessionId);
   for (const r of recordings) {
     if (r.status === "stopped" && !segmentsByRecording.has(r.id)) {
-      segmentsByRecording.set(r.id, await get(`/api/recordings/${r.id}/segments`));
+      segmentsByRecording.set(r.id, await api.recordings.listSegments(r.id));
     }
   }
   const active = recordings.find((r) => r.status === "recording");
@@ -224,13 +224,13 @@ function setRecordingState(active) {
 }
 
 $("#rec-start").addEventListener("click", (ev) => act(ev.target, $("#rec-msg"), async () => {
-  const r = await post(`/api/sessions/${sessionId}/recordings`, { label: $("#rec-label").value });
+  const r = await api.recordings.start(sessionId, { label: $("#rec-label").value });
   await loadRecordings();
   return `recording #${r.id} started: the worker runs without locks`;
 }, syncRecordButtons));
 
 $("#rec-stop").addEventListener("click", (ev) => act(ev.target, $("#rec-msg"), async () => {
-  const r = await post(`/api/recordings/${page.recordingId}/stop`);
+  const r = await api.recordings.stop(page.recordingId);
   await loadRecordings();
   await showRecording(r.id);
   await findLifts(false);
@@ -238,7 +238,7 @@ $("#rec-stop").addEventListener("click", (ev) => act(ev.target, $("#rec-msg"), a
 }, syncRecordButtons));
 
 async function showRecording(id) {
-  shownAngles = await get(`/api/recordings/${id}/angles`);
+  shownAngles = await api.recordings.recordingAngles(id);
   page.shownRecording = id;
   $("#seg-title").textContent = `· recording #${id}`;
   segPlot.setRecording(shownAngles);
@@ -249,7 +249,7 @@ async function showRecording(id) {
 
 async function findLifts(replace) {
   const id = page.shownRecording;
-  const found = await post(`/api/recordings/${id}/segment${replace ? "?replace=true" : ""}`);
+  const found = await api.recordings.autoSegment(id, replace ? { replace: true } : {});
   segmentsByRecording.set(id, found);
   showSegments();
   await loadRecordings();
@@ -282,7 +282,7 @@ function showSegments() {
 
 async function relabel(seg, label) {
   try {
-    Object.assign(seg, await patch(`/api/segments/${seg.id}`, { label }));
+    Object.assign(seg, await api.recordings.editSegment(seg.id, { label }));
     $("#seg-msg").className = "msg msg-ok";
     $("#seg-msg").textContent = `lift ${seg.id} is now ${modelLabel(label)}`;
   } catch (err) {
@@ -293,7 +293,7 @@ async function relabel(seg, label) {
 }
 
 async function removeSegment(seg) {
-  await del(`/api/segments/${seg.id}`);
+  await api.recordings.deleteSegment(seg.id);
   const list = segmentsByRecording.get(seg.recording_id) || [];
   segmentsByRecording.set(seg.recording_id, list.filter((s) => s.id !== seg.id));
   showSegments();
@@ -317,7 +317,7 @@ function updateFitCounts() {
 }
 
 $("#fit-run").addEventListener("click", (ev) => act(ev.target, $("#fit-msg"), async () => {
-  const ms = await post(`/api/studies/${studyId}/model-sets`,
+  const ms = await api.models.fit(studyId,
     { name: $("#fit-name").value || "models", segment_ids: chosenSegments().map((s) => s.id) });
   await waitForJob(ms.job_id, progressView($("#fit-progress"), $("#fit-caption")));
   await loadModelSets(ms.id);
@@ -325,7 +325,7 @@ $("#fit-run").addEventListener("click", (ev) => act(ev.target, $("#fit-msg"), as
 }, updateFitCounts));
 
 async function loadModelSets(select) {
-  const sets = await get(`/api/studies/${studyId}/model-sets`);
+  const sets = await api.models.listModelSets(studyId);
   const ready = sets.filter((s) => s.status === "ready");
   for (const sel of [$("#ms-select"), $("#plan-ms")]) {
     const keep = select ?? sel.value;
@@ -340,7 +340,7 @@ async function loadModelSets(select) {
 }
 
 async function showModelSet(id) {
-  const doc = await get(`/api/model-sets/${id}/document`);
+  const doc = await api.models.modelSetDocument(id);
   drawModelSet($("#model-plot"), doc);
   page.modelSetDrawn = id;
   const counts = doc.fit_params?.counts ?? {};
@@ -360,17 +360,17 @@ let utilRun = 0;
 async function showUtilities(computeIfMissing) {
   const run = ++utilRun;
   const pct = session.precompression_pct;
-  const sets = await get(`/api/studies/${studyId}/utility-sets`);
+  const sets = await api.models.listUtilitySets(studyId);
   let match = sets.filter((s) => s.status === "ready" && Math.abs(s.precompression_pct - pct) < 1e-9).pop();
   fillUtilitySelect(sets);
   if (!match && computeIfMissing) {
     $("#util-msg").className = "msg";
     $("#util-msg").textContent = `computing utilities for ${pct} %…`;
-    const us = await post(`/api/studies/${studyId}/utility-sets`, { name: `simulated ${pct} %`, precompression_pct: pct });
+    const us = await api.models.computeUtilitySet(studyId, { name: `simulated ${pct} %`, precompression_pct: pct });
     await waitForJob(us.job_id, (job) => { $("#util-progress").value = job.progress; });
     if (run !== utilRun) return;
     match = us;
-    fillUtilitySelect(await get(`/api/studies/${studyId}/utility-sets`));
+    fillUtilitySelect(await api.models.listUtilitySets(studyId));
     $("#util-msg").className = "msg msg-ok";
     $("#util-msg").textContent = `computed utilities for ${pct} %`;
   }
@@ -378,7 +378,7 @@ async function showUtilities(computeIfMissing) {
     $("#util-which").textContent = `no utilities for ${pct} % yet`;
     return;
   }
-  const curves = await get(`/api/utility-sets/${match.id}/curves`);
+  const curves = await api.models.utilityCurves(match.id);
   if (run !== utilRun) return;
   $("#util-progress").value = 1;
   utilPlots.setCurves(curves);
@@ -402,8 +402,8 @@ $("#util-run").addEventListener("click", (ev) => act(ev.target, $("#util-msg"), 
 
 // ------------------------------------------------------------ evaluation
 async function loadTrials() {
-  const [trials, labels] = await Promise.all([get(`/api/sessions/${sessionId}/trials`),
-    get(`/api/participants/${participant.id}/conditions`)]);
+  const [trials, labels] = await Promise.all([api.trials.list(sessionId),
+    api.participants.listConditions(participant.id)]);
   const blind = Object.fromEntries(labels.map((c) => [c.controller, c.label]));
   $("#plan-run").disabled = trials.length > 0;
   if (trials.length) $("#plan-msg").textContent = "planned: the order below is fixed for this session";
@@ -419,14 +419,14 @@ async function loadTrials() {
 function trialButtons(t, running) {
   if (t.status === "planned") {
     return [h("button", { type: "button", class: "primary start", disabled: running,
-      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/start`, {}, `${controllerLabel(t.controller)} · ${t.task} running`,
+      onclick: (ev) => trialAction(ev.target, () => api.trials.start(t.id, {}), `${controllerLabel(t.controller)} · ${t.task} running`,
         () => followTask(t.task)) }, "▶ Start")];
   }
   if (t.status === "running") {
     return [h("button", { type: "button", class: "big complete",
-      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/stop`, { outcome: "completed" }, "trial completed") }, "■ Stop: completed"), " ",
+      onclick: (ev) => trialAction(ev.target, () => api.trials.stop(t.id, { outcome: "completed" }), "trial completed") }, "■ Stop: completed"), " ",
     h("button", { type: "button", class: "danger abort",
-      onclick: (ev) => trialAction(ev.target, `/api/trials/${t.id}/stop`, { outcome: "aborted", reason: "aborted by the experimenter" }, "trial aborted") }, "Abort")];
+      onclick: (ev) => trialAction(ev.target, () => api.trials.stop(t.id, { outcome: "aborted", reason: "aborted by the experimenter" }), "trial aborted") }, "Abort")];
   }
   return [h("a", { href: `/live?trial=${t.id}`, class: "replay" }, "Replay ›")];
 }
@@ -438,10 +438,10 @@ async function followTask(task) {
   if (task !== simScript) await applySimulation(task);
 }
 
-function trialAction(button, path, body, text, before = null) {
+function trialAction(button, request, text, before = null) {
   return act(button, $("#trial-msg"), async () => {
     if (before) await before();
-    await post(path, body);
+    await request();
     await loadTrials();
     return text;
   });
@@ -452,7 +452,7 @@ $("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), 
   const body = { tasks, include_eumc: $("#plan-eumc").checked };
   if ($("#plan-ms").value) body.model_set_id = Number($("#plan-ms").value);
   if ($("#plan-us").value) body.utility_set_id = Number($("#plan-us").value);
-  const trials = await post(`/api/sessions/${sessionId}/trials/plan`, body);
+  const trials = await api.trials.plan(sessionId, body);
   $("#plan-msg").dataset.order = trials.map((t) => t.controller).join(",");
   await loadTrials();
   // The plan made the blinded condition labels: the questionnaire step offers them now.
@@ -492,7 +492,7 @@ $("#calib-run").addEventListener("click", (ev) => act(ev.target, $("#calib-msg")
       page.calibration.attempts += 1;
       $("#calib-msg").textContent = `calibrating (attempt ${page.calibration.attempts}): stand still for ${seconds} s…`;
       try {
-        const r = await post("/api/worker/calibrate", { seconds });
+        const r = await api.worker.calibrate({ seconds });
         page.calibration = { ...r, attempts: page.calibration.attempts };
         return `calibrated: offsets ${r.offset_left_deg.toFixed(1)}°, ${r.offset_right_deg.toFixed(1)}° ` +
           `(std ${r.std_left_deg?.toFixed(2)}°, ${r.std_right_deg?.toFixed(2)}°)` +

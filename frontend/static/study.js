@@ -1,5 +1,5 @@
 // A study: its participants (create, edit, consent date) and their sessions.
-import { get, patch, post } from "/static/api.js";
+import * as api from "/static/api_client.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 import { createLabelEditor } from "/static/markers.js";
 import { controllerLabel } from "/static/names.js";
@@ -11,17 +11,17 @@ let selected = null;
 const KIND = { data_collection: "data collection", evaluation: "evaluation" };
 
 async function loadStudy() {
-  const s = await get(`/api/studies/${studyId}`);
+  const s = await api.studies.get(studyId);
   document.title = `ExoStudy · ${s.name}`;
   $("#study-title").textContent = s.name;
   $("#study-description").textContent = s.description;
-  $("#export").href = `/api/studies/${studyId}/export.zip`;
-  $("#export-bids").href = `/api/studies/${studyId}/export.bids.zip`;
+  $("#export").href = api.trials.exportStudy.url(studyId);
+  $("#export-bids").href = api.lab.exportBids.url(studyId);
   $("#results-link").href = `/console/studies/${studyId}/results`;
 }
 
 async function loadParticipants() {
-  participants = await get(`/api/studies/${studyId}/participants`);
+  participants = await api.participants.list(studyId);
   $("#participants tbody").replaceChildren(...participants.map((p) => h("tr",
     { "data-participant": p.code, class: selected && selected.id === p.id ? "selected" : null },
     h("td", {}, h("strong", {}, p.code)), h("td", {}, p.age ?? "–"), h("td", {}, p.sex ?? "–"),
@@ -46,7 +46,7 @@ async function select(id) {
 }
 
 async function loadSessions() {
-  const sessions = await get(`/api/participants/${selected.id}/sessions`);
+  const sessions = await api.sessions.list(selected.id);
   $("#sessions tbody").replaceChildren(...sessions.map((s) => h("tr", { "data-session": s.id },
     h("td", {}, KIND[s.kind] ?? s.kind), h("td", {}, `${s.precompression_pct} %`),
     h("td", {}, fmtDate(s.started_at)),
@@ -56,8 +56,8 @@ async function loadSessions() {
 // The participant's scored questionnaires and stated preference, unblinded.
 async function loadAnswers() {
   const [responses, preferences] = await Promise.all([
-    get(`/api/participants/${selected.id}/responses`),
-    get(`/api/participants/${selected.id}/preferences`)]);
+    api.questionnaires.listResponses(selected.id),
+    api.preferences.list(selected.id)]);
   $("#participant-responses tbody").replaceChildren(...responses.map((r) => h("tr",
     { "data-response": r.id, "data-instrument": r.instrument_key },
     h("td", {}, `${r.instrument_key.toUpperCase()} ${r.instrument_version}`),
@@ -75,7 +75,7 @@ async function loadAnswers() {
 $("#participant-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#participant-create"), $("#participant-msg"), async () => {
-    const p = await post(`/api/studies/${studyId}/participants`, formData(ev.target));
+    const p = await api.participants.create(studyId, formData(ev.target));
     ev.target.reset();
     await loadParticipants();
     await select(p.id);
@@ -91,7 +91,7 @@ $("#edit-form").addEventListener("submit", (ev) => {
     for (const k of ["age", "sex", "height_m", "mass_kg", "consent_date"]) {
       if (!(k in body)) body[k] = null;
     }
-    const p = await patch(`/api/participants/${selected.id}`, body);
+    const p = await api.participants.update(selected.id, body);
     await loadParticipants();
     selected = p;
     $("#panel-code").textContent = p.code;
@@ -102,7 +102,7 @@ $("#edit-form").addEventListener("submit", (ev) => {
 $("#session-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   act($("#session-create"), $("#session-msg"), async () => {
-    const s = await post(`/api/participants/${selected.id}/sessions`, formData(ev.target));
+    const s = await api.sessions.create(selected.id, formData(ev.target));
     await loadSessions();
     return `created ${KIND[s.kind]} session`;
   });

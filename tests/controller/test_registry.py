@@ -17,6 +17,7 @@ from controller import registry
 from controller.factory import controller_names, make_controller, needs_models
 from controller.replay import AngleRecording, replay_columns, replay_per_tick
 from controller.sim.recording import simulate_angles
+from controller.spec import ControllerSpec
 from controller.tick import Action
 from controller.tick_codec import columns, columns_from_records
 from tests.polling import wait_for
@@ -28,8 +29,9 @@ MODULE = "tests.controller.constant_controller"
 def constant() -> Iterator[ModuleType]:
     """The constant controller registered for one test, then removed again (other tests
     check the list of controller names)."""
-    mod = importlib.import_module(MODULE)
-    registry.register("constant")(mod.build)
+    mod = importlib.import_module(MODULE)  # importing it registers it
+    if registry.lookup("constant") is None:  # removed after an earlier test
+        importlib.reload(mod)
     yield mod
     registry.unregister("constant")
 
@@ -92,8 +94,8 @@ def test_a_registered_controller_runs_live_in_a_real_worker(
 
     sup = WorkerSupervisor(
         WorkerConfig(device_kind="sim", device_speed=10, device_script="squat-sequence",
-                     controller="constant",
-                     controller_config={"settings": {"extra": {"constant": 0.125}}}),
+                     spec=ControllerSpec.from_config(
+                         "constant", {"settings": {"extra": {"constant": 0.125}}})),
         WorkerCallbacks(on_ticks=on_ticks, on_run_started=runs.append))
     sup.start()
     try:

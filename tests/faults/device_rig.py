@@ -20,6 +20,7 @@ from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.tick import TickRecord
 from tests import c_device
+from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,9 +80,10 @@ class Worker:
         self.records: list[TickRecord] = []
         self.runs: list[RunStarted] = []
         self._lock = threading.Lock()
+        # Sent as given, past the server's checks: the worker validates it again.
         config = WorkerConfig(device_kind="udp", device_host="127.0.0.1", device_port=port,
-                              device_key_file=str(key_file), controller=controller,
-                              controller_config=controller_config or {},
+                              device_key_file=str(key_file),
+                              spec=unchecked_spec(controller, controller_config),
                               status_interval=0.1)
         self.sup = WorkerSupervisor(config, WorkerCallbacks(on_ticks=self._ticks,
                                                             on_run_started=self._run))

@@ -208,8 +208,7 @@ def start_rig(folder: Path, script: str = "squat-sequence", seed: int = 1,
     relay = Relay(device_port, model.datagram if isinstance(model, WireRecord) else None)
     spec = ControllerSpec(controller, ControllerConfig())
     sup = WorkerSupervisor(WorkerConfig(device_kind="udp", device_port=relay.port,
-                                        device_key_file=str(key_file), controller=controller,
-                                        controller_config=spec.to_config()),
+                                        device_key_file=str(key_file), spec=spec),
                            WorkerCallbacks())
     sup.start()
     return Rig(model, relay, sup, stop, device, stats, proc)

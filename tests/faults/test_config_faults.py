@@ -20,6 +20,8 @@ from fastapi.testclient import TestClient
 from backend.core.config import Settings
 from backend.main import create_app
 from controller.device.auth import create_key
+from controller.spec import ControllerSpec
+from tests.backend.worker.unchecked import unchecked_spec
 from tests.faults.device_rig import Worker, device_process, locked_ticks
 from tests.faults.served import make_trials
 from tests.login import USERNAME, bearer
@@ -111,15 +113,15 @@ def test_the_worker_refuses_what_it_cannot_prove_safe(tmp_path: Path) -> None:
         assert [r.controller for r in worker.runs] == ["none"]
         assert any("velocity_threshold" in e for e in worker.sup.state.errors)
 
-        worker.sup.set_controller("pec", {"settings": {}})  # a valid PEC: runs
+        worker.sup.set_controller(ControllerSpec("pec"))  # a valid PEC: runs
         wait_for(lambda: worker.runs[-1].controller == "pec", 30, "the valid PEC")
         worker.wait_ticks(150)
         nan = json.loads('{"settings": {"velocity_threshold": NaN}}')
         assert math.isnan(nan["settings"]["velocity_threshold"])
-        worker.sup.set_controller("pec", nan)  # refused: the PEC stops too
+        worker.sup.set_controller(unchecked_spec("pec", nan))  # refused: the PEC stops too
         wait_for(lambda: worker.runs[-1].controller == "none", 30, "the fall back to none")
         worker.wait_ticks(150)
-        worker.sup.set_controller("pec", negative)
+        worker.sup.set_controller(unchecked_spec("pec", negative))
         wait_for(lambda: sum("rejected" in e for e in worker.sup.state.errors) >= 2, 30,
                  "the second refusal")
         worker.wait_ticks(150)

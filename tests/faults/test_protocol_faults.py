@@ -21,6 +21,7 @@ from controller.device.base import Sample
 from controller.device.protocol import SAMPLE_BODY, SESSIONS, CommandPacket, encode_command
 from controller.device.protocol import encode_sample as encode
 from controller.encoders import DEFAULT_LAYOUT
+from controller.spec import ControllerSpec
 from controller.tick import TickRecord
 from tests.faults.device_rig import Proxy, Worker, device_process, locked_ticks
 from tests.polling import free_udp_port, wait_for
@@ -127,7 +128,7 @@ def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path,
         # The attacker keeps every COMMAND that asked for both locks (bits readable).
         locks = [d for d in proxy.to_device if d[3] == 2 and d[HEADER + 8] == 3]
         assert locks
-        worker.sup.set_controller("none", {})
+        worker.sup.set_controller(ControllerSpec("none"))
         wait_for(lambda: worker.runs[-1].controller == "none", 30, "the switch to none")
         # Wait for the held lock to end and the mechanism to let go (the wearer stands).
         def free_for_a_second() -> bool:

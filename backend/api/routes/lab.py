@@ -16,6 +16,7 @@ from fastapi.responses import Response
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
+from backend.analysis import markers as analysis_markers
 from backend.api.deps import (
     CurrentUser,
     EngineDep,
@@ -116,7 +117,7 @@ def session_markers(session_id: SessionId, user: CurrentUser, db: SessionDep
 def trial_markers(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> list[Marker]:
     """A trial's markers in tick-time order (`t` is on the trial's tick time axis)."""
     one_or_404(db, Trial, trial_id, "trial")
-    return markers.trial_markers(db, trial_id)
+    return analysis_markers.trial_markers(db, trial_id)
 
 
 # LSL marker streams of other software -----------------------------------------------------

@@ -16,7 +16,7 @@ from fastapi.responses import FileResponse, HTMLResponse
 
 from backend.analysis import replication_jobs
 from backend.api.deps import CurrentUser, JobsDep, SessionDep, SettingsDep, access
-from backend.api.errors import AUTH_RESPONSES, NOT_FOUND
+from backend.api.errors import AUTH_RESPONSES, NOT_FOUND, ErrorMessage
 from backend.schemas.replication import (
     ReplicationIn,
     ReplicationJobOut,
@@ -68,7 +68,10 @@ def _folder(settings: Any) -> Path:
 
 
 @router.get("/api/replication/report", response_class=HTMLResponse,
-            openapi_extra=access("login"))
+            openapi_extra=access("login"),
+            responses={404: {"description": "no report yet",
+                              "content": {"application/json": {
+                                  "schema": ErrorMessage.model_json_schema()}}}})
 def report_page(user: CurrentUser, settings: SettingsDep) -> Response:
     """The newest report as its self-contained HTML page."""
     return HTMLResponse((_folder(settings) / "report.html").read_text())
@@ -76,7 +79,8 @@ def report_page(user: CurrentUser, settings: SettingsDep) -> Response:
 
 @router.get("/api/replication/figures/{name}.{fmt}", openapi_extra=access("login"),
             response_class=Response,
-            responses={200: {"content": {"image/png": {}, "image/svg+xml": {}}}})
+            responses={200: {"content": {"image/png": {}, "image/svg+xml": {}}},
+                       404: {"model": ErrorMessage, "description": "no report or figure"}})
 def figure(name: FigureName, fmt: Literal["png", "svg"], user: CurrentUser,
            settings: SettingsDep) -> Response:
     """One figure of the newest report."""

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from backend.analysis.data_dictionary import describe, markdown
 from backend.analysis.export import EXPORTED_COLUMNS
-from backend.study.data_dictionary import describe, markdown
 from controller.tick import TickRecord
 
 

@@ -113,7 +113,7 @@ def test_free_text_marker_labels_are_replaced_in_the_deidentified_export(
 
 def test_the_dictionary_says_which_export_holds_what_and_the_sidecars_agree(
         client: TestClient, db_url: str) -> None:
-    from backend.study import data_dictionary
+    from backend.analysis import data_dictionary
 
     ids = make_study(client, db_url)
     readme = _zip(client.get(f"/api/studies/{ids['study']}/export.zip").content)["README.md"]

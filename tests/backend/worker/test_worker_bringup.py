@@ -23,6 +23,7 @@ from controller import bringup as calc
 from controller.device.auth import load_or_create_key
 from controller.device.base import Status
 from controller.encoders import DEFAULT_LAYOUT
+from controller.spec import ControllerSpec
 from tests.faults.device_rig import device_process
 from tests.polling import free_udp_port, wait_for
 
@@ -118,7 +119,7 @@ def test_a_loaded_device_refuses_the_pulse(worker: BringupWorker) -> None:
 
 def test_refused_unless_the_controller_is_none(worker: BringupWorker) -> None:
     assert worker.sup._cmd is not None
-    worker.sup._cmd.send(SetController("pec", {}))
+    worker.sup._cmd.send(SetController(ControllerSpec("pec")))
     wait_for(lambda: (st := worker.sup.state.status) is not None and st.loop.controller == "pec",
              60, "pec to run")
     r = worker.run(BringupPulse("left", 0.3, LAY.offsets, LAY.directions, 2.0))

@@ -18,6 +18,8 @@ from backend.worker.messages import (
 )
 from backend.worker.process import BACKLOG_HOLD
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller.spec import ControllerSpec
+from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
@@ -67,13 +69,14 @@ def test_commands_are_answered_with_their_run_or_their_reason() -> None:
                                         device_script="squat-sequence"), got.callbacks())
     sup.start()
     try:
-        rid = sup.set_controller("pec", {})
+        rid = sup.set_controller(ControllerSpec("pec"))
         got.wait(lambda: rid in got.results)
         ok = got.results[rid]
         assert ok.ok and ok.message == ""
         assert [r.controller for r in got.runs if r.run_token == ok.run_token] == ["pec"]
 
-        rid = sup.set_controller("umc", {})  # no models: refused, and nothing locks
+        # No models (sent past the server's checks): refused, and nothing locks.
+        rid = sup.set_controller(unchecked_spec("umc"))
         got.wait(lambda: rid in got.results)
         bad = got.results[rid]
         assert not bad.ok and "umc" in bad.message and "models" in bad.message

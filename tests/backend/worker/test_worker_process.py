@@ -15,6 +15,7 @@ import pytest
 
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from controller.spec import ControllerSpec
 from tests.faults.served import alive
 from tests.polling import wait_for
 
@@ -172,7 +173,7 @@ def test_a_timed_run_ends_by_itself_after_exactly_its_samples() -> None:
     sup.start()
     try:
         assert got.got_ticks.wait(60), f"no ticks; errors: {sup.state.errors}"
-        sup.set_controller("pec", {}, max_ticks=250)
+        sup.set_controller(ControllerSpec("pec"), max_ticks=250)
         wait_for(lambda: len(got.runs) >= 3, 30, f"the timed run to end ({got.runs})")
         wait_for(lambda: sum(len(b.records) for b in list(got.ticks)
                              if b.run_token == got.runs[2].run_token) > 5, 30,

@@ -1,0 +1,594 @@
+"""The worker as a state machine: which commands each state takes, and how it leaves.
+
+The lock command is the only output that touches the wearer (docs/trial-states.md), so
+the worker's states say when a lock is possible and the tables below say how each state
+may be left. Two rules are checked by `Machine.go` on every transition:
+
+- every way out of a state in which the device may lock (`LOCKING`) to one in which it
+  may not passes through `RELEASING`, which tells the device to let go;
+- a command a state does not take is refused with a reason, and the refusal is answered
+  (the server waits for every answer; see docs/worker-commands.md).
+
+`Machine.run` is the 100 Hz loop: one tick per device sample, the commands that arrived
+in between dispatched through `Machine.handlers`, a table keyed by the command's type.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import gc
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from backend.schemas.live import DeviceReport, LoopReport
+from backend.worker import bringup
+from backend.worker.devices import make_device
+from backend.worker.messages import (
+    BringupCapture,
+    BringupPulse,
+    BringupResult,
+    BringupWatchdog,
+    Calibrate,
+    CalibrationResult,
+    CommandResult,
+    RunStarted,
+    SetController,
+    SetSimulation,
+    StopWorker,
+    WorkerCommand,
+    WorkerConfig,
+    WorkerError,
+    WorkerStatus,
+)
+from backend.worker.outbox import Outbox
+from backend.worker.scheduling import loop_scheduling, paced
+from controller.base import Controller
+from controller.calibration import CalibrationError, calibrate
+from controller.device.base import SAMPLE_PERIOD_S, Device
+from controller.factory import load_models, make_from_spec
+from controller.loop import ControlLoop
+from controller.registry import needs_calibration
+from controller.spec import ControllerSpec
+from controller.stop_flag import SignalSafeFlag
+from controller.tick import TickRecord
+
+#: A sped-up simulation (device time is virtual) waits while more records than this are
+#: queued for the server, and resumes below `BACKLOG_RESUME`: the worker never produces
+#: faster than the server stores, so nothing is dropped and a command's answer is never
+#: stuck behind seconds of queued ticks on a loaded machine. 1,000 records are 0.125 s
+#: of an 80x simulation; a real-time device never waits (it cannot).
+BACKLOG_HOLD = 1000
+BACKLOG_RESUME = 250
+
+#: The controller that never locks: what the worker falls back to.
+NO_CONTROLLER = "none"
+
+
+class State(enum.Enum):
+    """What the worker is doing, as far as the wearer is concerned."""
+
+    #: Controller `none`: nothing can lock.
+    IDLE = "idle"
+    #: A controller chosen by the experimenter, without a time limit (live page,
+    #: recordings): it may lock.
+    CONTROLLING = "controlling"
+    #: A timed run (`SetController.max_ticks`, a trial): ends by itself, back to `none`.
+    TRIAL = "trial"
+    #: Collecting standing-still samples for the E-UMC offsets; the controller of the
+    #: state it came from keeps running.
+    CALIBRATING = "calibrating"
+    #: A hardware bring-up step owns the device (it may energise a solenoid).
+    BRINGUP = "bringup"
+    #: The device is told to let go (passed through, never stayed in).
+    RELEASING = "releasing"
+    #: The loop ends; the device is released and closed.
+    STOPPING = "stopping"
+
+
+#: States in which the device may be commanded to lock. A calibration counts: the
+#: controller it runs beside may lock.
+LOCKING = frozenset({State.CONTROLLING, State.TRIAL, State.CALIBRATING, State.BRINGUP})
+
+#: Every transition the worker may make. Leaving a locking state for one that cannot
+#: lock goes through RELEASING, and so does every way to STOPPING; a locking state may
+#: hand over to another one directly (a new controller decides at the next sample).
+EDGES: frozenset[tuple[State, State]] = frozenset({
+    (State.IDLE, State.CONTROLLING), (State.IDLE, State.TRIAL),
+    (State.IDLE, State.CALIBRATING), (State.IDLE, State.BRINGUP),
+    (State.IDLE, State.RELEASING),
+    (State.CONTROLLING, State.TRIAL), (State.CONTROLLING, State.CALIBRATING),
+    (State.CONTROLLING, State.RELEASING),
+    (State.TRIAL, State.RELEASING),
+    (State.CALIBRATING, State.CONTROLLING), (State.CALIBRATING, State.RELEASING),
+    (State.BRINGUP, State.RELEASING),
+    (State.RELEASING, State.IDLE), (State.RELEASING, State.CONTROLLING),
+    (State.RELEASING, State.STOPPING),
+})
+
+_TRIAL_RUNS = "a timed trial is running"
+_TRIAL_BRINGUP = f"{_TRIAL_RUNS}: bring-up needs the worker idle"
+_BRINGUP_TYPES = (BringupCapture, BringupPulse, BringupWatchdog)
+
+
+def _needs_none(m: Machine, _cmd: WorkerCommand) -> str:
+    """Bring-up steps energise solenoids themselves: only with no controller running."""
+    if m.state is State.CALIBRATING and m.base is State.IDLE:
+        return ""
+    return f"controller {m.spec.name!r} is running: bring-up needs {NO_CONTROLLER!r}"
+
+
+def _only_release(_m: Machine, cmd: WorkerCommand) -> str:
+    """A trial's run is replaced by nothing but `none` (its stop)."""
+    assert isinstance(cmd, SetController)
+    if cmd.spec.name == NO_CONTROLLER and cmd.max_ticks is None:
+        return ""
+    return f"{_TRIAL_RUNS}: only {NO_CONTROLLER!r} may replace its controller (stop it first)"
+
+
+def _no_trial_while_calibrating(_m: Machine, cmd: WorkerCommand) -> str:
+    assert isinstance(cmd, SetController)
+    return "" if cmd.max_ticks is None else \
+        "a calibration is being collected: a timed trial cannot start now"
+
+
+def _simulated(m: Machine, _cmd: WorkerCommand) -> str:
+    if m.config.device_kind == "sim":
+        return ""
+    return "the device is not the in-process simulator: there is no simulation to change"
+
+
+#: Which commands each state takes: None (taken), a reason (refused), or a check of
+#: the command in context that gives a reason, or "" to take it. States not listed take
+#: no command (RELEASING, BRINGUP and STOPPING are passed through inside one handler).
+RULES: dict[State, dict[type, str | Callable[[Machine, WorkerCommand], str] | None]] = {
+    State.IDLE: {
+        SetController: None, SetSimulation: _simulated, Calibrate: None,
+        BringupCapture: None, BringupPulse: None, BringupWatchdog: None, StopWorker: None,
+    },
+    State.CONTROLLING: {
+        SetController: None, SetSimulation: _simulated, Calibrate: None,
+        BringupCapture: _needs_none, BringupPulse: _needs_none,
+        BringupWatchdog: _needs_none, StopWorker: None,
+    },
+    State.TRIAL: {
+        SetController: _only_release,
+        SetSimulation: f"{_TRIAL_RUNS}: the simulated wearer cannot change under it",
+        Calibrate: f"{_TRIAL_RUNS}: a calibration would change its controller",
+        BringupCapture: _TRIAL_BRINGUP, BringupPulse: _TRIAL_BRINGUP,
+        BringupWatchdog: _TRIAL_BRINGUP, StopWorker: None,
+    },
+    State.CALIBRATING: {
+        SetController: _no_trial_while_calibrating, SetSimulation: _simulated,
+        Calibrate: "a calibration is already being collected",
+        BringupCapture: _needs_none, BringupPulse: _needs_none,
+        BringupWatchdog: _needs_none, StopWorker: None,
+    },
+}
+
+
+def refusal(m: Machine, cmd: WorkerCommand) -> str:
+    """Why the machine in its present state does not take `cmd` ("" if it does)."""
+    rules = RULES.get(m.state, {})
+    if type(cmd) not in rules:
+        return f"the worker is {m.state.value}: it takes no {type(cmd).__name__}"
+    rule = rules[type(cmd)]
+    if rule is None:
+        return ""
+    if isinstance(rule, str):
+        return rule
+    return rule(m, cmd)
+
+
+def build(spec: ControllerSpec) -> Controller:
+    """The one place the worker builds a controller. The specification is validated
+    again first (it crossed a process boundary: unpickling does not run the checks),
+    then built through the registry and warmed up, so its first tick is not slow."""
+    checked = replace(spec, settings=replace(spec.settings))
+    controller = make_from_spec(checked)
+    controller.warm_up()
+    return controller
+
+
+class TransitionError(RuntimeError):
+    """A transition missing from `EDGES`: a bug, which ends the worker released."""
+
+
+class Runs:
+    """The worker's current run, and the one way a new one starts.
+
+    A run is what the server stores ticks under: every change of controller, wearer or
+    configuration starts one, announced by `RunStarted` before any of its ticks (the
+    outbox sends the ticks queued before it under the old token first)."""
+
+    def __init__(self, outbox: Outbox, pid: int) -> None:
+        self.outbox, self.pid = outbox, pid
+        self.token = 0
+        self.ticks = 0  # samples of the current run
+        self.limit: int | None = None  # a timed run ends by itself after this many
+
+    def start(self, spec: ControllerSpec, device_kind: str, limit: int | None = None,
+              *, count_again: bool = True) -> int:
+        """Announce a new run of `spec`; its token. With `count_again=False` the sample
+        count and limit carry over (a calibration applied to the running controller)."""
+        self.token += 1
+        if count_again:
+            self.ticks, self.limit = 0, limit
+        self.outbox.put(RunStarted(self.token, spec.name, spec.to_config(), device_kind,
+                                   self.pid))
+        self.outbox.run_token = self.token
+        return self.token
+
+
+class Machine:
+    """The worker's device, controller, run and state, and one handler per command."""
+
+    def __init__(self, config: WorkerConfig, device: Device, outbox: Outbox,
+                 cmd_conn: Connection, parent_pid: int, stopping: SignalSafeFlag) -> None:
+        self.config, self.device, self.outbox = config, device, outbox
+        self.cmd_conn, self.parent_pid, self.stopping = cmd_conn, parent_pid, stopping
+        self.pid = os.getpid()
+        self.state = State.IDLE
+        #: The state a calibration returns to (IDLE or CONTROLLING).
+        self.base = State.IDLE
+        #: Every state entered, in order (the tests read the transitions from it).
+        self.trace: list[State] = [State.IDLE]
+        self.exit_code = 0
+        self.calibration: CalibrationJob | None = None
+        self.runs = Runs(outbox, self.pid)
+        self.next_status = time.monotonic()
+        #: One handler per command type: the state's rules have already taken it.
+        self.handlers: dict[type, Callable[[Any], None]] = {
+            SetController: self.on_set_controller,
+            SetSimulation: self.on_set_simulation,
+            Calibrate: self.on_calibrate,
+            BringupCapture: self.on_bringup,
+            BringupPulse: self.on_bringup,
+            BringupWatchdog: self.on_bringup,
+            StopWorker: self.on_stop,
+        }
+        try:
+            controller, self.spec = build(config.spec), config.spec
+        except Exception as exc:
+            outbox.put(WorkerError(f"controller {config.spec.name!r}: {exc}; using "
+                                   f"{NO_CONTROLLER!r}"))
+            self.spec = ControllerSpec(NO_CONTROLLER)
+            controller = build(self.spec)
+        self.loop = ControlLoop(device, controller)
+        target = self._target(self.spec, None)
+        if target is not State.IDLE:
+            self.go(target)
+        self.runs.start(self.spec, device.kind)
+
+    # -- transitions -----------------------------------------------------------------
+
+    def go(self, to: State) -> None:
+        """Enter `to`, if `EDGES` allows it from here (TransitionError if not)."""
+        if (self.state, to) not in EDGES:
+            raise TransitionError(f"no transition from {self.state.value} to {to.value}")
+        if to is State.RELEASING:
+            self.device.release()
+        self.state = to
+        self.trace.append(to)
+
+    def leave_for(self, to: State) -> None:
+        """Go to `to`, through RELEASING when the device may be locking now."""
+        if self.state is not State.RELEASING and (self.state in LOCKING
+                                                  or to is State.STOPPING):
+            self.go(State.RELEASING)
+        if self.state is not to:
+            self.go(to)
+
+    @staticmethod
+    def _target(spec: ControllerSpec, max_ticks: int | None) -> State:
+        if max_ticks is not None:
+            return State.TRIAL
+        return State.IDLE if spec.name == NO_CONTROLLER else State.CONTROLLING
+
+    def _run(self, controller: Controller, spec: ControllerSpec, to: State,
+             max_ticks: int | None = None) -> int:
+        """Run `controller` (built from `spec`) in state `to`, as a new run; its token."""
+        if self.state is State.CALIBRATING:
+            # The calibration goes on beside the new controller, then returns to `to`
+            # (the rules refuse a trial here).
+            self.base = to
+        elif to is State.IDLE:
+            self.leave_for(to)
+        elif to is not self.state:
+            self.go(to)
+        self.loop.controller, self.spec = controller, spec
+        return self.runs.start(spec, self.device.kind, max_ticks)
+
+    def _fall_back(self) -> int:
+        """Back to `none`, released, as a new run; its token."""
+        return self._run(build(ControllerSpec(NO_CONTROLLER)), ControllerSpec(NO_CONTROLLER),
+                         State.IDLE)
+
+    # -- commands ----------------------------------------------------------------------
+
+    def dispatch(self, cmd: WorkerCommand) -> None:
+        """Hand `cmd` to its handler, or answer why this state does not take it."""
+        reason = refusal(self, cmd)
+        if reason:
+            self.refuse(cmd, reason)
+            return
+        self.handlers[type(cmd)](cmd)
+
+    def refuse(self, cmd: WorkerCommand, reason: str) -> None:
+        """Answer a refused command in the form its sender waits for."""
+        if isinstance(cmd, Calibrate):
+            self.outbox.put(CalibrationResult(cmd.request_id, False, reason))
+        elif isinstance(cmd, _BRINGUP_TYPES):
+            self.outbox.put(BringupResult(cmd.request_id, False, reason, refused=True))
+        elif isinstance(cmd, SetController | SetSimulation):
+            self.outbox.put(WorkerError(reason))
+            self.answer(cmd.request_id, reason)
+
+    def answer(self, request_id: int, refused: str, run_token: int = 0) -> None:
+        """Answer a command the server waits for (request id 0: nobody waits)."""
+        if request_id:
+            self.outbox.put(CommandResult(request_id, not refused, refused, run_token))
+
+    def on_set_controller(self, cmd: SetController) -> None:
+        """Switch controller: a new run. A specification that does not validate or
+        build is refused, and the controller it was meant to replace stops too: no
+        locks until the experimenter sends one that does (safety over continuity)."""
+        try:
+            new = build(cmd.spec)
+        except Exception as exc:
+            refused = f"controller {cmd.spec.name!r} rejected: {exc}; running " \
+                      f"{NO_CONTROLLER!r}"
+            self.outbox.put(WorkerError(refused))
+            if self.state is State.IDLE or (self.state is State.CALIBRATING
+                                            and self.base is State.IDLE):
+                self.answer(cmd.request_id, refused)
+            else:
+                self.answer(cmd.request_id, refused, self._fall_back())
+            return
+        token = self._run(new, cmd.spec, self._target(cmd.spec, cmd.max_ticks),
+                          cmd.max_ticks)
+        self.answer(cmd.request_id, "", token)
+
+    def on_set_simulation(self, cmd: SetSimulation) -> None:
+        """Another simulated wearer: the old device lets go before the new one opens (a
+        failure to open ends the worker, released), with a fresh controller of the same
+        specification, as a new run."""
+        config = self.config
+        sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script,
+                             device_speed=cmd.speed or config.device_speed)
+        try:
+            new_device = make_device(sim_config)
+            fresh = build(self.spec)
+        except Exception as exc:
+            self.refuse(cmd, f"simulation seed {cmd.seed}, script {cmd.script!r} "
+                             f"rejected: {exc}")
+            return
+        self.abandon("the simulated wearer changed")
+        back = self.state
+        self.go(State.RELEASING)
+        self.device.close()
+        self.device = new_device
+        self.device.open()
+        self.config = sim_config
+        self.go(back)
+        # Fresh timing too: health counts ticks from the new wearer's start.
+        self.loop = ControlLoop(self.device, fresh)
+        self.next_status = 0.0  # report the new wearer at its first sample
+        self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind))
+
+    def on_calibrate(self, cmd: Calibrate) -> None:
+        """Collect the next seconds of samples beside the running controller."""
+        self.base = self.state
+        self.calibration = CalibrationJob(cmd, self.config)
+        self.go(State.CALIBRATING)
+
+    def on_bringup(self, cmd: BringupCapture | BringupPulse | BringupWatchdog) -> None:
+        """The step owns the device for its few seconds (the loop pauses; the step
+        answers samples itself) and always releases after it."""
+        self.abandon("a hardware bring-up step ran")
+        self.go(State.BRINGUP)
+        self.outbox.put(bringup.handle(cmd, self.device))
+        self.leave_for(State.IDLE)
+        self.loop = ControlLoop(self.device, self.loop.controller)  # fresh timing after it
+
+    def on_stop(self, _cmd: StopWorker) -> None:
+        """Release and leave the loop."""
+        self.stopping.set()
+
+    def abandon(self, why: str) -> None:
+        """A calibration cut short still gets its answer, with the reason."""
+        job = self.calibration
+        if job is not None:
+            self.outbox.put(CalibrationResult(job.cmd.request_id, False,
+                                              f"calibration abandoned: {why}",
+                                              samples=len(job.q)))
+            self.end_calibration()
+
+    def end_calibration(self) -> None:
+        """Back to the state the calibration was collected in (its controller still
+        runs), released when that is IDLE."""
+        self.calibration = None
+        if self.state is State.CALIBRATING:
+            if self.base is State.IDLE:
+                self.leave_for(State.IDLE)
+            else:
+                self.go(self.base)
+
+    # -- the loop ------------------------------------------------------------------------
+
+    def receive(self) -> None:
+        """Every command waiting on the pipe, at normal scheduling (building a controller
+        is no real-time work)."""
+        loop_scheduling(False)
+        while self.cmd_conn.poll():
+            try:
+                cmd = self.cmd_conn.recv()
+            except (EOFError, OSError):
+                self.stopping.set()
+                break
+            self.dispatch(cmd)
+            if self.stopping.is_set():
+                break
+        loop_scheduling(paced(self.config))
+
+    def after_tick(self, record: TickRecord) -> None:
+        """Hand the record to the server; end a timed run; feed a calibration."""
+        self.outbox.put_record(record)
+        runs = self.runs
+        runs.ticks += 1
+        if self.state is State.TRIAL:
+            if runs.limit is not None and runs.ticks >= runs.limit:
+                # A timed run is over: back to no controller (no locks), a new run.
+                self._fall_back()
+        elif self.state is State.CALIBRATING:
+            job = self.calibration
+            if job is not None and job.add(record):
+                self.finish_calibration(job)
+
+    def finish_calibration(self, job: CalibrationJob) -> None:
+        """Answer the calibration; a running E-UMC takes its offsets at once, as a new
+        run (its sample count carries over)."""
+        result, offsets = job.finish(self.spec)
+        self.outbox.put(result)
+        self.end_calibration()
+        if offsets is None:
+            return
+        try:
+            spec = replace(self.spec, settings=replace(self.spec.settings,
+                                                       calibration=offsets))
+            new = build(spec)
+        except Exception as exc:
+            self.outbox.put(WorkerError(f"applying the calibration failed: {exc}"))
+            return
+        self.loop.controller, self.spec = new, spec
+        self.runs.start(spec, self.device.kind, count_again=False)
+
+    def run(self) -> None:
+        """The 100 Hz loop, until asked to stop or the server is gone."""
+        # Everything allocated so far lives for the whole run: keep the collector from
+        # scanning it on every cycle (fewer, shorter pauses inside ticks).
+        gc.collect()
+        gc.freeze()
+        held = False  # a sped-up simulation waiting for the server (see `hold`)
+        silent = False  # no sample within the last read's timeout (see below)
+        outbox, cmd_conn, stopping = self.outbox, self.cmd_conn, self.stopping
+        loop_scheduling(paced(self.config))
+        while not stopping.is_set():
+            if os.getppid() != self.parent_pid or outbox.broken.is_set():
+                self.exit_code = 4  # the server is gone: release and leave
+                break
+            if cmd_conn.poll():
+                self.receive()
+                if stopping.is_set():
+                    break
+            device = self.device
+            held = hold(device, outbox, held)
+            record = None if held else self.loop.tick(timeout=0.05)
+            if record is None and not held and not silent and device.kind == "udp":
+                # 50 ms (5 samples) without a sample: send the release now instead of
+                # leaving a held lock to the device's 100 ms watchdog; a device that
+                # stopped talking may still be listening. Once per silence.
+                device.release()
+            silent = record is None and not held
+            if record is not None:
+                self.after_tick(record)
+            now = time.monotonic()
+            if now >= self.next_status:
+                self.next_status = now + self.config.status_interval
+                outbox.put(status(self.loop, outbox, self.pid, self.runs.token,
+                                  device.kind, device.faults()))
+
+    def stop(self) -> None:
+        """Every way out of the loop: release, then close the device."""
+        self.calibration = None
+        if self.state is not State.STOPPING:
+            self.leave_for(State.STOPPING)
+        self.device.release()
+        try:
+            self.device.close()
+        except Exception:
+            pass
+
+
+def hold(device: Device, outbox: Outbox, held: bool) -> bool:
+    """Whether a sped-up simulated device should wait for the server to catch up.
+
+    Only a simulation faster than real time waits (its device time is virtual, so
+    waiting changes nothing in the data); it restarts its clock when it resumes, so
+    the samples it skipped are not delivered in one burst.
+    """
+    # Duck-typed: a UDP worker does not import the simulator for this.
+    resync = getattr(device, "resync", None)
+    if resync is None or float(getattr(device, "speed", 1.0)) <= 1.0:
+        return False
+    if outbox.backlog() > (BACKLOG_RESUME if held else BACKLOG_HOLD):
+        time.sleep(0.002)
+        return True
+    if held:
+        resync()
+    return False
+
+
+class CalibrationJob:
+    """Collects raw hip angles of the next `seconds` of ticks, then calibrates."""
+
+    def __init__(self, cmd: Calibrate, worker: WorkerConfig) -> None:
+        self.cmd = cmd
+        self.worker = worker
+        self.needed = max(10, round(cmd.seconds / SAMPLE_PERIOD_S))
+        self.q: list[tuple[float, float]] = []
+
+    def add(self, r: TickRecord) -> bool:
+        """Take one tick; True when enough have been collected."""
+        self.q.append((r.q_raw_left, r.q_raw_right))
+        return len(self.q) >= self.needed
+
+    def finish(self, running: ControllerSpec
+               ) -> tuple[CalibrationResult, tuple[float, float] | None]:
+        """The result, and the offsets a running E-UMC takes at once (None otherwise)."""
+        rid = self.cmd.request_id
+        q = np.asarray(self.q, dtype=np.float64)
+        try:
+            # The running controller's models, else the worker's default model set.
+            spec = running
+            if spec.models is None and not spec.models_path:
+                spec = ControllerSpec(NO_CONTROLLER, models_path=self.worker.models_path)
+            mset = load_models(spec)
+            start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
+            cal = calibrate(q, start, max_std=math.radians(self.cmd.max_std_deg))
+        except (CalibrationError, ValueError) as exc:
+            std = np.nanstd(q, axis=0) if q.size else np.array([math.nan, math.nan])
+            return CalibrationResult(rid, False, str(exc), std_left_deg=math.degrees(std[0]),
+                                     std_right_deg=math.degrees(std[1]), samples=len(q)), None
+        std = q.std(axis=0)
+        result = CalibrationResult(
+            rid, True, "calibrated", cal.offset_left, cal.offset_right,
+            math.degrees(std[0]), math.degrees(std[1]), len(q),
+        )
+        return result, ((cal.offset_left, cal.offset_right)
+                        if needs_calibration(running.name) else None)
+
+
+def status(
+    loop: ControlLoop, outbox: Outbox, pid: int, run_token: int, kind: str, faults: list[str]
+) -> WorkerStatus:
+    """The heartbeat the server shows as health."""
+    last = loop.last_sample_at
+    age = time.monotonic() - last if last is not None else math.inf
+    return WorkerStatus(
+        pid=pid,
+        run_token=run_token,
+        device_kind=kind,
+        loop=LoopReport(controller=loop.controller.name, dropped_records=outbox.dropped,
+                        **dataclasses.asdict(loop.timing.summary())),
+        device=DeviceReport(alive=age < 0.5, last_sample_age_s=age, faults=faults,
+                            implausible_samples=loop.implausible,
+                            link_drops=loop.device.link_counters()),
+    )
