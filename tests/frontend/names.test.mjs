@@ -2,8 +2,8 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 import {
-  action, actionLabel, CATEGORY_NAMES, controllerKey, controllerLabel, CONTROLLER_NAMES,
-  correctAction, MODEL_NAMES, modelColumns, modelLabel, plausibilityReasons, SEGMENT_LABELS,
+  action, actionLabel, CATEGORY_NAMES, controllerInfo, controllerKey, controllerLabel,
+  CONTROLLER_NAMES, correctAction, IDLE_CONTROLLER, MODEL_NAMES, modelColumns, modelLabel, plausibilityReasons, SEGMENT_LABELS,
   STUDY_CONTROLLERS, tickColumn, VOCABULARY,
 } from "/static/names.js";
 
@@ -15,6 +15,16 @@ test("controllers: the paper's three by their labels, 'none' last and not compar
   assert.equal(controllerLabel(null), null);
   assert.equal(controllerKey("E-UMC"), "eumc");
   for (const c of CONTROLLER_NAMES) assert.equal(controllerKey(controllerLabel(c)), c);
+});
+
+test("controllers declare their capabilities; pages read them, not names", () => {
+  assert.equal(IDLE_CONTROLLER, "none");
+  assert.equal(controllerInfo("eumc").needs_calibration, true);
+  assert.equal(controllerInfo("umc").needs_calibration, false);
+  assert.deepEqual(STUDY_CONTROLLERS.map((c) => controllerInfo(c).estimates_intent), [true, true, false]);
+  assert.equal(controllerInfo("pec").colour, "#ff7f0e");
+  assert.equal(controllerInfo("eumc").plan_optional, true);
+  assert.equal(controllerInfo("mystery"), null);
 });
 
 test("models, categories and segment labels", () => {

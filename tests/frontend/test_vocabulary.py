@@ -61,11 +61,15 @@ def test_a_registered_controller_reaches_the_browser(client: TestClient) -> None
     def build(spec: object) -> object:
         raise AssertionError("the vocabulary only names controllers")
 
-    registry.register("trivial_vocab", needs_models=True)(build)  # type: ignore[arg-type]
+    registry.register("trivial_vocab", needs_models=True, needs_calibration=True,
+                      colour="#123456")(build)  # type: ignore[arg-type]
     try:
         v = client.get("/api/vocabulary").json()
         added = [c for c in v["controllers"] if c["name"] == "trivial_vocab"]
-        assert added == [{"name": "trivial_vocab", "label": "trivial_vocab", "needs_models": True}]
+        assert added == [{"name": "trivial_vocab", "label": "trivial_vocab", "needs_models": True,
+                          "needs_calibration": True, "estimates_intent": False,
+                          "colour": "#123456", "in_plan": False, "plan_optional": False,
+                          "idle": False}]
         assert v["controllers"][-1]["name"] == "none"
         assert "trivial_vocab" in client.get("/static/vocabulary.js").text
     finally:
