@@ -12,17 +12,29 @@ NODE_STAMP := frontend/node_modules/.package-lock.json
 GUIDE_STAMP := site/index.html
 export NO_MKDOCS_2_WARNING := 1
 
-.PHONY: run test test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware
+.PHONY: run test static-checks test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware
 
 run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-test: install system-chromium system-postgresql firmware-check
+# pytest runs on two processes, a test module per process at a time (`--dist loadfile`:
+# a module's shared fixtures are built once); the static checks and firmware-check run
+# beside it, their output printed after pytest's. Fails if either part failed.
+test: install system-chromium system-postgresql
+	@log=$$(mktemp); \
+	$(MAKE) --no-print-directory static-checks >"$$log" 2>&1 & checks=$$!; \
+	$(BIN)/python -m pytest -n 2 --dist loadfile; tests=$$?; \
+	wait $$checks; checked=$$?; \
+	echo "== ruff, mypy, mkdocs, firmware-check (ran beside pytest) =="; \
+	cat "$$log"; rm -f "$$log"; \
+	echo "== pytest exit status $$tests, static checks exit status $$checked =="; \
+	[ $$tests -eq 0 ] && [ $$checked -eq 0 ]
+
+static-checks: firmware-check
 	$(BIN)/ruff check controller backend tests bench migrations tools/docs setup.py
 	$(BIN)/mypy
 	$(BIN)/mkdocs build --strict --quiet
-	$(BIN)/python -m pytest
 
 # The C device firmware core on Linux against the simulated wearer (gcc, warnings as
 # errors); its own Makefile decides what is out of date. docs/device-firmware.md.
@@ -54,7 +66,9 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian, apt-get install python3-venv"; exit 1; }
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet --upgrade pip
+	@# Python 3.11's own pip installs this project (editable, pyproject): upgrade only an older one.
+	$(BIN)/python -c 'import pip, sys; sys.exit(int(pip.__version__.split(".")[0]) < 22)' || \
+		$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev,postgres]'
 	touch $@
 

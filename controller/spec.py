@@ -2,9 +2,10 @@
 
 One typed definition of what a controller needs, validated in one place. The server
 builds a `ControllerSpec` for every route that takes settings (worker controller, trial
-start, what-if) and answers 422 naming the field when it cannot; the worker builds it
-again from what it receives, and refuses anything that does not validate. On the wire
-(worker pipe, stored run snapshots) it travels as the plain mapping `to_config()` gives:
+start, what-if) and answers 422 naming the field when it cannot. It crosses the worker
+pipe as it is (a frozen dataclass pickles); the worker runs its checks again before
+building (unpickling does not) and refuses anything that does not validate. Stored run
+snapshots and JSON requests use the plain mapping `to_config()` gives:
 
     {"settings": {...ControllerConfig fields...},
      "models": {...ModelSet JSON...} or "models_path": "models.json",      # UMC, E-UMC

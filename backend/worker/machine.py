@@ -50,6 +50,7 @@ from backend.worker.messages import (
 )
 from backend.worker.outbox import Outbox
 from backend.worker.scheduling import loop_scheduling, paced
+from controller import registry
 from controller.base import Controller
 from controller.calibration import CalibrationError, calibrate
 from controller.device.base import SAMPLE_PERIOD_S, Device
@@ -68,8 +69,15 @@ from controller.tick import TickRecord
 BACKLOG_HOLD = 1000
 BACKLOG_RESUME = 250
 
-#: The controller that never locks: what the worker falls back to.
-NO_CONTROLLER = "none"
+
+def _resting() -> str:
+    """The controller that never locks (`none`): what the worker falls back to."""
+    return registry.idle()
+
+
+def _is_resting(name: str) -> bool:
+    reg = registry.lookup(name)
+    return reg is not None and reg.idle
 
 
 class State(enum.Enum):
@@ -122,15 +130,15 @@ def _needs_none(m: Machine, _cmd: WorkerCommand) -> str:
     """Bring-up steps energise solenoids themselves: only with no controller running."""
     if m.state is State.CALIBRATING and m.base is State.IDLE:
         return ""
-    return f"controller {m.spec.name!r} is running: bring-up needs {NO_CONTROLLER!r}"
+    return f"controller {m.spec.name!r} is running: bring-up needs {_resting()!r}"
 
 
 def _only_release(_m: Machine, cmd: WorkerCommand) -> str:
     """A trial's run is replaced by nothing but `none` (its stop)."""
     assert isinstance(cmd, SetController)
-    if cmd.spec.name == NO_CONTROLLER and cmd.max_ticks is None:
+    if _is_resting(cmd.spec.name) and cmd.max_ticks is None:
         return ""
-    return f"{_TRIAL_RUNS}: only {NO_CONTROLLER!r} may replace its controller (stop it first)"
+    return f"{_TRIAL_RUNS}: only {_resting()!r} may replace its controller (stop it first)"
 
 
 def _no_trial_while_calibrating(_m: Machine, cmd: WorkerCommand) -> str:
@@ -258,8 +266,8 @@ class Machine:
             controller, self.spec = build(config.spec), config.spec
         except Exception as exc:
             outbox.put(WorkerError(f"controller {config.spec.name!r}: {exc}; using "
-                                   f"{NO_CONTROLLER!r}"))
-            self.spec = ControllerSpec(NO_CONTROLLER)
+                                   f"{_resting()!r}"))
+            self.spec = ControllerSpec(_resting())
             controller = build(self.spec)
         self.loop = ControlLoop(device, controller)
         target = self._target(self.spec, None)
@@ -290,7 +298,7 @@ class Machine:
     def _target(spec: ControllerSpec, max_ticks: int | None) -> State:
         if max_ticks is not None:
             return State.TRIAL
-        return State.IDLE if spec.name == NO_CONTROLLER else State.CONTROLLING
+        return State.IDLE if _is_resting(spec.name) else State.CONTROLLING
 
     def _run(self, controller: Controller, spec: ControllerSpec, to: State,
              max_ticks: int | None = None) -> int:
@@ -308,8 +316,8 @@ class Machine:
 
     def _fall_back(self) -> int:
         """Back to `none`, released, as a new run; its token."""
-        return self._run(build(ControllerSpec(NO_CONTROLLER)), ControllerSpec(NO_CONTROLLER),
-                         State.IDLE)
+        resting = ControllerSpec(_resting())
+        return self._run(build(resting), resting, State.IDLE)
 
     # -- commands ----------------------------------------------------------------------
 
@@ -330,6 +338,8 @@ class Machine:
         elif isinstance(cmd, SetController | SetSimulation):
             self.outbox.put(WorkerError(reason))
             self.answer(cmd.request_id, reason)
+        else:  # not a command at all: nobody waits, the experimenter sees it
+            self.outbox.put(WorkerError(reason))
 
     def answer(self, request_id: int, refused: str, run_token: int = 0) -> None:
         """Answer a command the server waits for (request id 0: nobody waits)."""
@@ -344,7 +354,7 @@ class Machine:
             new = build(cmd.spec)
         except Exception as exc:
             refused = f"controller {cmd.spec.name!r} rejected: {exc}; running " \
-                      f"{NO_CONTROLLER!r}"
+                      f"{_resting()!r}"
             self.outbox.put(WorkerError(refused))
             if self.state is State.IDLE or (self.state is State.CALIBRATING
                                             and self.base is State.IDLE):
@@ -503,7 +513,7 @@ class Machine:
             if now >= self.next_status:
                 self.next_status = now + self.config.status_interval
                 outbox.put(status(self.loop, outbox, self.pid, self.runs.token,
-                                  device.kind, device.faults()))
+                                  device.kind, device.faults(), self.state))
 
     def stop(self) -> None:
         """Every way out of the loop: release, then close the device."""
@@ -559,7 +569,7 @@ class CalibrationJob:
             # The running controller's models, else the worker's default model set.
             spec = running
             if spec.models is None and not spec.models_path:
-                spec = ControllerSpec(NO_CONTROLLER, models_path=self.worker.models_path)
+                spec = ControllerSpec(_resting(), models_path=self.worker.models_path)
             mset = load_models(spec)
             start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
             cal = calibrate(q, start, max_std=math.radians(self.cmd.max_std_deg))
@@ -577,7 +587,8 @@ class CalibrationJob:
 
 
 def status(
-    loop: ControlLoop, outbox: Outbox, pid: int, run_token: int, kind: str, faults: list[str]
+    loop: ControlLoop, outbox: Outbox, pid: int, run_token: int, kind: str, faults: list[str],
+    state: State,
 ) -> WorkerStatus:
     """The heartbeat the server shows as health."""
     last = loop.last_sample_at
@@ -591,4 +602,5 @@ def status(
         device=DeviceReport(alive=age < 0.5, last_sample_age_s=age, faults=faults,
                             implausible_samples=loop.implausible,
                             link_drops=loop.device.link_counters()),
+        state=state.value,
     )

@@ -81,6 +81,9 @@ class WorkerStatus:
     device_kind: str
     loop: LoopReport
     device: DeviceReport
+    #: The worker's state (`backend.worker.machine.State` value: idle, controlling,
+    #: trial, calibrating).
+    state: str = ""
 
 
 @dataclass(frozen=True, slots=True)
