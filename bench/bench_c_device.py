@@ -42,6 +42,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench.record import record  # noqa: E402
 from controller.device.auth import load_or_create_key  # noqa: E402
 from controller.device.base import LockCommand, Status  # noqa: E402
 from controller.device.udp import UdpDevice  # noqa: E402
@@ -199,8 +200,12 @@ def main(argv: list[str] | None = None) -> int:
           f"{load1[0]:.2f}; host scheduling: {scheduling}")
     print(f"{'':34}" + "".join(f"{name:>28}" for name in results))
 
+    table: list[list[object]] = []
+
     def row(label: str, fmt: Any) -> None:
-        print(f"{label:34}" + "".join(f"{fmt(r):>28}" for r in results.values()))
+        cells = [fmt(r) for r in results.values()]
+        table.append([label, *cells])
+        print(f"{label:34}" + "".join(f"{c:>28}" for c in cells))
 
     row("samples sent / received", lambda r: f"{r['device']['samples_sent']} / "
         f"{r['host']['received']}")
@@ -231,6 +236,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: worst watchdog release on the device clock {worst:.2f} ms, {verdict} "
               f"the {WATCHDOG_LIMIT_MS:g} ms bound (host side: "
               f"{max(r['host']['watchdog_ms']):.2f} ms)")
+    command = "bench/bench_c_device.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    record("c_device", command.strip(), ["", *results], table, round(load0[0], 1),
+           note=f"{args.minutes:g} min per device, script {args.script} seed {args.seed}; "
+                f"host scheduling: {scheduling}")
     return 0
 
 
