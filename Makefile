@@ -50,11 +50,13 @@ FORCE:
 system-gcc:
 	@command -v gcc >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y gcc; }
 
-# Firmware for real boards (docs/hardware-bringup-lab.md): the core and the
+# Firmware for real boards (docs/hardware-bringup-lab.md): the portable core's own tests
+# (plain and under the address and undefined-behaviour sanitizers), the core and the
 # Nucleo-F767ZI port cross-compiled for the Cortex-M7 (ELF linked, size printed), the
 # Linux single-board-computer port with the host gcc, and both ports' own tests under
 # the sanitizers (each prints "N passed, 0 failed").
 firmware-check: system-firmware system-gcc
+	$(MAKE) -C firmware test
 	$(MAKE) -C firmware/ports/nucleo-f767zi check
 	$(MAKE) -C firmware/ports/linux-sbc check
 
