@@ -11,10 +11,10 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from controller.motion_model import ModelSet
+from controller.decision.utility_function import DEFAULT_OTHER_RULE, UtilitySet, compute_utilities
+from controller.intent.motion_model import ModelSet
 from controller.sim.demonstrations import simulated_model_set
 from controller.sim.human_dataset import reference_dataset
-from controller.utilities import DEFAULT_OTHER_RULE, UtilitySet, compute_utilities
 
 log = logging.getLogger(__name__)
 

@@ -160,10 +160,10 @@ def _virtual_study(args: argparse.Namespace) -> int:
 def _cohort(args: argparse.Namespace) -> int:
     import time
 
+    from controller.decision.utility_function import UtilitySet
     from controller.evaluation.cohort import CohortConfig, simulate_cohort
     from controller.evaluation.cohort_report import analyse, write_outputs
-    from controller.motion_model import ModelSet
-    from controller.utilities import UtilitySet
+    from controller.intent.motion_model import ModelSet
 
     cfg = CohortConfig(participants=args.participants, seed=args.seed,
                        controllers=tuple(c.strip() for c in args.controllers.split(",")
@@ -435,7 +435,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `exostudy` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
     # Subcommands with their own parsers get their arguments untouched.
-    passthrough = {"replay": "controller.replay", "device-sim": "controller.sim.device_server",
+    passthrough = {"replay": "controller.runner.replay",
+                   "device-sim": "controller.sim.device_server",
                    "hardware": "backend.hardware_cli"}
     if argv and argv[0] in passthrough:
         import importlib

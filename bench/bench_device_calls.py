@@ -34,9 +34,9 @@ from controller.device.protocol import (
     encode_command,
     encode_sample,
 )
-from controller.device.simulated import SimulatedDevice
 from controller.device.udp import UdpDevice
 from controller.sim.exoskeleton import SimulatedExoskeleton
+from controller.sim.simulated_device import SimulatedDevice
 
 KEY = bytes(range(32))
 SENDS = 2000

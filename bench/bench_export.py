@@ -24,7 +24,7 @@ from backend.db.engine import make_engine
 from backend.db.models import ticks_table
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 N = 60_000
 

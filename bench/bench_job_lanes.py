@@ -3,7 +3,7 @@
 fit runs in the study lane). Also the time from asking for a shutdown to every job
 being final with a cohort running.
 
-The fit is the real PPCA fit (`controller.motion_model.fit_model_set`) of demonstrations
+The fit is the real PPCA fit (`controller.intent.motion_model.fit_model_set`) of demonstrations
 from the simulated data collection (collected once beforehand, not timed); the cohorts
 are the real cohort computation the console queues. Time is from submitting the job to
 its `finished_at` (as a poller sees it).
@@ -39,7 +39,7 @@ def main() -> int:
     from backend.db.engine import make_engine, make_session_factory
     from backend.db.evidence_tables import Job
     from controller.evaluation.cohort import CohortConfig
-    from controller.motion_model import fit_model_set
+    from controller.intent.motion_model import fit_model_set
     from controller.sim.demonstrations import collect
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-jobs-"))

@@ -31,7 +31,7 @@ from backend import bootstrap  # noqa: E402
 from backend.schemas.live import LoopReport  # noqa: E402
 from backend.worker.messages import WorkerConfig  # noqa: E402
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor  # noqa: E402
-from controller.spec import ControllerSpec  # noqa: E402
+from controller.controllers.spec import ControllerSpec  # noqa: E402
 
 HOG = "while True:\n    pass\n"
 

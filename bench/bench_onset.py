@@ -2,13 +2,13 @@
 
 Run: `.venv/bin/python bench/bench_onset.py` (well under a minute).
 
-1. One 30x51 match: `controller.onset.match` (one-shot, validates and inverts the
+1. One 30x51 match: `controller.intent.onset.match` (one-shot, validates and inverts the
    covariances every call), `OnsetDetector.match` (precomputed) and dtaidistance's
    subsequence DTW with its warping path, on the same problem in the same run.
    dtaidistance's C version is the fair opponent; its pure-Python version is listed too.
    Requirement: `match` at least 3x faster than dtaidistance (C).
 2. One UMC tick with 3 models: window push, DTW bank with acceptance, likelihoods,
-   posteriors and, when `controller.decision` is present, the decision.
+   posteriors and, when `controller.decision.expected_utility` is present, the decision.
    Requirement: p99 <= 25 us. Timed with the garbage collector disabled, as a
    real-time loop should run (gc.freeze() after start-up, gc.disable() in the loop);
    the load average is printed because other processes on the machine show up in p99.
@@ -25,8 +25,8 @@ import numpy as np
 from dtaidistance import dtw_ndim
 from dtaidistance.subsequence.dtw import subsequence_alignment
 
-from controller.intent import IntentEstimator
-from controller.onset import ModelBank, ObservationWindow, OnsetDetector, match
+from controller.intent.onset import ModelBank, ObservationWindow, OnsetDetector, match
+from controller.intent.posteriors import IntentEstimator
 
 
 def _times_us(fn: Callable[[], object], n: int) -> np.ndarray:
@@ -101,7 +101,7 @@ def main() -> None:
     for q in stream[:30]:
         window.push(float(q[0]), float(q[1]))
     try:
-        from controller import decision
+        from controller.decision import expected_utility as decision
     except ImportError:  # decision is optional for this benchmark
         decision = None  # type: ignore[assignment]
     table = -np.random.default_rng(1).random((4, 4, 101)) * 100.0

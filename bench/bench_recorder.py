@@ -28,7 +28,7 @@ from backend.db.engine import make_engine  # noqa: E402
 from backend.db.models import TICK_DATA_COLUMNS  # noqa: E402
 from backend.live.recorder import TickRecorder  # noqa: E402
 from backend.worker.messages import RunStarted, TickBatch  # noqa: E402
-from controller.tick import TickRecord  # noqa: E402
+from controller.tick_record import TickRecord  # noqa: E402
 
 N = 5000
 REPEATS = 5

@@ -31,16 +31,16 @@ from typing import Any
 
 import numpy as np
 
-from controller.base import Controller
-from controller.calibration import calibrate
+from controller.controllers.factory import load_models, make_controller
+from controller.decision.utility_function import compute_utilities
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.device.replay import ReplayDevice
-from controller.factory import load_models, make_controller
-from controller.replay import AngleRecording, replay_columns, replay_per_tick
+from controller.intent.calibration import calibrate
+from controller.interface import Controller
+from controller.runner.replay import AngleRecording, replay_columns, replay_per_tick
 from controller.sim.demonstrations import simulated_model_set
 from controller.sim.human_dataset import reference_dataset
 from controller.sim.recording import simulate_angles
-from controller.utilities import compute_utilities
+from controller.sim.replay_device import ReplayDevice
 
 N_SAMPLES = 60_000
 REQUIREMENT_S = 1.0

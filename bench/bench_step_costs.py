@@ -28,8 +28,8 @@ from numpy.typing import NDArray
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.record import load_average, record
-from controller.decision import decide_fast, warm_up
-from controller.kalman import HipVelocityFilter
+from controller.decision.expected_utility import decide_fast, warm_up
+from controller.intent.kalman import HipVelocityFilter
 
 CALLS = 20_000
 

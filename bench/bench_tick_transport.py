@@ -32,8 +32,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from controller.tick import TickRecord  # noqa: E402
 from controller.tick_codec import db_rows, pack  # noqa: E402
+from controller.tick_record import TickRecord  # noqa: E402
 
 BATCH = 200
 BATCHES = 50

@@ -21,34 +21,34 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from controller.base import Controller
     from controller.config import ControllerConfig, SettingError
+    from controller.controllers.factory import controller_names, make_controller, make_from_spec
+    from controller.controllers.registry import register
+    from controller.controllers.spec import ControllerSpec
     from controller.device.base import LockCommand, Sample
-    from controller.factory import controller_names, make_controller, make_from_spec
+    from controller.interface import Controller
     from controller.kernel import Kernel, KernelController
-    from controller.loop import ControlLoop
-    from controller.registry import register
-    from controller.replay import AngleRecording, replay_columns
-    from controller.spec import ControllerSpec
-    from controller.tick import TickRecord
+    from controller.runner.loop import ControlLoop
+    from controller.runner.replay import AngleRecording, replay_columns
+    from controller.tick_record import TickRecord
 
 _WHERE = {
-    "Controller": "controller.base",
+    "Controller": "controller.interface",
     "ControllerConfig": "controller.config",
     "SettingError": "controller.config",
     "LockCommand": "controller.device.base",
     "Sample": "controller.device.base",
-    "controller_names": "controller.factory",
-    "make_controller": "controller.factory",
-    "make_from_spec": "controller.factory",
+    "controller_names": "controller.controllers.factory",
+    "make_controller": "controller.controllers.factory",
+    "make_from_spec": "controller.controllers.factory",
     "Kernel": "controller.kernel",
     "KernelController": "controller.kernel",
-    "ControlLoop": "controller.loop",
-    "register": "controller.registry",
-    "AngleRecording": "controller.replay",
-    "replay_columns": "controller.replay",
-    "ControllerSpec": "controller.spec",
-    "TickRecord": "controller.tick",
+    "ControlLoop": "controller.runner.loop",
+    "register": "controller.controllers.registry",
+    "AngleRecording": "controller.runner.replay",
+    "replay_columns": "controller.runner.replay",
+    "ControllerSpec": "controller.controllers.spec",
+    "TickRecord": "controller.tick_record",
 }
 
 __all__ = [

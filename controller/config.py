@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controller.device.base import SAMPLE_RATE_HZ
-from controller.encoders import EncoderLayout
-from controller.plausibility import HIP_VELOCITY_MAX
+from controller.lowlevel.encoders import EncoderLayout
+from controller.lowlevel.plausibility import HIP_VELOCITY_MAX
 
 #: Largest hip velocity (rad/s) a velocity threshold may ask for: the plausibility bound
 #: (a threshold above it could never trigger).

@@ -1,7 +1,7 @@
 """The one tick codec: a `TickRecord` as a packed block, a database row, JSON and CSV,
 and back again.
 
-The fields and their types are `TickRecord`'s (`controller.tick`); this module only
+The fields and their types are `TickRecord`'s (`controller.tick_record`); this module only
 says how each kind of value travels:
 
 - **Block** (`TICK_DTYPE`): ticks packed as one numpy structured array, a row per tick.
@@ -33,7 +33,7 @@ from typing import IO, Any, TypeAlias
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from controller.tick import TickColumns, TickRecord
+from controller.tick_record import TickColumns, TickRecord
 
 FIELD_NAMES: tuple[str, ...] = TickRecord.field_names()
 #: Field name to its kind: "int", "float", "bool" or "str".

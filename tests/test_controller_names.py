@@ -2,7 +2,7 @@
 
 What a controller needs (models, a calibration), whether it estimates intent, its label
 and colour and where it enters a trial plan are declared in its registration
-(`controller.registry.Registration`); code elsewhere asks the registry. Read from the
+(`controller.controllers.registry.Registration`); code elsewhere asks the registry. Read from the
 source with `ast`: a comparison (`==`, `!=`, `in`, `not in`) with a registered name as a
 literal, anywhere in `controller/` or `backend/` outside the module that registers that
 name, fails here.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from controller import registry
+from controller.controllers import registry
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,7 +49,7 @@ def _owners() -> dict[str, str]:
 def test_no_controller_name_is_compared_outside_its_module() -> None:
     owners = _owners()
     assert set(owners) >= {"umc", "eumc", "pec", "none"}
-    assert owners["eumc"] == "controller.eumc"
+    assert owners["eumc"] == "controller.controllers.eumc"
     bad = []
     for package in ("controller", "backend"):
         for path in sorted((ROOT / package).rglob("*.py")):
@@ -57,12 +57,12 @@ def test_no_controller_name_is_compared_outside_its_module() -> None:
             module = ".".join(rel.with_suffix("").parts)
             bad += [f"{rel}:{hit}" for hit in
                     name_comparisons(path.read_text(encoding="utf-8"), module, owners)]
-    assert bad == [], ("compare capabilities (controller.registry), not names:\n"
+    assert bad == [], ("compare capabilities (controller.controllers.registry), not names:\n"
                        + "\n".join(bad))
 
 
 def test_the_scan_finds_each_form_of_comparison() -> None:
-    owners = {"eumc": "controller.eumc", "none": "controller.passthrough"}
+    owners = {"eumc": "controller.controllers.eumc", "none": "controller.controllers.passthrough"}
     source = "\n".join([
         'if name == "eumc": pass',
         'if "eumc" != c: pass',
@@ -75,4 +75,4 @@ def test_the_scan_finds_each_form_of_comparison() -> None:
     assert name_comparisons(source, "backend.live.runtime", owners) == [
         "1: 'eumc'", "2: 'eumc'", "3: 'eumc'", "4: 'none'"]
     # The registering module itself may spell its own name.
-    assert name_comparisons('if n == "eumc": pass', "controller.eumc", owners) == []
+    assert name_comparisons('if n == "eumc": pass', "controller.controllers.eumc", owners) == []

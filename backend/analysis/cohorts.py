@@ -36,10 +36,10 @@ def compute(cfg: CohortConfig, models_path: Path, utilities_path: Path,
             progress: Callable[[float], None]) -> dict[str, Any]:
     """Simulate and analyse the cohort: its cohort.json document. Runs in the job's
     child process (`backend.analysis.job_process`), so it takes only picklable values."""
+    from controller.decision.utility_function import UtilitySet
     from controller.evaluation.cohort import simulate_cohort
     from controller.evaluation.cohort_report import analyse, analysis_json
-    from controller.motion_model import ModelSet
-    from controller.utilities import UtilitySet
+    from controller.intent.motion_model import ModelSet
 
     models = ModelSet.load(models_path) if models_path.is_file() else None
     utilities = UtilitySet.load(utilities_path) if utilities_path.is_file() else None

@@ -3,7 +3,7 @@ column is described here, so a new column cannot leave the dictionary silently."
 
 from __future__ import annotations
 
-from controller.tick import TICK_FIELD_DOCS
+from controller.tick_record import TICK_FIELD_DOCS
 
 # (unit, meaning); "" unit for identifiers, text and categories.
 _COMMON: dict[str, tuple[str, str]] = {
@@ -188,7 +188,7 @@ def markdown() -> str:
         lines.append("")
     lines += ["## ticks/trial-<id>.csv, ticks/recording-<id>.csv", "", TICK_FILE, "",
               "| column | unit | meaning |", "|---|---|---|"]
-    from controller.tick import TickRecord
+    from controller.tick_record import TickRecord
 
     for col in TickRecord.field_names():
         unit, meaning = TICK_FIELD_DOCS[col]

@@ -224,7 +224,7 @@ def _deidentify(table: str, cols: list[str], row: list[Any], key: int, column: s
 
 
 def _dictionary_csv(deidentified: bool = False) -> str:
-    from controller.tick import TICK_FIELD_DOCS, TickRecord
+    from controller.tick_record import TICK_FIELD_DOCS, TickRecord
 
     out = io.StringIO()
     w = spreadsheet.writer(out)

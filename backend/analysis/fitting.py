@@ -23,10 +23,10 @@ from backend.db.evidence_tables import LiftSegment, ModelSetRecord, Recording, U
 from backend.db.models import Participant, StudySession, User
 from backend.schemas.evidence import ModelSetIn, ModelSetOut, UtilitySetOut
 from backend.study import audit
+from controller.decision.utility_function import compute_utilities
 from controller.human_data import HumanMotionData
-from controller.motion_model import fit_model_set as fit_models
-from controller.tick import MODEL_NAMES
-from controller.utilities import compute_utilities
+from controller.intent.motion_model import fit_model_set as fit_models
+from controller.tick_record import MODEL_NAMES
 
 Computed = type[ModelSetRecord] | type[UtilitySetRecord]
 

@@ -15,7 +15,7 @@ How a run is made (`ReplicationConfig`):
   or extended run reuses its seeds, and two runs never write one folder at once (a
   folder being written has no `summary.json`; it is left alone and reported).
   `cohort` replays the same protocol through the controllers in this process
-  (`controller.replay`, the live loop's tick code, no server), the same virtual
+  (`controller.runner.replay`, the live loop's tick code, no server), the same virtual
   participants and data-collection seeds; it is faster and does not depend on the
   server. `--from-db` reads existing `study.db` files instead of running anything.
 - **Beyond the seeds.** The method checks (utilities, value iteration, chi-square tail,
@@ -47,6 +47,7 @@ import numpy as np
 from scipy import stats
 from sqlalchemy import text
 
+from controller.decision.utility_function import UtilitySet
 from controller.evaluation.columns import TickData
 from controller.evaluation.figures import peak_torque_figure
 from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
@@ -72,8 +73,7 @@ from controller.evaluation.study import RecordingEvaluation, evaluate_recording
 from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
 from controller.evaluation.timeline import controller_output_figure
 from controller.evaluation.verdicts import t_interval
-from controller.motion_model import ModelSet
-from controller.utilities import UtilitySet
+from controller.intent.motion_model import ModelSet
 
 Engine = Literal["study", "cohort"]
 #: One seed's evaluated trials with their ticks, and the model and utility sets used.
@@ -270,14 +270,14 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     """The protocol of one seed replayed through the controllers in this process: the
     virtual study's participants (`seed*100 + 1 + j`) and data-collection seeds
     (`seed*100 + 50 + i`), each controller on its own repetition of the script."""
-    from controller import registry
     from controller.config import ControllerConfig
+    from controller.controllers import registry
+    from controller.controllers.factory import make_from_spec, needs_models
+    from controller.controllers.spec import ControllerSpec
     from controller.evaluation.cohort import _calibrated, default_utilities, trial_recording
-    from controller.factory import make_from_spec, needs_models
-    from controller.replay import replay_columns
+    from controller.runner.replay import replay_columns
     from controller.sim.demonstrations import simulated_model_set
     from controller.sim.participant import VirtualParticipant
-    from controller.spec import ControllerSpec
 
     models = simulated_model_set(seeds=[seed * 100 + 50 + i
                                         for i in range(cfg.data_participants)])
@@ -350,9 +350,9 @@ def measure_seed(label: str, trials: Sequence[tuple[TickData, RecordingEvaluatio
 
 def method_checks(utilities: UtilitySet) -> dict[str, float]:
     """The deterministic claims: utilities, value iteration, chi-square, actuator."""
-    from controller.actuator import maccepa_torque
-    from controller.intent import likelihood
-    from controller.tick import CATEGORY_NAMES, Action
+    from controller.intent.posteriors import likelihood
+    from controller.lowlevel.actuator import maccepa_torque
+    from controller.tick_record import CATEGORY_NAMES, Action
 
     v = utilities.table.values
     gaps = []
@@ -364,7 +364,7 @@ def method_checks(utilities: UtilitySet) -> dict[str, float]:
     vi = max((float(x) for x in gap.values()), default=math.nan) / scale
     # Within each curve's compression limit: torque grows with deflection, and at a
     # deflection every curve reaches, with precompression.
-    from controller.actuator import max_deflection
+    from controller.lowlevel.actuator import max_deflection
 
     tops = [max_deflection(p) for p in PRECOMPRESSIONS]
     bad = n = 0

@@ -53,8 +53,10 @@ from backend.db.models import (
 )
 from backend.live import trial_quality
 from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfOut
-from controller import registry
 from controller.config import ControllerConfig, SettingError
+from controller.controllers import registry
+from controller.controllers.factory import make_from_spec, needs_models
+from controller.controllers.spec import ControllerSpec
 from controller.evaluation import (
     DecisionOutcome,
     FalsePositiveTable,
@@ -83,12 +85,10 @@ from controller.evaluation import (
     whole_recording_trial,
 )
 from controller.evaluation.rendering import RenderedFigure
-from controller.factory import make_from_spec, needs_models
-from controller.motion_model import ModelSet, fit_model_set
-from controller.replay import AngleRecording, replay_columns
-from controller.spec import ControllerSpec
-from controller.tick import ACTION_NAMES, MODEL_NAMES, Action
+from controller.intent.motion_model import ModelSet, fit_model_set
+from controller.runner.replay import AngleRecording, replay_columns
 from controller.tick_codec import FIELD_NAMES
+from controller.tick_record import ACTION_NAMES, MODEL_NAMES, Action
 
 TruthSource = Literal["simulation", "segments", "task", "none"]
 #: The truth source of a trial whose lifts are unknown.
@@ -103,7 +103,7 @@ FIGURE_NAMES = ("peak_torques", "onset_to_lock")
 
 
 def table_controllers(intent_only: bool = False) -> tuple[str, ...]:
-    """The planned controllers (`controller.registry.PlanPlace`) in the order of the
+    """The planned controllers (`controller.controllers.registry.PlanPlace`) in the order of the
     paper's tables: those that estimate no intent first (the PEC), then the others by
     plan rank (UMC, E-UMC); `intent_only`: only those that estimate intent (the
     performance table: no intent, no recognised or correct lifts)."""
@@ -531,7 +531,7 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
     """Replay the trial's stored raw hip angles through another configuration.
 
     The stored angles (`q_raw_left/right`, device time `t`) go through
-    `controller.replay.replay_columns`, the live tick code with the mechanism simulated
+    `controller.runner.replay.replay_columns`, the live tick code with the mechanism simulated
     in between. The configuration starts from the settings the trial ran with (its
     snapshot, calibration included), then `settings` overrides single fields and
     `rate_hz` sets every controller's rate. Nothing is written: the original ticks and

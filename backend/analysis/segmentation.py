@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.segmentation import bridge_gaps, segment_lifts
-from controller.tick import MODEL_NAMES
+from controller.intent.segmentation import bridge_gaps, segment_lifts
+from controller.tick_record import MODEL_NAMES
 
 #: Fewer samples than this (one second at the 100 Hz sample clock) cannot hold a lift.
 MIN_SAMPLES = 100

@@ -57,7 +57,7 @@ from backend.analysis.results import FIGURE_NAMES
 from backend.analysis.virtual_study_speeds import COLLECTION_SPEED, DEFAULT_SPEED
 from backend.core.resources import version
 from backend.live.local_server import ApiClient, Response, serving
-from controller import registry
+from controller.controllers import registry
 from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
 RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}

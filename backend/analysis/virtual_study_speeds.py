@@ -6,7 +6,7 @@ from __future__ import annotations
 from controller.device.base import MAX_SPEED
 
 #: Requested simulator speed-up during the evaluation trials: the simulator's maximum
-#: (`controller.device.simulated.MAX_SPEED`).
+#: (`controller.sim.simulated_device.MAX_SPEED`).
 #: The worker never runs ahead of what the server stores (it holds a sped-up simulation
 #: while ticks queue, `backend.worker.process._hold`), so asking for more than a loaded
 #: machine delivers costs nothing and loses nothing; on a quiet 2-core machine 80x gave a

@@ -33,7 +33,7 @@ class HardwareProfile(Base):
     key_id: Mapped[str] = mapped_column(String(16))
     precompression_pct: Mapped[float] = mapped_column(Float)
     #: Counts at zero angle and signs, in sample order (left output, left cam, right
-    #: output, right cam): `controller.encoders.EncoderLayout`.
+    #: output, right cam): `controller.lowlevel.encoders.EncoderLayout`.
     encoder_offsets: Mapped[list[int]] = mapped_column(JSON)
     encoder_directions: Mapped[list[int]] = mapped_column(JSON)
     #: Cam zero minus output zero (counts), left and right: alpha = 0 while unlocked.

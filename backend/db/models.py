@@ -1,4 +1,4 @@
-"""ORM models. The tick table's columns come from `controller.tick.TickRecord`, the one
+"""ORM models. The tick table's columns come from `controller.tick_record.TickRecord`, the one
 definition of a tick, so the stored row and the worker's record cannot drift apart
 (a test checks the migrations build the same schema)."""
 
@@ -30,7 +30,7 @@ from sqlalchemy import text as sql_text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeEngine
 
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 
 def utcnow() -> datetime:

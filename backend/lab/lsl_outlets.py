@@ -31,7 +31,7 @@ import numpy as np
 
 from backend.worker.messages import TickBatch
 from controller.device.base import SAMPLE_RATE_HZ
-from controller.tick import TICK_FIELD_DOCS
+from controller.tick_record import TICK_FIELD_DOCS
 
 log = logging.getLogger(__name__)
 

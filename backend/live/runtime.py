@@ -40,12 +40,12 @@ from backend.worker.messages import (
     WorkerConfig,
 )
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller import registry
 from controller.config import ControllerConfig
+from controller.controllers import registry
+from controller.controllers.factory import needs_models
+from controller.controllers.spec import ControllerSpec
 from controller.device.auth import load_or_create_key
-from controller.encoders import EncoderLayout
-from controller.factory import needs_models
-from controller.spec import ControllerSpec
+from controller.lowlevel.encoders import EncoderLayout
 
 log = logging.getLogger(__name__)
 

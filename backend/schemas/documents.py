@@ -2,10 +2,11 @@
 and a computed utility set (the files `exostudy replay` and the worker read), and a
 trial's ticks as columns.
 
-The documents are written by `controller.motion_model.ModelSet.to_json` and
-`controller.utilities.UtilitySet.to_json`, which own their format; these models name the
-top-level keys for the OpenAPI schema and let any other key through unchanged (routes
-answer with `response_model_exclude_unset`, so a key a document lacks stays absent).
+The documents are written by `controller.intent.motion_model.ModelSet.to_json` and
+`controller.decision.utility_function.UtilitySet.to_json`, which own their format; these
+models name the top-level keys for the OpenAPI schema and let any other key through
+unchanged (routes answer with `response_model_exclude_unset`, so a key a document lacks
+stays absent).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The names the browser needs, built from the Python definitions they stand for.
 
 Tick columns, motion models, actions, flag bits, controllers, simulation scripts and
-health fields are defined once in Python (`controller.tick`, `controller.spec`,
+health fields are defined once in Python (`controller.tick_record`, `controller.controllers.spec`,
 `backend.schemas.live`, ...). The console's scripts must use the same names, so the
 server hands them over as one JavaScript module (`GET /static/vocabulary.js`) and as
 JSON (`GET /api/vocabulary`), both built from this model at run time: the browser never
@@ -21,10 +21,10 @@ from pydantic import BaseModel, Field
 
 from backend.schemas.evidence import SegmentLabel
 from backend.schemas.live import STREAM_FIELDS, DatabaseHealth, DeviceHealth, WorkerHealth
-from controller import registry
+from controller.controllers import registry
 from controller.evaluation.lifts import CORRECT_ACTION
 from controller.sim.scripts import SCRIPT_NAMES
-from controller.tick import (
+from controller.tick_record import (
     CATEGORY_NAMES,
     MODEL_NAMES,
     Action,
@@ -138,7 +138,7 @@ def _bits(flag: type[enum.IntFlag], labels: dict[int, str] | None = None) -> lis
 
 
 def _controller(name: str) -> ControllerName:
-    """What a controller declares about itself (`controller.registry.Registration`)."""
+    """What a controller declares about itself (`controller.controllers.registry.Registration`)."""
     r = registry.get(name)
     return ControllerName(name=name, label=r.shown, needs_models=r.needs_models,
                           needs_calibration=r.needs_calibration,

@@ -1,7 +1,7 @@
 """The evaluation order and the blinded labels participants see.
 
 Which controllers a plan holds and where is what each controller declares when it
-registers (`controller.registry.PlanPlace`): the paper's plan is UMC and PEC in
+registers (`controller.controllers.registry.PlanPlace`): the paper's plan is UMC and PEC in
 balanced order across the study's participants, E-UMC (optional) after them.
 
 A participant's position in the study (by enrolment, i.e. id order) decides: the
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import string
 
-from controller import registry
+from controller.controllers import registry
 
 LABELS = tuple(string.ascii_uppercase)
 

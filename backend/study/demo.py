@@ -21,10 +21,10 @@ from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, Study, StudySession, User
 from backend.study import accounts, audit
 from backend.study.counterbalance import blinded_labels, controller_order
-from controller.factory import needs_models
-from controller.motion_model import ModelSet
+from controller.controllers.factory import needs_models
+from controller.decision.utility_function import UtilitySet
+from controller.intent.motion_model import ModelSet
 from controller.sim.participant import VirtualParticipant
-from controller.utilities import UtilitySet
 
 log = logging.getLogger(__name__)
 

@@ -43,10 +43,10 @@ from backend.worker.messages import (
     BringupResult,
     BringupWatchdog,
 )
-from controller import bringup as calc
-from controller import registry
+from controller.controllers import registry
 from controller.device.auth import load_key
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.lowlevel import bringup as calc
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 
 #: The device must release within this long of the last command: its 100 ms watchdog
 #: checked once per 10 ms sample period (docs/device-protocol.md, safety rule 1).

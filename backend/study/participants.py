@@ -19,7 +19,7 @@ from backend.core.errors import ConflictError, InvalidError
 from backend.db.models import ConditionLabel, ConsentDocument, Participant, User
 from backend.schemas.participants import ConditionIn, ParticipantIn, ParticipantUpdate
 from backend.study import audit
-from controller.factory import controller_names
+from controller.controllers.factory import controller_names
 
 
 def _commit_or_conflict(db: Session, field: str, problem: str) -> None:

@@ -15,7 +15,7 @@ from backend.db.models import StudySession, User
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import RecordingIn
 from backend.study import activity, audit
-from controller import registry
+from controller.controllers import registry
 
 
 async def start(db: Session, user: User, runtime: Runtime, session_id: int,

@@ -22,11 +22,11 @@ from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
 from backend.study import activity, audit, hardware_profiles
 from backend.study.counterbalance import blinded_labels, controller_order
-from controller import registry
 from controller.config import SettingError
+from controller.controllers import registry
+from controller.controllers.factory import needs_models
+from controller.controllers.spec import ControllerSpec
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.factory import needs_models
-from controller.spec import ControllerSpec
 
 
 def _get(db: Session, model: Any, key: int, entity: str) -> Any:

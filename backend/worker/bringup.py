@@ -1,7 +1,7 @@
 """Hardware bring-up inside the worker: one handler per command, each owning the device
 for its few seconds.
 
-The server judges what the samples mean (`controller.bringup`); the worker only does what
+The server judges what the samples mean (`controller.lowlevel.bringup`); the worker only does what
 needs the device at 100 Hz: capture raw samples with the solenoids off, drive one
 bounded solenoid pulse, or go silent and time the device's command watchdog. Each
 handler answers every sample it reads with a command (the heartbeat), except the
@@ -24,7 +24,7 @@ from backend.worker.messages import (
     RawSample,
 )
 from controller.device.base import SAMPLE_PERIOD_S, Device, LockCommand, Sample, Status
-from controller.encoders import EncoderLayout
+from controller.lowlevel.encoders import EncoderLayout
 
 #: Longest solenoid pulse: the low-level controller's lock hold, 0.3 s, long enough for
 #: the pawl to seat (docs/hardware.md); a bring-up pulse never holds longer.

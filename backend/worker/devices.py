@@ -9,7 +9,7 @@ from controller.device.base import Device
 def make_device(config: WorkerConfig) -> Device:
     """The configured device; imports lazily so the worker only loads what it uses."""
     if config.device_kind == "sim":
-        from controller.device.simulated import SimulatedDevice
+        from controller.sim.simulated_device import SimulatedDevice
 
         return SimulatedDevice(
             seed=config.device_seed,

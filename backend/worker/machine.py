@@ -50,16 +50,16 @@ from backend.worker.messages import (
 )
 from backend.worker.outbox import Outbox
 from backend.worker.scheduling import loop_scheduling, paced
-from controller import registry
-from controller.base import Controller
-from controller.calibration import CalibrationError, calibrate
+from controller.controllers import registry
+from controller.controllers.factory import load_models, make_from_spec
+from controller.controllers.registry import needs_calibration
+from controller.controllers.spec import ControllerSpec
 from controller.device.base import SAMPLE_PERIOD_S, Device
-from controller.factory import load_models, make_from_spec
-from controller.loop import ControlLoop
-from controller.registry import needs_calibration
-from controller.spec import ControllerSpec
+from controller.intent.calibration import CalibrationError, calibrate
+from controller.interface import Controller
+from controller.runner.loop import ControlLoop
 from controller.stop_flag import SignalSafeFlag
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 #: A sped-up simulation (device time is virtual) waits while more records than this are
 #: queued for the server, and resumes below `BACKLOG_RESUME`: the worker never produces

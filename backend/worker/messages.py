@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from backend.schemas.live import DeviceReport, LoopReport
-from controller.spec import ControllerSpec
-from controller.tick import TickRecord
+from controller.controllers.spec import ControllerSpec
 from controller.tick_codec import TickBlock, pack, unpack
+from controller.tick_record import TickRecord
 
 
 def _no_controller() -> ControllerSpec:

@@ -11,7 +11,7 @@ import threading
 from multiprocessing.connection import Connection
 
 from backend.worker.messages import TickBatch, WorkerMessage
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 #: Records kept for the server if it stops reading: one minute at 100 Hz.
 OUTBOX_LIMIT = 6000

@@ -34,7 +34,7 @@ from backend.worker.messages import (
     WorkerStatus,
 )
 from backend.worker.process import worker_main
-from controller.spec import ControllerSpec
+from controller.controllers.spec import ControllerSpec
 
 log = logging.getLogger(__name__)
 

@@ -63,7 +63,7 @@ class Sample:
 
     Counts are raw 14-bit values in the order left output link, left cam link, right
     output link, right cam link. Hip flexion comes from the output links; the spring
-    deflection from output minus cam (see `controller.encoders`).
+    deflection from output minus cam (see `controller.lowlevel.encoders`).
     """
 
     seq: int

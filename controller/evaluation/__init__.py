@@ -4,7 +4,7 @@ A pure analysis package (NumPy, SciPy, Matplotlib on an offscreen Agg canvas; no
 from the backend), so that the backend, the CLI and a virtual study compute the
 evaluation the same way. The flow:
 
-1. Tick data as columns (`TickData`, field names of `controller.tick.TickRecord`).
+1. Tick data as columns (`TickData`, field names of `controller.tick_record.TickRecord`).
 2. Ground truth: `lifts_from_truth` / `trials_from_truth` for a simulated recording,
    `lifts_from_segments` / `whole_recording_trial` for an experimenter's segments.
 3. `evaluate_recording` per recording, labelled with participant and controller.

@@ -5,7 +5,7 @@ A cohort samples `participants` virtual people from the simulated population
 depth, speed, asymmetry, donning offsets), has each perform the paper's evaluation
 script (`paper-evaluation`: squat and stoop sequences with a 5 kg box, the 10 m walk,
 the stairs) once per controller, replays those angles through every chosen controller
-with the batch replay kernel (`controller.replay.replay_columns`: the same tick code as
+with the batch replay kernel (`controller.runner.replay.replay_columns`: the same tick code as
 the live loop) and evaluates every metric of the paper's tables per participant from
 the simulation's ground truth.
 
@@ -34,25 +34,25 @@ from typing import Any
 
 import numpy as np
 
-from controller import registry
-from controller.calibration import CalibrationError, calibrate
 from controller.config import ControllerConfig
+from controller.controllers import registry
+from controller.controllers.factory import make_from_spec, needs_models
+from controller.controllers.spec import ControllerSpec
+from controller.decision.utility_function import UtilitySet
 from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
 from controller.evaluation.metrics import DecisionOutcome
 from controller.evaluation.study import RecordingEvaluation, evaluate_recording
-from controller.factory import make_from_spec, needs_models
-from controller.motion_model import ModelSet
-from controller.replay import AngleRecording, replay_columns
+from controller.intent.calibration import CalibrationError, calibrate
+from controller.intent.motion_model import ModelSet
+from controller.runner.replay import AngleRecording, replay_columns
 from controller.sim.participant import VirtualParticipant
 from controller.sim.scripts import get_script, realise
-from controller.spec import ControllerSpec
-from controller.utilities import UtilitySet
 
 
 def cohort_controllers() -> tuple[str, ...]:
     """The controllers a cohort runs by default and may run: those that enter a trial
-    plan (`controller.registry.PlanPlace`), in plan rank order."""
+    plan (`controller.controllers.registry.PlanPlace`), in plan rank order."""
     return tuple(r.name for r in registry.planned())
 
 
@@ -275,8 +275,8 @@ def default_model_set(progress: Callable[[float], None] | None = None) -> ModelS
 
 def default_utilities(precompression_pct: float) -> UtilitySet:
     """Utilities from the simulated reference human dataset."""
+    from controller.decision.utility_function import compute_utilities
     from controller.sim.human_dataset import reference_dataset
-    from controller.utilities import compute_utilities
 
     return compute_utilities(reference_dataset(), precompression_pct)
 

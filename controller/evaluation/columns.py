@@ -2,7 +2,7 @@
 
 The backend reads ticks from SQL, the CLI from CSV, a virtual study straight from the
 controllers; all three can hand over a mapping `field name -> array` with the field
-names of `controller.tick.TickRecord`. This module checks that mapping once and gives
+names of `controller.tick_record.TickRecord`. This module checks that mapping once and gives
 typed arrays, so the metrics never guess whether `lock_left` arrived as bools, 0/1
 integers or strings from a CSV file.
 
@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.tick import TickRecord
 from controller.tick_codec import column_from_values, columns_from_records
+from controller.tick_record import TickRecord
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -83,7 +83,7 @@ def _to_str(raw: ColumnLike) -> StrArray:
 class TickData:
     """Typed, equal-length tick columns keyed by `TickRecord` field names.
 
-    Accepts `controller.tick.TickColumns` (the batch replay's plain dict, strings as
+    Accepts `controller.tick_record.TickColumns` (the batch replay's plain dict, strings as
     object arrays), the backend's query result, or any mapping of lists.
 
     Args:

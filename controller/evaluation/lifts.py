@@ -9,7 +9,7 @@ Two sources give the same objects, so every metric is computed one way:
   recording that is one walking or stair-walking trial, as in the paper.
 
 Indices are tick (sample) indices into the recording, `end` inclusive, like
-`controller.segmentation.SegmentedLift`.
+`controller.intent.segmentation.SegmentedLift`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 
 from controller.evaluation.columns import Columns, TickData
 from controller.sim.activities import GAIT_KINDS
-from controller.tick import MODEL_NAMES, Action
+from controller.tick_record import MODEL_NAMES, Action
 
 LiftKind = Literal["squat", "stoop_left", "stoop_right"]
 TrialKind = Literal["walking", "stair_walking"]

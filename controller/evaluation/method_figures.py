@@ -16,10 +16,15 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.stats import chi2
 
-from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
 from controller.evaluation.rendering import DEFAULT_DPI, KIND_COLOURS, KIND_LABELS, new_figure
 from controller.evaluation.timeline import ModelSetLike, draw_models
-from controller.tick import ACTION_NAMES, MODEL_NAMES
+from controller.lowlevel.actuator import (
+    PAPER_ACTUATOR,
+    MaccepaParams,
+    maccepa_torque,
+    max_deflection,
+)
+from controller.tick_record import ACTION_NAMES, MODEL_NAMES
 
 #: Precompressions drawn in the actuator figure (percent of 22 mm), as in the paper's.
 PRECOMPRESSIONS: tuple[float, ...] = (0.0, 25.0, 50.0, 75.0, 100.0)

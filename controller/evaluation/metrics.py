@@ -63,7 +63,7 @@ import numpy as np
 
 from controller.evaluation.columns import BoolArray, Columns, FloatArray, TickData
 from controller.evaluation.lifts import GaitTrial, Lift
-from controller.tick import Action
+from controller.tick_record import Action
 
 #: The paper's recognition threshold on the correct model's posterior.
 RECOGNITION_THRESHOLD = 0.5

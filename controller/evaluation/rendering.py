@@ -20,7 +20,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.typing import RcKeyType
 
-from controller import registry
+from controller.controllers import registry
 
 #: Pixels per inch of the PNG; figure sizes are given in inches.
 DEFAULT_DPI = 100
@@ -50,7 +50,7 @@ _RC: dict[RcKeyType, Any] = {
 
 
 def controller_marker(name: str, order: int = 0) -> str:
-    """The scatter marker a controller registered (`controller.registry`), else a spare
+    """The scatter marker a controller registered (`controller.controllers.registry`), else a spare
     one by its order of appearance."""
     reg = registry.lookup(name.lower())
     return (reg.marker if reg is not None and reg.marker

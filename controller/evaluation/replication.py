@@ -27,7 +27,7 @@ from typing import Literal
 
 import numpy as np
 
-from controller import registry
+from controller.controllers import registry
 from controller.evaluation.columns import TickData
 from controller.evaluation.metrics import DecisionOutcome, LiftOutcome
 from controller.evaluation.study import RecordingEvaluation
@@ -39,7 +39,7 @@ from controller.evaluation.verdicts import (
     t_interval,
     value_verdict,
 )
-from controller.tick import CATEGORY_NAMES
+from controller.tick_record import CATEGORY_NAMES
 
 PAPER_PARTICIPANTS: tuple[str, ...] = ("1", "2", "3", "4", "5", "6", "7", "8")
 #: Paper, table "Intent estimation and Decision Performance for (E-)UMC": counts out

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from controller import registry
+from controller.controllers import registry
 from controller.evaluation.columns import Columns, TickData
 from controller.evaluation.lifts import GaitTrial, Lift
 from controller.evaluation.metrics import (
@@ -23,7 +23,7 @@ from controller.evaluation.metrics import (
 
 
 def controller_label(name: str) -> str:
-    """The display name a controller registered (`controller.registry`); an unknown
+    """The display name a controller registered (`controller.controllers.registry`); an unknown
     name is shown as given."""
     return registry.label(name.lower())
 

@@ -23,7 +23,7 @@ from controller.evaluation.metrics import (
     summarise_onset_to_lock,
 )
 from controller.evaluation.study import RecordingEvaluation, controller_label
-from controller.tick import ACTION_NAMES
+from controller.tick_record import ACTION_NAMES
 
 Cell = str | int | float | bool | None
 

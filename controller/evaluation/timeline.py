@@ -28,7 +28,7 @@ from scipy.stats import chi2
 from controller.evaluation.columns import Columns, FloatArray, TickData
 from controller.evaluation.lifts import LIFT_KINDS, Lift
 from controller.evaluation.rendering import DEFAULT_DPI, KIND_COLOURS, KIND_LABELS, new_figure
-from controller.tick import ACTION_NAMES, CATEGORY_NAMES
+from controller.tick_record import ACTION_NAMES, CATEGORY_NAMES
 
 #: Size of the figure (inches): the paper's full text width.
 TIMELINE_IN: tuple[float, float] = (13.0, 8.0)
@@ -45,7 +45,7 @@ _MARKER = "#e7298a"
 
 
 class MotionModelLike(Protocol):
-    """What the figure reads of a motion model (`controller.motion_model.MotionModel`)."""
+    """What the figure reads of a motion model (`controller.intent.motion_model.MotionModel`)."""
 
     @property
     def name(self) -> str:
@@ -64,7 +64,7 @@ class MotionModelLike(Protocol):
 
 
 class ModelSetLike(Protocol):
-    """What the figure reads of a model set (`controller.motion_model.ModelSet`)."""
+    """What the figure reads of a model set (`controller.intent.motion_model.ModelSet`)."""
 
     def ordered(self) -> Sequence[MotionModelLike]:
         """The models in `MODEL_NAMES` order."""

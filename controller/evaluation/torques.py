@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque
 from controller.evaluation.columns import Columns, FloatArray, TickData
+from controller.lowlevel.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque
 
 #: The pipeline's default: a side counts as locked above this deflection (rad).
 DEFAULT_LOCK_DEADBAND = math.radians(0.5)

@@ -7,6 +7,8 @@
   and `replay_sample`, the mechanism's sample in a batch replay.
 - `core`: `Kernel`, one controller's state and compiled tick, and `Compiled`, the two
   entry points a controller module compiles with its decision step.
+- `entry_points`: `entry_points(decide)`, a controller's `Compiled` pair built from
+  its decision step.
 - `controller`: `KernelController`, the `Controller` a decision module subclasses.
 
 How a tick flows and how to add a controller: `docs/controller-kernel.md` and

@@ -1,6 +1,6 @@
 """The plausibility check of a decoded sample, compiled into every controller's tick.
 
-The bounds and their reasons are in `controller.plausibility`; this module applies them
+The bounds and their reasons are in `controller.lowlevel.plausibility`; this module applies them
 against the `REFERENCE` record of the last accepted samples.
 """
 
@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from controller.config import ControllerConfig
-from controller.kalman import HipVelocityFilter, kalman_step
+from controller.intent.kalman import HipVelocityFilter, kalman_step
 from controller.kernel.records import (
     FloatArray,
     IntArray,
@@ -20,8 +20,8 @@ from controller.kernel.records import (
     new_reference,
     settings_record,
 )
-from controller.plausibility import Q_RANGE
-from controller.tick import Plausibility
+from controller.lowlevel.plausibility import Q_RANGE
+from controller.tick_record import Plausibility
 
 JUMP = int(Plausibility.JUMP)
 VELOCITY = int(Plausibility.VELOCITY)

@@ -1,9 +1,10 @@
 """`KernelController`: a controller whose every tick is the compiled kernel's.
 
 It turns a device sample into the kernel's inputs and the kernel's output row into a
-`TickRecord`. A controller module (`controller.umc`, `controller.pec`, ...) subclasses
-it only to build its `Kernel` with its decision step and data. A sample that cannot be
-trusted yields a flagged tick with no new lock: `step` never raises.
+`TickRecord`. A controller module (`controller.controllers.umc`,
+`controller.controllers.pec`, ...) subclasses it only to build its `Kernel` with its
+decision step and data. A sample that cannot be trusted yields a flagged tick with no
+new lock: `step` never raises.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ import math
 import time
 from typing import Any
 
-from controller.base import Controller
 from controller.config import ControllerConfig
 from controller.device.base import Sample
+from controller.interface import Controller
 from controller.kernel.core import Kernel
 from controller.kernel.records import ROW_FIELDS
-from controller.tick import NAN, TickRecord
+from controller.tick_record import NAN, TickRecord
 
 _TYPES = TickRecord.field_types()
 _INT_COLS = tuple(i for i, n in enumerate(ROW_FIELDS) if _TYPES[n] is int)

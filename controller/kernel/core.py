@@ -2,7 +2,7 @@
 
 Built once per controller from its configuration, its compiled entry points (`Compiled`:
 the shared tick with the controller's decision step fixed) and its own data. `step`
-runs one live tick; the batch replay (`controller.replay`) runs `batch` over the same
+runs one live tick; the batch replay (`controller.runner.replay`) runs `batch` over the same
 state, so live and replay share the code and the state layout.
 """
 
@@ -16,9 +16,9 @@ import numpy as np
 from numba import typeof
 from numba.core.registry import CPUDispatcher
 
-from controller.actuator import TorqueModel
 from controller.config import ControllerConfig
-from controller.kalman import HipVelocityFilter
+from controller.intent.kalman import HipVelocityFilter
+from controller.intent.onset import ObservationWindow
 from controller.kernel.records import (
     ROW,
     FloatArray,
@@ -30,14 +30,14 @@ from controller.kernel.records import (
     reset_phase,
     settings_record,
 )
-from controller.lowlevel import LockHold
-from controller.onset import ObservationWindow
+from controller.lowlevel.actuator import TorqueModel
+from controller.lowlevel.lock_hold import LockHold
 
 
 @dataclass(frozen=True)
 class Compiled:
     """A controller's two compiled entry points, each `begin`, its decision and
-    `finish` (see `controller.kernel.tick` for why a controller module compiles them):
+    `finish`, built by `controller.kernel.entry_points.entry_points(decide)`:
 
     - `step(state, data, c0, c1, c2, c3, t, status, rows)`: one live tick into `rows[0]`;
     - `batch(state, data, plant, plant_constants, layout, t, q, rows, counts, statuses)`:

@@ -22,8 +22,8 @@ import numpy as np
 import numpy.typing as npt
 
 from controller.config import ControllerConfig
-from controller.encoders import EncoderLayout
-from controller.plausibility import (
+from controller.lowlevel.encoders import EncoderLayout
+from controller.lowlevel.plausibility import (
     ALPHA_RANGE,
     ANGLE_NOISE_RAD,
     HIP_ACCELERATION_MAX,
@@ -32,7 +32,7 @@ from controller.plausibility import (
     Q_RANGE,
     RESYNC_S,
 )
-from controller.tick import Action, TickRecord
+from controller.tick_record import Action, TickRecord
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

@@ -16,12 +16,10 @@ A tick is `begin`, the controller's decision, then `finish`:
 - `finish(state, decision, status, rows, k)`: the action becomes lock requests, the
   lock hold turns them into this tick's commands, then mechanism state and torque.
 
-Each controller module compiles two short entry points with its decision in between
-(`step`, one live tick; `batch`, the batch replay with `replay_sample` stepping the
-simulated mechanism between ticks) and hands them to its `Kernel` as `Compiled`. The
-decision is called by name, not passed as an argument, because numba can neither cache
-code holding a function object as a constant nor keep a cache index keyed by one. The
-flow is described in `docs/controller-kernel.md`.
+The two entry points with a controller's decision in between (`step`, one live tick;
+`batch`, the batch replay with `replay_sample` stepping the simulated mechanism between
+ticks) are built by `controller.kernel.entry_points`. The flow is described in
+`docs/controller-kernel.md`.
 """
 
 from __future__ import annotations
@@ -30,15 +28,15 @@ import math
 
 from numba import njit
 
-from controller.actuator import torque_at
 from controller.device.base import ENCODER_COUNTS, Status
-from controller.encoders import angle_to_count, count_to_angle
-from controller.kalman import kalman_step
+from controller.intent.kalman import kalman_step
+from controller.intent.onset import window_push
 from controller.kernel.check import PRESYNC_OR_BACK, RANGE, VELOCITY, check_sample
-from controller.lowlevel import hold_update
-from controller.onset import window_push
+from controller.lowlevel.actuator import torque_at
+from controller.lowlevel.encoders import angle_to_count, count_to_angle
+from controller.lowlevel.lock_hold import hold_update
 from controller.sim.plant import _CAM, _OUTPUT, plant_step
-from controller.tick import Action, TickFlag
+from controller.tick_record import Action, TickFlag
 
 NO_LOCK, LOCK_BOTH, LOCK_RIGHT, LOCK_LEFT = (int(a) for a in Action)
 BAD_SAMPLE = int(TickFlag.BAD_SAMPLE)

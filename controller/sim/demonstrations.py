@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
-from controller.motion_model import ModelSet, fit_model_set
-from controller.segmentation import SegmentedLift, segment_lifts
+from controller.intent.motion_model import ModelSet, fit_model_set
+from controller.intent.segmentation import SegmentedLift, segment_lifts
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.sim.exoskeleton import SimulatedExoskeleton
-from controller.tick import MODEL_NAMES
+from controller.tick_record import MODEL_NAMES
 
 FloatArray = NDArray[np.float64]
 DEMO_SCRIPTS: tuple[str, ...] = ("squat-sequence", "stoop-sequence")

@@ -13,7 +13,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import numpy as np
 
 from controller.device.base import SAMPLE_PERIOD_S, GroundTruth, LockCommand, Sample
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.sim.activities import ACTIVITIES
 from controller.sim.participant import VirtualParticipant
 from controller.sim.plant import ExoPlant

@@ -38,9 +38,14 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
 from controller.device.base import SAMPLE_PERIOD_S, Status
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.lowlevel.actuator import (
+    PAPER_ACTUATOR,
+    MaccepaParams,
+    maccepa_torque,
+    max_deflection,
+)
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 
 PULL_IN_S = 0.02
 NOISE_DEG = 0.04

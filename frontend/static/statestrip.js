@@ -16,7 +16,7 @@ export function createStateStrip(root) {
   const right = root.querySelector("#strip-right");
   const action = root.querySelector("#strip-action");
   const implausible = root.querySelector("#strip-implausible");
-  // Ticks whose sample failed a plausibility check (controller/tick.py Plausibility):
+  // Ticks whose sample failed a plausibility check (controller/tick_record.py Plausibility):
   // no lock is taken on them, and the strip says so while they last.
   const counts = { lockChanges: 0, lockOnSeen: 0, implausible: 0 };
   let last = null;

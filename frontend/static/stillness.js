@@ -1,6 +1,6 @@
 // Is the wearer standing still? The standard deviation of each hip angle over the last
 // second, from the live stream, against the calibration's limit. The same definition as
-// the calibration the server runs (controller/calibration.py): the population standard
+// the calibration the server runs (controller/intent/calibration.py): the population standard
 // deviation (divide by n), a missing sample makes the window not still, and a deviation
 // equal to the limit still counts as still.
 

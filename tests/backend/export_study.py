@@ -16,7 +16,7 @@ from backend.db.engine import make_engine
 from backend.db.evidence_tables import Recording, Trial
 from backend.db.lab import Marker
 from backend.db.models import Run, ticks_table
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 #: Text a spreadsheet would run, one per field the exports write.
 FORMULAS = {

@@ -26,7 +26,7 @@ def _help_of(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
         from controller.sim.device_server import main as run
         args = argv[1:]
     elif argv and argv[0] == "replay":
-        from controller.replay import main as run
+        from controller.runner.replay import main as run
         args = argv[1:]
     else:
         from backend.cli import main as run

@@ -30,8 +30,12 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[Any]) -> 
     setattr(item, f"rep_{report.when}", report)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def browser() -> Iterator[Any]:
+    """One Chromium for this folder's tests (a new context per test). Closed when the run
+    leaves the folder: Playwright's sync API keeps an event loop running in the thread,
+    and with `pytest -n 2` (`make test`) other folders' tests that call `asyncio.run`
+    may follow in the same process."""
     if not os.path.exists(CHROMIUM):
         pytest.fail("Debian's chromium is missing: `make test` installs it "
                     "(apt-get install chromium)")

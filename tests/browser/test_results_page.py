@@ -80,6 +80,8 @@ def test_results_page_shows_the_trial_figures_and_a_what_if(
     assert sus[("P01", "umc")] > sus[("P01", "pec")] and sus[("P02", "pec")] > sus[("P02", "umc")]
 
     log_in_through(page, fast_server, f"/console/studies/{study_id}", experimenter)
+    # The page's script sets the link's target; a click before that follows "#".
+    page.wait_for_selector(f"#results-link[href='/console/studies/{study_id}/results']")
     page.click("#results-link")
     page.wait_for_url(f"**/console/studies/{study_id}/results")
     page.wait_for_function("window.exostudyResults.loaded >= 1", timeout=30000)

@@ -16,7 +16,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from controller.evaluation.columns import TickData
-from controller.tick import TickRecord
 from controller.tick_codec import (
     FIELD_NAMES,
     NULL_VALUES,
@@ -32,6 +31,7 @@ from controller.tick_codec import (
     write_csv,
     write_records_csv,
 )
+from controller.tick_record import TickRecord
 
 _TYPES = TickRecord.field_types()
 _FINITE = st.floats(allow_nan=False, allow_infinity=False, width=64)

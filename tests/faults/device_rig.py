@@ -18,7 +18,7 @@ from typing import Any
 
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 from tests import c_device
 from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for

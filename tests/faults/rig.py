@@ -31,11 +31,11 @@ from typing import Any
 from backend.worker.messages import WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
+from controller.controllers.spec import ControllerSpec
 from controller.device.auth import load_or_create_key
 from controller.device.base import LockCommand, Sample
 from controller.sim.device_server import serve
 from controller.sim.exoskeleton import SimulatedExoskeleton
-from controller.spec import ControllerSpec
 from tests import c_device
 from tests.polling import free_udp_port, wait_for
 

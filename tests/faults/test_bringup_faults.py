@@ -13,7 +13,7 @@ from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.device.auth import load_or_create_key
 from controller.device.base import Sample, Status
 from controller.device.protocol import CommandPacket, ProtocolError, decode_frame
-from controller.encoders import DEFAULT_LAYOUT
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from tests.faults.device_rig import Proxy, device_process
 from tests.polling import free_udp_port, wait_for
 

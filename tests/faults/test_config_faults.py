@@ -19,8 +19,8 @@ from fastapi.testclient import TestClient
 
 from backend.core.config import Settings
 from backend.main import create_app
+from controller.controllers.spec import ControllerSpec
 from controller.device.auth import create_key
-from controller.spec import ControllerSpec
 from tests.backend.worker.unchecked import unchecked_spec
 from tests.faults.device_rig import Worker, device_process, locked_ticks
 from tests.faults.served import make_trials

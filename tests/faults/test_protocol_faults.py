@@ -16,13 +16,13 @@ from pathlib import Path
 
 import pytest
 
+from controller.controllers.spec import ControllerSpec
 from controller.device.auth import TAG_BYTES, create_key
 from controller.device.base import Sample
 from controller.device.protocol import SAMPLE_BODY, SESSIONS, CommandPacket, encode_command
 from controller.device.protocol import encode_sample as encode
-from controller.encoders import DEFAULT_LAYOUT
-from controller.spec import ControllerSpec
-from controller.tick import TickRecord
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
+from controller.tick_record import TickRecord
 from tests.faults.device_rig import Proxy, Worker, device_process, locked_ticks
 from tests.polling import free_udp_port, wait_for
 

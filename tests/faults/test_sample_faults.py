@@ -15,9 +15,9 @@ import pytest
 
 from controller.device.auth import create_key, load_key
 from controller.device.base import ENCODER_COUNTS, LockCommand, Sample
-from controller.encoders import RAD_PER_COUNT
-from controller.plausibility import HIP_VELOCITY_MAX
-from controller.tick import Plausibility, TickFlag, TickRecord
+from controller.lowlevel.encoders import RAD_PER_COUNT
+from controller.lowlevel.plausibility import HIP_VELOCITY_MAX
+from controller.tick_record import Plausibility, TickFlag, TickRecord
 from tests.faults.device_rig import Worker, device_process, lock_onsets, model_device_process
 from tests.polling import free_udp_port, wait_for
 

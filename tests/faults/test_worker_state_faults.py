@@ -211,7 +211,7 @@ def test_server_start_closes_what_a_dead_server_left(settings: Settings, db_url:
     from backend.db import migrate
     from backend.live.recorder import TickRecorder
     from backend.worker.messages import RunStarted, TickBatch
-    from controller.tick import TickRecord
+    from controller.tick_record import TickRecord
 
     trial_id, = make_trials(db_url, USERNAME, ("pec",))
     migrate.upgrade(db_url)

@@ -29,8 +29,8 @@ from backend.schemas.live import (
     WorkerHealth,
 )
 from backend.schemas.vocabulary import javascript_module
-from controller.tick import TickRecord
 from controller.tick_codec import pack
+from controller.tick_record import TickRecord
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent

@@ -9,10 +9,10 @@ from fastapi.testclient import TestClient
 
 from backend.schemas.evidence import SegmentLabel
 from backend.schemas.live import STREAM_FIELDS, DatabaseHealth, DeviceHealth, WorkerHealth
-from controller import registry
+from controller.controllers import registry
 from controller.evaluation.lifts import CORRECT_ACTION
 from controller.sim.scripts import SCRIPT_NAMES
-from controller.tick import CATEGORY_NAMES, MODEL_NAMES, Action, Plausibility, TickRecord
+from controller.tick_record import CATEGORY_NAMES, MODEL_NAMES, Action, Plausibility, TickRecord
 
 PREFIX = "const VOCABULARY = "
 

@@ -23,8 +23,8 @@ from backend.schemas.evidence import (
     UtilitySetIn,
     UtilitySetOut,
 )
-from controller.tick import ACTION_NAMES, MODEL_NAMES
-from controller.utilities import UtilitySet
+from controller.decision.utility_function import UtilitySet
+from controller.tick_record import ACTION_NAMES, MODEL_NAMES
 
 router = APIRouter(tags=["models"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 

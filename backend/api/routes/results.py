@@ -33,7 +33,7 @@ from backend.api.params import MAX_ID, StudyId
 from backend.db.evidence_tables import ModelSetRecord, Trial
 from backend.db.models import Study
 from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfIn, WhatIfOut
-from controller.factory import controller_names
+from controller.controllers.factory import controller_names
 
 router = APIRouter(tags=["results"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 

@@ -18,7 +18,7 @@ from backend.schemas.live import (
 )
 from backend.study import activity
 from controller.config import SettingError
-from controller.factory import controller_names
+from controller.controllers.factory import controller_names
 
 # Every worker route needs a logged-in experimenter: they move a person's exoskeleton.
 router = APIRouter(prefix="/api/worker", tags=["worker"],

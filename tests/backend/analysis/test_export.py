@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from backend.analysis.data_dictionary import describe, markdown
 from backend.analysis.export import EXPORTED_COLUMNS
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 
 def test_every_exported_column_has_a_unit_and_a_meaning() -> None:

@@ -28,7 +28,7 @@ from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
 from controller.config import ControllerConfig
-from controller.tick import Action, TickRecord
+from controller.tick_record import Action, TickRecord
 
 N = 1400
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from backend.analysis.segmentation import SegmentationError, propose_lifts
-from controller.segmentation import segment_lifts
+from controller.intent.segmentation import segment_lifts
 
 RATE = 100
 

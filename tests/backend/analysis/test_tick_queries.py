@@ -14,8 +14,8 @@ from backend.db import migrate
 from backend.db.engine import make_engine
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
-from controller.tick import TickRecord
 from controller.tick_codec import FIELD_NAMES, read_csv, write_records_csv
+from controller.tick_record import TickRecord
 
 
 def test_columns_csv_and_null_read_back_by_the_codec(db_url: str) -> None:

@@ -13,8 +13,8 @@ from fastapi.testclient import TestClient
 from backend.core.config import Settings
 from backend.main import create_app
 from backend.schemas.hardware import STEP_NAMES
-from controller.bringup import wrap
-from controller.encoders import DEFAULT_LAYOUT
+from controller.lowlevel.bringup import wrap
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from tests.login import log_in
 from tests.polling import free_udp_port, wait_for
 

@@ -179,7 +179,8 @@ def test_the_documented_role_matrix_is_the_schema(client: TestClient) -> None:
 
 
 def matrix_markdown(schema: dict[str, Any]) -> str:
-    """The role matrix of docs/access.md, from the schema (`python -m tests.backend.api.test_roles`)."""
+    """The role matrix of docs/access.md, from the schema
+    (`python -m tests.backend.api.test_roles`)."""
     columns = ("member", *ROLES[1:])
     lines = ["| operation | needs | " + " | ".join(columns) + " |",
              "|---|---|" + "---|" * len(columns)]

@@ -10,7 +10,7 @@ from sqlalchemy import inspect
 from backend.db import migrate
 from backend.db.engine import make_engine
 from backend.db.tables import Base
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 
 def test_upgrade_head_then_downgrade_base(db_url: str) -> None:

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from backend.lab.lsl_outlets import LabOutlets
 from backend.worker.messages import TickBatch
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 
 class MarkerCapture(LabOutlets):

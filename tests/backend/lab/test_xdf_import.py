@@ -21,7 +21,7 @@ from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, Run, Study, StudySession, ticks_table
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 from tests.backend.lab.xdf_writer import XdfStream, write_xdf
 
 #: ExoStudy's LSL clock minus Unix time in the made-up session (a machine up ~10 min).

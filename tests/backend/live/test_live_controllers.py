@@ -15,7 +15,7 @@ from backend.core.config import Settings
 from backend.db.engine import make_engine
 from backend.db.models import Run, ticks_table
 from backend.main import create_app
-from controller.tick import TickFlag
+from controller.tick_record import TickFlag
 from tests.login import log_in
 from tests.polling import wait_for
 

@@ -9,7 +9,7 @@ from backend.db.engine import make_engine
 from backend.db.models import Run, ticks_table
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
-from controller.tick import TickRecord
+from controller.tick_record import TickRecord
 
 
 def _batch(token: int, seqs: range) -> TickBatch:

@@ -8,8 +8,8 @@ import json
 
 from backend.live.stream import LiveStream
 from backend.schemas.live import STREAM_FIELDS, LiveTicks
-from controller.tick import TickRecord
 from controller.tick_codec import pack
+from controller.tick_record import TickRecord
 
 
 def test_slow_client_drops_oldest_and_fast_client_gets_all() -> None:

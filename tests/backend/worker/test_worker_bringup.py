@@ -19,11 +19,11 @@ from backend.worker.messages import (
     WorkerConfig,
 )
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller import bringup as calc
+from controller.controllers.spec import ControllerSpec
 from controller.device.auth import load_or_create_key
 from controller.device.base import Status
-from controller.encoders import DEFAULT_LAYOUT
-from controller.spec import ControllerSpec
+from controller.lowlevel import bringup as calc
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from tests.faults.device_rig import device_process
 from tests.polling import free_udp_port, wait_for
 

@@ -18,7 +18,7 @@ from backend.worker.messages import (
 )
 from backend.worker.process import BACKLOG_HOLD
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller.spec import ControllerSpec
+from controller.controllers.spec import ControllerSpec
 from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for
 

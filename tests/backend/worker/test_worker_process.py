@@ -15,7 +15,7 @@ import pytest
 
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller.spec import ControllerSpec
+from controller.controllers.spec import ControllerSpec
 from tests.faults.served import alive
 from tests.polling import wait_for
 

@@ -43,8 +43,8 @@ from backend.worker.messages import (
 )
 from backend.worker.outbox import Outbox
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
-from controller.encoders import DEFAULT_LAYOUT
-from controller.spec import ControllerSpec
+from controller.controllers.spec import ControllerSpec
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from controller.stop_flag import SignalSafeFlag
 from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for

@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from controller.config import ControllerConfig
-from controller.spec import ControllerSpec
+from controller.controllers.spec import ControllerSpec
 
 
 def unchecked_spec(name: str, config: Mapping[str, Any] | None = None) -> ControllerSpec:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from controller.decision.utility_function import UtilitySet
 from controller.evaluation.cohort import (
     METRIC_NAMES,
     CohortConfig,
@@ -20,9 +21,8 @@ from controller.evaluation.cohort import (
     trial_recording,
 )
 from controller.evaluation.cohort_report import analyse, write_outputs
-from controller.motion_model import ModelSet
+from controller.intent.motion_model import ModelSet
 from controller.sim.participant import VirtualParticipant
-from controller.utilities import UtilitySet
 
 pytestmark = pytest.mark.slow
 

@@ -22,7 +22,7 @@ from controller.evaluation import (
     render_figure,
 )
 from controller.evaluation.timeline import confidence_ellipse
-from controller.tick import Action
+from controller.tick_record import Action
 
 from .tick_builder import TickBuilder, lifting_recording
 
@@ -88,7 +88,7 @@ class FakeModel:
 
 
 class FakeModelSet:
-    """Stands in for `controller.motion_model.ModelSet`: `.ordered()` models."""
+    """Stands in for `controller.intent.motion_model.ModelSet`: `.ordered()` models."""
 
     def ordered(self) -> tuple[FakeModel, ...]:
         s = np.linspace(0.0, 1.0, 101)

@@ -22,7 +22,7 @@ from controller.evaluation import (
     summarise_onset_to_lock,
     trials_from_truth,
 )
-from controller.tick import Action
+from controller.tick_record import Action
 
 from .tick_builder import TickBuilder
 

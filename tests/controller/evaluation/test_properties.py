@@ -18,7 +18,7 @@ from controller.evaluation import (
     lifts_from_truth,
     trials_from_truth,
 )
-from controller.tick import Action
+from controller.tick_record import Action
 
 from .tick_builder import TickBuilder
 

@@ -21,7 +21,7 @@ from controller.evaluation.replication import (
     trial_data,
 )
 from controller.evaluation.verdicts import Verdict
-from controller.tick import Action
+from controller.tick_record import Action
 
 from .tick_builder import TickBuilder
 

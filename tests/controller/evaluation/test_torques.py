@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from controller.actuator import maccepa_torque
 from controller.evaluation import evaluate_lift, recompute_torques
+from controller.lowlevel.actuator import maccepa_torque
 
 from .tick_builder import TickBuilder
 

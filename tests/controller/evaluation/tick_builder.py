@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from controller.base import Controller
+from controller.controllers.pec import PEC
 from controller.device.base import LockCommand
 from controller.evaluation import (
     GaitTrial,
@@ -21,9 +21,9 @@ from controller.evaluation import (
     evaluate_recording,
     lifts_from_truth,
 )
-from controller.pec import PEC
+from controller.interface import Controller
 from controller.sim.exoskeleton import SimulatedExoskeleton
-from controller.tick import Action, TickRecord
+from controller.tick_record import Action, TickRecord
 
 HOLD_TICKS = 30
 DT = 0.01

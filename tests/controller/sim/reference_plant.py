@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import math
 
-from controller.actuator import PAPER_ACTUATOR, MaccepaParams, maccepa_torque, max_deflection
+from controller.lowlevel.actuator import (
+    PAPER_ACTUATOR,
+    MaccepaParams,
+    maccepa_torque,
+    max_deflection,
+)
 
 PULL_IN_S = 0.02
 _EPS = 1e-12

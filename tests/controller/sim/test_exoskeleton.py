@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from controller.actuator import maccepa_torque
 from controller.device.base import LockCommand, Status
-from controller.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.lowlevel.actuator import maccepa_torque
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.sim.activities import ACTIVITIES
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.sim.participant import VirtualParticipant

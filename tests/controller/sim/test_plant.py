@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from controller.actuator import maccepa_torque, max_deflection
 from controller.device.base import Status
-from controller.encoders import DEFAULT_LAYOUT
+from controller.lowlevel.actuator import maccepa_torque, max_deflection
+from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from controller.sim.plant import EncoderModel, ExoPlant, HipModule
 
 D = math.radians

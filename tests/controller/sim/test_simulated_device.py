@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from controller.device.base import LockCommand, Status
-from controller.device.simulated import SimulatedDevice
+from controller.sim.simulated_device import SimulatedDevice
 
 
 def test_free_running_reads_and_commands() -> None:
