@@ -5,7 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "harness.h"
+#include "../../test-harness/harness.h"
 
 #include "../sbc_key.h"
 #include "../sbc_options.h"

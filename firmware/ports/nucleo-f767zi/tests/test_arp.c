@@ -1,5 +1,5 @@
 /* ARP: parse a request written out byte by byte, build it back. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 #include "frames.h"
 

@@ -1,5 +1,5 @@
 /* Internet checksum against published examples. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 
 #include "../net/net_checksum.h"

@@ -1,5 +1,5 @@
 /* IPv4 and UDP: parse a reference datagram, reject each kind of damage, rebuild it. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 #include "frames.h"
 

@@ -1,5 +1,5 @@
 /* test_main.c - run every group and print the totals. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 
 int harness_passed;

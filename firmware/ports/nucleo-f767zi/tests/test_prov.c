@@ -1,5 +1,5 @@
 /* The provisioning block: CRC-32 reference value, round trip, every refusal. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 
 #include "../crc32.h"

@@ -1,5 +1,5 @@
 /* The stack end to end over a fake link that records what it sends. */
-#include "harness.h"
+#include "../../test-harness/harness.h"
 #include "tests.h"
 #include "frames.h"
 

@@ -1,6 +1,7 @@
 /*
- * harness.h - a minimal test harness: CHECK records a failure with its line and goes
- * on; main() prints "N passed, M failed" and exits non-zero on any failure.
+ * harness.h - the board ports' test harness (both ports share it): CHECK records a
+ * failure with its line and goes on; main() prints "N passed, M failed" and exits
+ * non-zero on any failure.
  */
 #ifndef HARNESS_H
 #define HARNESS_H
@@ -33,5 +34,7 @@ extern int harness_failed;
                     __LINE__, #a, #b, check_a_, check_b_);                                 \
         }                                                                                  \
     } while (0)
+
+#define CHECK_BYTES(a, b, n) CHECK(memcmp((a), (b), (n)) == 0)
 
 #endif /* HARNESS_H */
