@@ -22,13 +22,15 @@ run: install $(GUIDE_STAMP)
 # a module's shared fixtures are built once); the static checks and firmware-check run
 # beside it, their output printed after pytest's. Fails if either part failed.
 test: install system-chromium system-postgresql
-	@log=$$(mktemp); \
+	@log=$$(mktemp); out=$$(mktemp); rc=$$(mktemp); \
 	$(MAKE) --no-print-directory static-checks >"$$log" 2>&1 & checks=$$!; \
-	$(BIN)/python -m pytest -n 2 --dist loadfile; tests=$$?; \
+	{ $(BIN)/python -m pytest -n 2 --dist loadfile; echo $$? >"$$rc"; } | tee "$$out"; \
+	tests=$$(cat "$$rc"); \
 	wait $$checks; checked=$$?; \
 	echo "== ruff, mypy, mkdocs, firmware-check (ran beside pytest) =="; \
-	cat "$$log"; rm -f "$$log"; \
-	echo "== pytest exit status $$tests, static checks exit status $$checked =="; \
+	cat "$$log"; \
+	echo "== pytest exit status $$tests, static checks exit status $$checked; pytest said: =="; \
+	tail -n 1 "$$out"; rm -f "$$log" "$$out" "$$rc"; \
 	[ $$tests -eq 0 ] && [ $$checked -eq 0 ]
 
 static-checks: firmware-check

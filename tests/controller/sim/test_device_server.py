@@ -131,6 +131,11 @@ def test_lock_command_is_reflected(server: Running, host: UdpDevice) -> None:
         assert not st & (Status.SOLENOID_RIGHT | Status.WATCHDOG_RELEASED)
     applied = [c for c in server.model.commands if c is not None and c.lock_left]
     assert len(applied) >= 28
+    # The last command may still be in flight: stop the server only once a tick has
+    # applied it (its sequence number is the host's latest), or it would go uncounted.
+    last = host._host_seq
+    wait_for(lambda: any(c is not None and c.seq == last for c in server.model.commands),
+             5.0, f"a tick that applied the host's last command (seq {last})", poll=0.005)
     stats = server.finish()
     assert stats.commands == 30 and stats.stale_commands == 0
     assert len(stats.rtt_s) >= 28  # round trips were measured (their size: bench/bench_udp.py)
