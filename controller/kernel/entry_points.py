@@ -32,8 +32,9 @@ from controller.kernel.tick import begin, finish, replay_sample
 
 
 def decide(state, data, row) -> tuple[bool, int, int]:  # type: ignore[no-untyped-def]
-    """The name the templates call; `entry_points` binds it to a controller's decision."""
-    raise NotImplementedError("entry_points binds `decide` to a controller's decision")
+    """The name the templates call; `entry_points` binds it to a controller's decision.
+    Reaching this body means a template was called unbound: a programming error."""
+    raise TypeError("call the pair that entry_points(decide) returns, not its template")
 
 
 def step(state, data, c0, c1, c2, c3, t, status, rows) -> None:  # type: ignore[no-untyped-def]
