@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
@@ -234,80 +235,82 @@ def _confirm(nobody_wearing: bool) -> None:
                             "a side on a person")])
 
 
-async def zero(db: Session, user: User, runtime: Runtime, body: CaptureIn) -> StepResultOut:
-    """Step a: each encoder's count at the standing posture becomes its zero."""
+#: What a capture step makes of its samples: it updates the draft profile and returns
+#: the step's message and details, or raises `calc.BringupError` to fail the step.
+Judge = Callable[[HardwareProfile, Any], tuple[str, dict[str, Any]]]
+
+
+async def _capture_step(db: Session, user: User, runtime: Runtime, step: str, script: str,
+                        seconds: float, judge: Judge) -> StepResultOut:
+    """The shape every capture step shares: put the wearer in `script`'s posture (a
+    simulator only), capture `seconds` of samples, judge them, store the outcome."""
     async with runtime.activity:
         _ensure_free(db, runtime)
-        note = await _posture(runtime, STANDING_SCRIPT)
-        result = await _worker(runtime, BringupCapture(body.seconds))
+        note = await _posture(runtime, script)
+        result = await _worker(runtime, BringupCapture(seconds))
         profile = _draft_for(db, user, runtime)
         if not result.ok:
-            return _store(db, user, profile, "zero", False, result.message + note, {})
+            return _store(db, user, profile, step, False, result.message + note, {})
         try:
-            z = calc.zero(result.samples)
+            message, details = judge(profile, result.samples)
         except calc.BringupError as exc:
-            return _store(db, user, profile, "zero", False, str(exc) + note, {})
+            return _store(db, user, profile, step, False, str(exc) + note, {})
+        return _store(db, user, profile, step, True, message + note, details)
+
+
+async def zero(db: Session, user: User, runtime: Runtime, body: CaptureIn) -> StepResultOut:
+    """Step a: each encoder's count at the standing posture becomes its zero."""
+
+    def judge(profile: HardwareProfile, samples: Any) -> tuple[str, dict[str, Any]]:
+        z = calc.zero(samples)
         profile.encoder_offsets = list(z.offsets)
         profile.cam_output_offsets = _cam_output(list(z.offsets))
-        return _store(db, user, profile, "zero", True,
-                      f"zeroed over {len(result.samples)} still samples" + note,
-                      {"offsets": list(z.offsets), "std_deg": [round(s, 4) for s in z.std_deg],
-                       "samples": len(result.samples)})
+        return (f"zeroed over {len(samples)} still samples",
+                {"offsets": list(z.offsets), "std_deg": [round(s, 4) for s in z.std_deg],
+                 "samples": len(samples)})
+
+    return await _capture_step(db, user, runtime, "zero", STANDING_SCRIPT, body.seconds, judge)
 
 
 async def direction(db: Session, user: User, runtime: Runtime,
                     body: DirectionIn) -> StepResultOut:
     """Step b: the experimenter flexes one hip; its encoders' signs are stored so that
     its output angle rises with flexion."""
-    step = f"direction_{body.side}"
-    async with runtime.activity:
-        _ensure_free(db, runtime)
-        note = await _posture(runtime, FLEX_SCRIPT[body.side])
-        result = await _worker(runtime, BringupCapture(body.seconds))
-        profile = _draft_for(db, user, runtime)
-        if not result.ok:
-            return _store(db, user, profile, step, False, result.message + note, {})
-        try:
-            zeroed = profile.steps.get("zero", {}).get("passed", False)
-            d = calc.direction(result.samples, body.side, reference=tuple(  # type: ignore[arg-type]
-                profile.encoder_offsets) if zeroed else None)
-        except calc.BringupError as exc:
-            return _store(db, user, profile, step, False, str(exc) + note, {})
+
+    def judge(profile: HardwareProfile, samples: Any) -> tuple[str, dict[str, Any]]:
+        zeroed = profile.steps.get("zero", {}).get("passed", False)
+        d = calc.direction(samples, body.side, reference=tuple(  # type: ignore[arg-type]
+            profile.encoder_offsets) if zeroed else None)
         out, cam = calc.INDEX[body.side]
         dirs = list(profile.encoder_directions)
         dirs[out], dirs[cam] = d.output_direction, d.cam_direction
         profile.encoder_directions = dirs
-        return _store(db, user, profile, step, True,
-                      f"{body.side} hip flexed {d.moved_deg:.1f} deg: output direction "
-                      f"{d.output_direction:+d}, cam {d.cam_direction:+d}" + note,
-                      {"output_direction": d.output_direction,
-                       "cam_direction": d.cam_direction,
-                       "moved_deg": round(d.moved_deg, 2),
-                       "other_moved_deg": round(d.other_moved_deg, 2)})
+        return (f"{body.side} hip flexed {d.moved_deg:.1f} deg: output direction "
+                f"{d.output_direction:+d}, cam {d.cam_direction:+d}",
+                {"output_direction": d.output_direction, "cam_direction": d.cam_direction,
+                 "moved_deg": round(d.moved_deg, 2),
+                 "other_moved_deg": round(d.other_moved_deg, 2)})
+
+    return await _capture_step(db, user, runtime, f"direction_{body.side}",
+                               FLEX_SCRIPT[body.side], body.seconds, judge)
 
 
 async def offset(db: Session, user: User, runtime: Runtime, body: CaptureIn) -> StepResultOut:
     """Step c: the cam encoders' zeros that make alpha = 0 while the sides are free."""
-    async with runtime.activity:
-        _ensure_free(db, runtime)
-        note = await _posture(runtime, STANDING_SCRIPT)
-        result = await _worker(runtime, BringupCapture(body.seconds))
-        profile = _draft_for(db, user, runtime)
-        if not result.ok:
-            return _store(db, user, profile, "offset", False, result.message + note, {})
-        try:
-            c = calc.cam_offset(result.samples, layout_of(profile))
-        except calc.BringupError as exc:
-            return _store(db, user, profile, "offset", False, str(exc) + note, {})
+
+    def judge(profile: HardwareProfile, samples: Any) -> tuple[str, dict[str, Any]]:
+        c = calc.cam_offset(samples, layout_of(profile))
         offs = list(profile.encoder_offsets)
         offs[1], offs[3] = c.cam_offsets
         profile.encoder_offsets = offs
         profile.cam_output_offsets = list(c.cam_output_offsets)
-        return _store(db, user, profile, "offset", True,
-                      f"alpha within {max(c.alpha_max_deg):.2f} deg while unlocked" + note,
-                      {"cam_output_offsets": list(c.cam_output_offsets),
-                       "alpha_max_deg": [round(v, 3) for v in c.alpha_max_deg],
-                       "alpha_std_deg": [round(v, 3) for v in c.alpha_std_deg]})
+        return (f"alpha within {max(c.alpha_max_deg):.2f} deg while unlocked",
+                {"cam_output_offsets": list(c.cam_output_offsets),
+                 "alpha_max_deg": [round(v, 3) for v in c.alpha_max_deg],
+                 "alpha_std_deg": [round(v, 3) for v in c.alpha_std_deg]})
+
+    return await _capture_step(db, user, runtime, "offset", STANDING_SCRIPT, body.seconds,
+                               judge)
 
 
 def _judging_layout(db: Session) -> EncoderLayout:
