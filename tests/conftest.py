@@ -5,11 +5,15 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from fastapi.testclient import TestClient
 
 from backend.core.config import Settings
+
+if TYPE_CHECKING:
+    from tests.databases import AccountTemplates
 
 
 @pytest.fixture(scope="session")
@@ -44,7 +48,6 @@ LONGEST_MODULES = [
     "tests/backend/analysis/test_virtual_study.py",
     "tests/backend/analysis/test_virtual_study_load.py",
     "tests/controller/controllers/test_worked_example.py",
-    "tests/backend/analysis/test_replication.py",
 ]
 
 
@@ -117,12 +120,33 @@ def settings(db_url: str, default_sets: tuple[Path, Path]) -> Settings:
     )
 
 
-@pytest.fixture
-def experimenter(db_url: str) -> dict[str, str]:
-    """An experimenter account in the test database (migrated here to hold it); the
-    credentials as the login endpoint takes them."""
-    from tests.login import create_experimenter
+@pytest.fixture(scope="session")
+def account_templates(tmp_path_factory: pytest.TempPathFactory) -> Iterator[AccountTemplates]:
+    """Migrated databases holding the default experimenter, one per engine, built on
+    first use in each test process."""
+    from tests.databases import AccountTemplates
 
+    templates = AccountTemplates(tmp_path_factory.mktemp("account-template"))
+    try:
+        yield templates
+    finally:
+        templates.drop()
+
+
+@pytest.fixture
+def experimenter(request: pytest.FixtureRequest, db_url: str,
+                 account_templates: AccountTemplates) -> dict[str, str]:
+    """An experimenter account in the test database, migrated to hold it: a copy of the
+    template database when the test's database is still empty; the credentials as the
+    login endpoint takes them."""
+    from tests.databases import postgres_server
+    from tests.login import PASSWORD, USERNAME, create_experimenter
+
+    server = None
+    if not db_url.startswith("sqlite"):
+        server = postgres_server() or request.getfixturevalue("postgres_cluster")
+    if account_templates.fill(db_url, server):
+        return {"username": USERNAME, "password": PASSWORD}
     return create_experimenter(db_url)
 
 

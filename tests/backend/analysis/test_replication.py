@@ -75,37 +75,3 @@ def test_bad_arguments_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["replicate", "--out", str(tmp_path), "--from-db",
                  str(tmp_path / "missing.db")]) == 2
     assert "--from-db" in capsys.readouterr().err
-
-
-@pytest.mark.slow
-def test_a_study_db_reads_as_the_server_counts_it(tmp_path: Path) -> None:
-    """The plain-SQL reader against the server's own tables of the same virtual study."""
-    import csv
-    import io
-
-    from backend.analysis.replication import read_study_db
-    from backend.analysis.virtual_study import VirtualStudyConfig
-    from backend.analysis.virtual_study import run as run_study
-
-    out = tmp_path / "vs"
-    run_study(VirtualStudyConfig(out=out, participants=2, data_participants=2, eumc=1, seed=7,
-                                 speed=30.0, rates=("paper-rates",), margin_s=4.0,
-                                 model_evaluation=False), log=lambda _m: None)
-    trials, models, utilities = read_study_db(out / "study.db")
-    assert sorted((e.participant, e.controller) for _c, e in trials) == [
-        ("P01", "eumc"), ("P01", "pec"), ("P01", "umc"), ("P02", "pec"), ("P02", "umc")]
-    assert models is not None and utilities is not None
-    served = list(csv.DictReader(io.StringIO(
-        (out / "paper-rates" / "performance.csv").read_text())))
-    for row in served:
-        mine = [o for _c, e in trials for o in e.lifts
-                if e.participant == row["participant"] and e.controller == row["controller"]
-                and {"SQ": "squat"}.get(row["motion"], "stoop") in o.lift.kind]
-        assert len(mine) == int(row["lifts"])
-        assert sum(o.decision.value == "correct" for o in mine) == int(row["correct"])
-        assert sum(bool(o.recognised) for o in mine) == int(row["recognised"])
-    rep = run(ReplicationConfig(out=tmp_path / "rep", from_db=(out / "study.db",) * 2,
-                                offset_participants=4, stair_participants=2),
-              log=lambda _m: None)
-    assert [s.source for s in rep.seeds] == ["from-db", "from-db"]
-    assert (tmp_path / "rep" / "report.html").is_file()

@@ -1,5 +1,6 @@
 """The virtual study on a small configuration: the same server, worker and simulated
-device as a live session, sped up; files are written and the tables have rows."""
+device as a live session, sped up; files are written and the tables have rows, and the
+replication's plain-SQL reader counts the study's database as the server did."""
 
 from __future__ import annotations
 
@@ -10,16 +11,30 @@ from pathlib import Path
 
 import pytest
 
-from backend.analysis.virtual_study import QUESTIONNAIRE_NOTE, VirtualStudyConfig, run
+from backend.analysis.virtual_study import (
+    QUESTIONNAIRE_NOTE,
+    VirtualStudyConfig,
+    VirtualStudyReport,
+    run,
+)
 
 pytestmark = pytest.mark.slow
 
 
-def test_a_small_virtual_study_writes_its_tables_and_figures(tmp_path: Path) -> None:
-    out = tmp_path / "vs"
+@pytest.fixture(scope="module")
+def small_study(tmp_path_factory: pytest.TempPathFactory
+                ) -> tuple[Path, VirtualStudyReport]:
+    """Two evaluated participants (E-UMC for the first) and two data-collection ones:
+    run once for the module's tests, each of which only reads it."""
+    out = tmp_path_factory.mktemp("virtual") / "vs"
     cfg = VirtualStudyConfig(out=out, participants=2, data_participants=2, eumc=1, seed=7,
                              speed=30.0, rates=("paper-rates",), margin_s=4.0)
-    report = run(cfg, log=lambda _m: None)
+    return out, run(cfg, log=lambda _m: None)
+
+
+def test_a_small_virtual_study_writes_its_tables_and_figures(
+        small_study: tuple[Path, VirtualStudyReport]) -> None:
+    out, report = small_study
 
     # UMC and PEC for both, E-UMC for the first: 5 trials, in counterbalanced order.
     assert [(t.participant, t.controller) for t in report.trials] == [
@@ -62,3 +77,32 @@ def test_a_small_virtual_study_writes_its_tables_and_figures(tmp_path: Path) -> 
     assert QUESTIONNAIRE_NOTE in readme and "Intent estimation" in readme
     summary = json.loads((out / "summary.json").read_text())
     assert summary["wall_s"] > 0 and len(summary["trials"]) == 5
+
+
+def test_the_replication_reader_counts_the_study_db_as_the_server_did(
+        small_study: tuple[Path, VirtualStudyReport], tmp_path: Path) -> None:
+    """The replication's plain-SQL reader against the server's own tables of the same
+    virtual study, then a replication run from that database."""
+    from backend.analysis.replication import ReplicationConfig, read_study_db
+    from backend.analysis.replication import run as replicate
+
+    out, _report = small_study
+    trials, models, utilities = read_study_db(out / "study.db")
+    assert sorted((e.participant, e.controller) for _c, e in trials) == [
+        ("P01", "eumc"), ("P01", "pec"), ("P01", "umc"), ("P02", "pec"), ("P02", "umc")]
+    assert models is not None and utilities is not None
+    served = list(csv.DictReader(io.StringIO(
+        (out / "paper-rates" / "performance.csv").read_text())))
+    assert served
+    for row in served:
+        mine = [o for _c, e in trials for o in e.lifts
+                if e.participant == row["participant"] and e.controller == row["controller"]
+                and {"SQ": "squat"}.get(row["motion"], "stoop") in o.lift.kind]
+        assert len(mine) == int(row["lifts"])
+        assert sum(o.decision.value == "correct" for o in mine) == int(row["correct"])
+        assert sum(bool(o.recognised) for o in mine) == int(row["recognised"])
+    rep = replicate(ReplicationConfig(out=tmp_path / "rep", from_db=(out / "study.db",) * 2,
+                                      offset_participants=4, stair_participants=2),
+                    log=lambda _m: None)
+    assert [s.source for s in rep.seeds] == ["from-db", "from-db"]
+    assert (tmp_path / "rep" / "report.html").is_file()
