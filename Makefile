@@ -18,13 +18,17 @@ run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-# pytest runs on two processes, a test module per process at a time (`--dist loadfile`:
-# a module's shared fixtures are built once); the static checks and firmware-check run
-# beside it, their output printed after pytest's. Fails if either part failed.
+# pytest runs on one process more than the machine has cores (many tests wait on
+# servers, devices and Chromium in real time, which leaves a core idle a third of the
+# time with one process per core), a test module per process at a time (`--dist
+# loadfile`: a module's shared fixtures are built once); the static checks and
+# firmware-check run beside it, their output printed after pytest's. Fails if either
+# part failed. docs/tests.md.
+TEST_PROCESSES ?= $(shell echo $$(( $$(nproc) + 1 )))
 test: install system-chromium system-postgresql
 	@log=$$(mktemp); out=$$(mktemp); rc=$$(mktemp); \
 	$(MAKE) --no-print-directory static-checks >"$$log" 2>&1 & checks=$$!; \
-	{ $(BIN)/python -m pytest -n 2 --dist loadfile; echo $$? >"$$rc"; } | tee "$$out"; \
+	{ $(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadfile; echo $$? >"$$rc"; } | tee "$$out"; \
 	tests=$$(cat "$$rc"); \
 	wait $$checks; checked=$$?; \
 	echo "== ruff, mypy, mkdocs, firmware-check (ran beside pytest) =="; \

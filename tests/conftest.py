@@ -39,22 +39,25 @@ DATABASE_FACING = {
 }
 
 
-#: Modules that take a minute or more each (`pytest --durations`, a fresh clone on this
-#: 2-core machine: the wheel install ~200 s, the virtual studies 100-150 s each), longest
-#: first.
+#: The modules that take longest (`pytest --durations=0`, a fresh clone on this 2-core
+#: machine under `make test`: the API fuzzing ~110 s in 450 tests, the virtual study and
+#: the wheel ~80 s each, the console in Chromium ~65 s, the rest 40-55 s), longest first.
 LONGEST_MODULES = [
-    "tests/packaging/test_wheel.py",
-    "tests/backend/lab/test_bids_virtual_study.py",
+    "tests/backend/api/test_api_fuzz.py",
     "tests/backend/analysis/test_virtual_study.py",
-    "tests/backend/analysis/test_virtual_study_load.py",
+    "tests/packaging/test_wheel.py",
+    "tests/browser/test_console.py",
+    "tests/faults/test_protocol_faults.py",
     "tests/controller/controllers/test_worked_example.py",
+    "tests/backend/api/test_study_workflow.py",
+    "tests/backend/analysis/test_virtual_study_load.py",
 ]
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Longest modules first, then the other slow ones. `make test` hands whole modules to
-    two processes (`--dist loadfile`) in this order; a long module started last would run
-    alone at the end while the other process idles. The sort is stable, so a module's
+    its processes (`--dist loadfile`) in this order; a long module started last would run
+    alone at the end while the other processes idle. The sort is stable, so a module's
     own tests keep their order and stay together."""
     root = Path(str(config.rootpath))
     slow = {item.path for item in items if item.get_closest_marker("slow")}
