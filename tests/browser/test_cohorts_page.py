@@ -34,6 +34,8 @@ def test_a_cohort_runs_from_the_page(plain_server: str, page: Any,
     page.wait_for_selector("#cohort-progress:not([hidden])")
     page.wait_for_selector("body[data-shown]", timeout=300_000)
     assert page.eval_on_selector("#cohort-progress", "e => e.value") == 1
+    # The message comes after the result is shown and the list reloaded.
+    page.wait_for_selector("#cohort-msg.msg-ok")
     assert "ready" in page.text_content("#cohort-msg")
 
     rows = page.query_selector_all("#main-comparisons tbody tr")

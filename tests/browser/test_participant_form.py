@@ -74,6 +74,9 @@ def test_experimenter_makes_a_link_and_sees_the_sus_score_in_the_console(
     page.fill("#password", experimenter["password"])
     page.click("#submit")
     page.wait_for_url(f"{quiet_server}{path}")
+    # Every section above the questionnaires has loaded (trials, utilities), so none
+    # grows and moves the checkboxes between Playwright's aim and its click.
+    page.wait_for_function("window.exostudySession && window.exostudySession.ready")
     page.wait_for_selector(f"#link-choices tr[data-condition='{label}'] input[value^='sus|']")
     # Only the SUS for the PEC's condition, and no preference question.
     for box in page.query_selector_all("#link-choices input[type=checkbox]"):
