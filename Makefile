@@ -12,7 +12,7 @@ NODE_STAMP := frontend/node_modules/.package-lock.json
 GUIDE_STAMP := site/index.html
 export NO_MKDOCS_2_WARNING := 1
 
-.PHONY: run test static-checks test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware
+.PHONY: run test static-checks test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware fuzz
 
 run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
@@ -25,7 +25,7 @@ run: install $(GUIDE_STAMP)
 # firmware-check run beside it, their output printed after pytest's. Fails if either
 # part failed. docs/tests.md.
 TEST_PROCESSES ?= $(shell echo $$(( $$(nproc) + 1 )))
-test: install system-chromium system-postgresql
+test: install system-chromium system-postgresql system-firmware
 	@log=$$(mktemp); out=$$(mktemp); rc=$$(mktemp); \
 	$(MAKE) --no-print-directory static-checks >"$$log" 2>&1 & checks=$$!; \
 	{ $(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadfile; echo $$? >"$$rc"; } | tee "$$out"; \
@@ -33,6 +33,7 @@ test: install system-chromium system-postgresql
 	wait $$checks; checked=$$?; \
 	echo "== ruff, mypy, mkdocs, firmware-check (ran beside pytest) =="; \
 	cat "$$log"; \
+	awk '/slowest test files \(seconds/ {on=1; print; next} on && /^ / {print; next} {on=0}' "$$out"; \
 	echo "== pytest exit status $$tests, static checks exit status $$checked; pytest said: =="; \
 	tail -n 1 "$$out"; rm -f "$$log" "$$out" "$$rc"; \
 	[ $$tests -eq 0 ] && [ $$checked -eq 0 ]
@@ -60,15 +61,29 @@ system-gcc:
 # (plain and under the address and undefined-behaviour sanitizers), the core and the
 # Nucleo-F767ZI port cross-compiled for the Cortex-M7 (ELF linked, size printed), the
 # Linux single-board-computer port with the host gcc, and both ports' own tests under
-# the sanitizers (each prints "N passed, 0 failed").
+# the sanitizers (each prints "N passed, 0 failed"). The emulated mps2-an500 port is
+# built and booted in QEMU by pytest (tests/firmware/test_qemu_device.py; not here, so
+# that two makes never write its objects at once); system-firmware also installs
+# qemu-system-arm, and `test` depends on it so that pytest finds the tools.
+# Last, the libFuzzer harnesses' bounded run (firmware/fuzz: 15 s each, fixed seed, must
+# find nothing; docs/device-firmware.md, "Fuzzing"); `make fuzz` runs them 10 minutes each.
 firmware-check: system-firmware system-gcc
 	$(MAKE) -C firmware test
 	$(MAKE) -C firmware/ports/nucleo-f767zi check
 	$(MAKE) -C firmware/ports/linux-sbc check
+	$(MAKE) -C firmware/fuzz check
 
 system-firmware:
 	@command -v arm-none-eabi-gcc >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y gcc-arm-none-eabi libnewlib-arm-none-eabi; }
+	@command -v qemu-system-arm >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y qemu-system-arm; }
 	@test -f /usr/include/gpiod.h || { $(SUDO) apt-get update && $(SUDO) apt-get install -y libgpiod-dev; }
+	@command -v clang >/dev/null 2>&1 || { $(SUDO) apt-get update && $(SUDO) apt-get install -y clang; }
+	@ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-*.a >/dev/null 2>&1 || \
+		{ $(SUDO) apt-get update && $(SUDO) apt-get install -y libclang-rt-14-dev; }
+
+# The fuzz harnesses' long run (firmware/fuzz; FUZZ_SECONDS per harness, default 600).
+fuzz: system-firmware
+	$(MAKE) -C firmware/fuzz fuzz
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || { echo "python venv failed: on Debian, apt-get install python3-venv"; exit 1; }

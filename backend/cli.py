@@ -2,6 +2,7 @@
 
     exostudy serve [--host H] [--port P]      start the server (worker included)
     exostudy db upgrade|downgrade|current     manage the database schema
+    exostudy doctor                           what in the data folder others can read
     exostudy device-sim --port P ...          the simulated exoskeleton on the wire
     exostudy simulate --seed S --script NAME --out FILE.csv
     exostudy replay --angles IN.csv --controller umc ... --out TICKS.csv
@@ -9,6 +10,7 @@
     exostudy user add NAME [--admin]           create an account (password on stdin)
     exostudy user passwd|disable|enable NAME   new password (stdin) / turn an account off/on
     exostudy user list                         list the accounts, their role and state
+    exostudy user grant-device|revoke-device NAME  give/take the lab's device grant
     exostudy virtual-study --participants 8 --seed S --out DIR   the protocol, simulated
     exostudy cohort --participants N --seed S --out DIR   power and sample size, simulated
     exostudy results --study ID --out DIR [--db URL]   a study's tables and figures
@@ -22,8 +24,12 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from controller.help_format import DefaultsHelpFormatter
+
+if TYPE_CHECKING:
+    from sqlalchemy.orm import Session
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -59,6 +65,24 @@ def _db(args: argparse.Namespace) -> int:
     else:
         print(migrate.current(url) or "empty")
     return 0
+
+
+def _doctor(args: argparse.Namespace) -> int:
+    """Exit status 1 while a folder or file of the data is open to other accounts."""
+    from backend.core import data_folder
+    from backend.core.config import Settings
+
+    settings = Settings()
+    found = data_folder.exposures(settings)
+    for line in found:
+        print(f"warning: {line}")
+    folders = ", ".join(str(f) for f in data_folder.own_folders(settings))
+    if not found:
+        print(f"ok: the data ({folders}) is readable by its owner only")
+        return 0
+    print(f"{len(found)} warning(s); `exostudy serve` makes the data folder ({folders}) "
+          "and the database private at start")
+    return 1
 
 
 def _simulate(args: argparse.Namespace) -> int:
@@ -114,6 +138,8 @@ def _user(args: argparse.Namespace) -> int:
                 found = session.scalars(select(User).where(User.username == args.name)).first()
                 if found is None:
                     raise ValueError(f"user {args.action}: no account named {args.name!r}")
+                if args.action in ("grant-device", "revoke-device"):
+                    return _device_grant(session, args.action, found.username)
                 try:
                     if args.action == "passwd":
                         accounts.change_password(session, found, _read_password(
@@ -141,6 +167,20 @@ def _user(args: argparse.Namespace) -> int:
             return 0
     finally:
         engine.dispose()
+
+
+def _device_grant(session: Session, action: str, username: str) -> int:
+    """`user grant-device|revoke-device NAME` (backend/study/device_grants.py)."""
+    from backend.study import device_grants
+
+    if action == "grant-device":
+        device_grants.grant(session, "command line", username)
+        print(f"grant-device: {username!r} may use the exoskeleton")
+    elif device_grants.revoke(session, "command line", username):
+        print(f"revoke-device: {username!r} may no longer use the exoskeleton")
+    else:
+        print(f"revoke-device: {username!r} held no device grant")
+    return 0
 
 
 def _virtual_study(args: argparse.Namespace) -> int:
@@ -215,6 +255,7 @@ def _export(args: argparse.Namespace) -> int:
     from backend.db import migrate
     from backend.db.engine import make_engine, make_session_factory
     from backend.lab.bids_export import dataset_files
+    from controller.private_files import make_private_dir, write_private
 
     url = args.db or Settings().database_url
     if "://" not in url:
@@ -231,10 +272,11 @@ def _export(args: argparse.Namespace) -> int:
     n = 0
     try:
         with make_session_factory(engine)() as db:
+            # Participants' data: folders 0700 and files 0600, whatever the umask.
             for rel, data in dataset_files(engine, db, args.study, unblind=not args.blind):
                 path = out / rel
-                path.parent.mkdir(parents=True, exist_ok=True)
-                path.write_bytes(data)
+                make_private_dir(path.parent)
+                write_private(path, data)
                 n += 1
     finally:
         engine.dispose()
@@ -282,6 +324,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target revision (default: head to upgrade, base to downgrade)")
     d.set_defaults(func=_db)
 
+    dr = sub.add_parser("doctor", help="warn about data that other accounts on this "
+                        "machine can read: the data folder, the database and its WAL "
+                        "files, the device key (exit status 1 if any)")
+    dr.set_defaults(func=_doctor)
+
     sub.add_parser("device-sim", help="run the simulated exoskeleton on the wire (UDP); "
                    "see `exostudy device-sim --help`; `--implementation c` runs the C "
                    "firmware core instead (firmware/build/exostudy-device)")
@@ -300,8 +347,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     u = sub.add_parser("user", help="experimenter accounts: `user add NAME` reads the "
                        "password from standard input; `user passwd NAME`, `user disable NAME`, "
-                       "`user enable NAME`, `user list`")
-    u.add_argument("action", choices=["add", "list", "passwd", "disable", "enable"])
+                       "`user enable NAME`, `user list`, `user grant-device NAME` (the "
+                       "lab's right to use the exoskeleton), `user revoke-device NAME`")
+    u.add_argument("action", choices=["add", "list", "passwd", "disable", "enable",
+                                      "grant-device", "revoke-device"])
     u.add_argument("name", nargs="?", default=None)
     u.add_argument("--admin", action="store_true",
                    help="with add: an administrator (the first account always is)")

@@ -4,8 +4,10 @@ The running server owns the device link (its worker talks to the exoskeleton), s
 command is a client of the server's REST API (`/api/hardware/...`), never a second host
 on the link: the same refusals, the same stored profile, the same audit trail as the
 console. It logs in with a bearer token: `EXOSTUDY_TOKEN`, else `--user` with the
-password from `EXOSTUDY_PASSWORD` or a prompt. Exit status: 0 the step passed, 1 it ran
-and failed, 2 the server refused it (the message says why) or could not be reached.
+password from `EXOSTUDY_PASSWORD` or a prompt; a token it got by logging in is revoked
+before it exits (a bearer token lasts 30 days, and one per command would pile up).
+Exit status: 0 the step passed, 1 it ran and failed, 2 the server refused it (the
+message says why) or could not be reached.
 """
 
 from __future__ import annotations
@@ -30,13 +32,16 @@ class ApiError(RuntimeError):
 class Api:
     """A logged-in client of one server."""
 
-    def __init__(self, url: str, token: str) -> None:
+    def __init__(self, url: str, token: str, *, owned: bool = False) -> None:
         self.url = url.rstrip("/")
         self.token = token
+        #: The token was made by this command's login (`logout` ends it), not given.
+        self.owned = owned
 
     @classmethod
     def login(cls, url: str, user: str | None, password: str | None) -> Api:
-        """A token from the environment, else one from logging in as `user`."""
+        """A token from the environment, else one from logging in as `user` (owned:
+        `logout` revokes it)."""
         token = os.environ.get("EXOSTUDY_TOKEN", "")
         if token:
             return cls(url, token)
@@ -48,7 +53,20 @@ class Api:
                 f"password for {user}: ")
         out = cls(url, "").call("POST", "/api/auth/token",
                                 {"username": user, "password": password})
-        return cls(url, str(out["access_token"]))
+        return cls(url, str(out["access_token"]), owned=True)
+
+    def logout(self) -> None:
+        """Revoke the token this command logged in for (a given token is left alone);
+        a server that cannot be reached any more is not an error of the step."""
+        if not self.owned:
+            return
+        try:
+            self.call("POST", "/api/auth/logout")
+        except ApiError as exc:
+            print(f"exostudy hardware: the login token could not be revoked ({exc}); "
+                  "it expires in 30 days, or `POST /api/auth/revoke-all` ends it",
+                  file=sys.stderr)
+        self.owned = False
 
     def call(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
         """JSON in, JSON out; ApiError with the server's own message on a refusal."""
@@ -102,6 +120,11 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--side", choices=("left", "right"), default="left")
     w.add_argument("--nobody-wearing", action="store_true",
                    help="confirm that nobody wears the exoskeleton (required)")
+    r = sub.add_parser("release", help="time the hardware release: stop the heartbeat with "
+                       "one side locked, the monitor must cut the drivers")
+    r.add_argument("--side", choices=("left", "right"), default="left")
+    r.add_argument("--nobody-wearing", action="store_true",
+                   help="confirm that nobody wears the exoskeleton (required)")
     sub.add_parser("link", help="link statistics: drops by reason, gaps, timing")
     pr = sub.add_parser("profile", help="finish the bring-up (store the profile), or "
                         "show stored profiles")
@@ -124,9 +147,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any] | None]
         return "POST", "/api/hardware/pulse", {"side": args.side,
                                                "duration_ms": args.duration_ms,
                                                "nobody_wearing": args.nobody_wearing}
-    if step == "watchdog":
-        return "POST", "/api/hardware/watchdog", {"side": args.side,
-                                                  "nobody_wearing": args.nobody_wearing}
+    if step in ("watchdog", "release"):
+        return "POST", f"/api/hardware/{step}", {"side": args.side,
+                                                 "nobody_wearing": args.nobody_wearing}
     if step == "link":
         return "POST", "/api/hardware/link", None
     if args.list:
@@ -137,8 +160,9 @@ def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any] | None]
 
 
 def _profile_lines(p: dict[str, Any]) -> list[str]:
-    lines = [f"profile {p['id']}: {p['status']}, device {p['device']}, firmware "
-             f"{p['firmware_version']!r}, key id {p['key_id'] or '-'}",
+    lines = [f"profile {p['id']}: {p['status']}, device {p['device']} "
+             f"{p.get('unique_id') or '-'}, firmware {p['firmware_version']!r}, key id "
+             f"{p['key_id'] or '-'}",
              f"  encoder offsets {p['encoder_offsets']}, directions "
              f"{p['encoder_directions']}, cam-output offsets {p['cam_output_offsets']}"]
     for name, s in p["steps"].items():
@@ -154,8 +178,10 @@ def _show(args: argparse.Namespace, out: Any) -> int:
         if not args.json:
             print(f"device {out['device']} (simulated: {out['simulated']}); applied offsets "
                   f"{out['applied_offsets']}, directions {out['applied_directions']}")
-            if out["applied_note"]:
-                print(f"  {out['applied_note']}")
+            print(f"  identity: {out.get('identity') or 'not proved yet'}")
+            for key in ("applied_note", "firmware_notice"):
+                if out.get(key):
+                    print(f"  {out[key]}")
             for label in ("draft", "active"):
                 if out[label] is not None:
                     print(f"{label}:")
@@ -184,10 +210,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     method, path, body = _request(args)
     try:
         api = Api.login(args.url, args.user, None)
+    except ApiError as exc:
+        print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
+        return 2
+    try:
         out = api.call(method, path, body)
     except ApiError as exc:
         print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
         return 2
+    finally:
+        api.logout()
     return _show(args, out)
 
 

@@ -22,6 +22,7 @@ from backend.api.routes import (
     audit,
     auth,
     cohorts,
+    device_grants,
     hardware,
     health,
     lab,
@@ -42,6 +43,7 @@ from backend.api.routes import (
     worker,
 )
 from backend.api.socket_logins import SocketLogins
+from backend.core import data_folder
 from backend.core.config import Settings, get_settings
 from backend.core.resources import version
 from backend.db import migrate
@@ -83,6 +85,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         log_redaction.install()  # again: uvicorn may have set up logging since
+        # Private before anything is written: folder 0700, database and key files 0600.
+        tightened = data_folder.make_private(settings)
+        if tightened:
+            log.warning("made private (group and others had access): %s",
+                        "; ".join(tightened))
+        for exposed in data_folder.exposures(settings):
+            log.warning("data readable by others: %s", exposed)
         migrate.upgrade(settings.database_url)
         engine = make_engine(settings.database_url)
         app.state.settings = settings
@@ -160,6 +169,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(cohorts.router)
     app.include_router(replication.router)
     app.include_router(vocabulary.router)
+    app.include_router(device_grants.router)
     app.include_router(console_pages.router)
     app.include_router(guide.router)
     app.include_router(viewer.router)

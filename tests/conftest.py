@@ -35,7 +35,7 @@ DATABASE_FACING = {
     "test_migrations", "test_study_records_migration", "test_recorder", "test_studies",
     "test_participants", "test_sessions", "test_questionnaires", "test_preferences",
     "test_audit", "test_auth", "test_access", "test_data_protection", "test_export",
-    "test_instrument_ownership_migration", "test_job_lanes_migration",
+    "test_instrument_ownership_migration", "test_job_lanes_migration", "test_quotas",
 }
 
 
@@ -71,6 +71,29 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         return len(longest) + (0 if item.path in slow else 1)
 
     items.sort(key=rank)
+
+
+#: Seconds each test file took (setup, call and teardown of its tests, summed), read at
+#: the end of the run so that every change sees what it costs (`make test` prints it).
+_FILE_SECONDS: dict[str, float] = {}
+SLOWEST_FILES = 15
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Add one phase of one test to its file's total (under xdist this runs in the
+    controlling process, once per report a worker sends)."""
+    path = report.nodeid.split("::", 1)[0]
+    _FILE_SECONDS[path] = _FILE_SECONDS.get(path, 0.0) + report.duration
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """The slowest test files, printed before pytest's closing line."""
+    if not _FILE_SECONDS:
+        return
+    slowest = sorted(_FILE_SECONDS.items(), key=lambda kv: kv[1], reverse=True)[:SLOWEST_FILES]
+    terminalreporter.write_sep("=", f"{len(slowest)} slowest test files (seconds, all phases)")
+    for path, seconds in slowest:
+        terminalreporter.write_line(f"{seconds:8.1f}  {path}")
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:

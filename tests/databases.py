@@ -135,7 +135,7 @@ class AccountTemplates:
         return self._fill_postgres(db_url, server)
 
     def _fill_sqlite(self, path: Path) -> bool:
-        if path.exists():
+        if path.exists() and path.stat().st_size > 0:  # an engine creates it empty first
             return False
         if self._sqlite is None:
             import sqlite3

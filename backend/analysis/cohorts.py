@@ -13,13 +13,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import update
 from sqlalchemy.orm import Session, sessionmaker
 
-from backend.analysis.jobs import UNFINISHED, JobRunner, Reporter
+from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
 from backend.core.errors import ConflictError
 from backend.db.cohorts import CohortRecord
-from backend.db.evidence_tables import Job
 from backend.db.models import User
 from backend.schemas.cohorts import CohortIn, CohortOut
 from backend.study import audit
@@ -48,18 +47,6 @@ def compute(cfg: CohortConfig, models_path: Path, utilities_path: Path,
     return doc
 
 
-def _check_quota(db: Session, user: User, limit: int) -> None:
-    """At most `limit` unfinished (queued or running) cohorts per account: the cohort
-    lane is one thread, and one account must not fill it for hours."""
-    unfinished = list(db.scalars(select(Job.id).where(
-        Job.kind == "cohort", Job.created_by == user.id, Job.status.in_(UNFINISHED))))
-    if len(unfinished) >= limit:
-        raise ConflictError("cohorts", f"account {user.username} already has {len(unfinished)} "
-                         f"unfinished virtual cohort(s) (jobs {unfinished}); at most "
-                         f"{limit} may be queued or running per account "
-                         "(setting cohort_jobs_per_account): wait for one to finish")
-
-
 def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, user: User,
                  body: CohortIn, precompression_pct: float, models_path: Path,
                  utilities_path: Path, per_account: int) -> CohortOut:
@@ -68,17 +55,31 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
     `per_account` unfinished cohorts of this account."""
     from backend.analysis.job_process import run_in_child
 
-    _check_quota(db, user, per_account)
+    # The job first: it takes one of the account's slots or is refused, before anything
+    # is recorded (one unique index decides, however many requests arrive together).
+    try:
+        job_id = jobs.reserve("cohort", lane="cohort", owner_id=user.id, quota=per_account)
+    except QuotaFullError as exc:
+        raise ConflictError("cohorts", f"account {user.username} already has "
+                            f"{len(exc.unfinished)} unfinished virtual cohort(s) (jobs "
+                            f"{exc.unfinished}); at most {per_account} may be queued or "
+                            "running per account (setting cohort_jobs_per_account): wait "
+                            "for one to finish") from None
     cfg = CohortConfig(participants=body.participants, seed=body.seed,
                        controllers=tuple(body.controllers), rate_hz=body.rate_hz,
                        precompression_pct=precompression_pct)
     row = CohortRecord(name=body.name or f"{body.participants} virtual participants, seed "
                        f"{body.seed}", config=body.model_dump(), status="queued",
                        created_by=user.id)
-    db.add(row)
-    db.flush()
-    audit.record(db, user, "create", "cohort", row.id, body.model_dump())
-    db.commit()
+    try:
+        db.add(row)
+        db.flush()
+        audit.record(db, user, "create", "cohort", row.id, body.model_dump())
+        db.commit()
+    except BaseException:
+        db.rollback()
+        jobs.abandon(job_id, "cancelled: the cohort could not be recorded")
+        raise
     cohort_id = row.id
 
     def work(progress: Reporter) -> str:
@@ -96,6 +97,5 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
         _set(sessions, cohort_id, status="failed", error=message[:2000],
              finished_at=datetime.now(UTC))
 
-    job_id, _ = jobs.submit("cohort", cohort_id, work, failed, lane="cohort",
-                            owner_id=user.id)
+    jobs.enqueue(job_id, work, failed, target_id=cohort_id)
     return CohortOut.model_validate(row).model_copy(update={"job_id": job_id})

@@ -11,12 +11,19 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 
 import numpy as np
 
 from controller.human_data import HUMAN_MOTIONS, LEGS, N_PROGRESS, HumanMotionData
 
 COLUMNS = ("motion", "leg", "n", "theta_rad", "tau_nm")
+
+#: What a cell may hold: plain decimals (an optional sign, digits with at most one
+#: point, an optional exponent), ASCII only. Python's `int` and `float` also read
+#: `1_0` as 10, other scripts' digits, `inf` and `nan`: a typo must not become data.
+_INTEGER = re.compile(r"[0-9]+", re.ASCII)
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
 
 
 class CsvError(ValueError):
@@ -52,20 +59,19 @@ def _parse(reader: csv.DictReader[str], source: str) -> HumanMotionData:
         leg = row["leg"]
         if leg not in LEGS:
             raise CsvError(row_no, "leg", f"{leg!r} is not left or right")
-        try:
-            n = int(row["n"])
-        except ValueError:
-            raise CsvError(row_no, "n", f"not an integer: {row['n']!r}") from None
+        if not _INTEGER.fullmatch(row["n"]):
+            raise CsvError(row_no, "n", f"not a plain integer (digits only): {row['n']!r}")
+        n = int(row["n"])
         if not 0 <= n < N_PROGRESS:
             raise CsvError(row_no, "n", f"{n} outside 0..{N_PROGRESS - 1}")
         i, j = HUMAN_MOTIONS.index(motion), LEGS.index(leg)
         if not np.isnan(theta[i, j, n]):
             raise CsvError(row_no, "n", f"duplicate sample {motion}/{leg}/n={n}")
         for col, arr, limit in (("theta_rad", theta, 2 * math.pi), ("tau_nm", tau, 1000.0)):
-            try:
-                v = float(row[col])
-            except ValueError:
-                raise CsvError(row_no, col, f"not a number: {row[col]!r}") from None
+            if not _DECIMAL.fullmatch(row[col]):
+                raise CsvError(row_no, col, f"not a plain decimal number such as -0.25 or "
+                               f"1.5e-3: {row[col][:40]!r}")
+            v = float(row[col])
             if not math.isfinite(v) or abs(v) > limit:
                 raise CsvError(row_no, col, f"{v} is not finite or beyond +-{limit:g}")
             arr[i, j, n] = v

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
 from sqlalchemy import select, update
-from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend.core.errors import ConflictError
@@ -37,6 +37,7 @@ STATUS_ATTEMPTS = 4
 #: Every state a job can be in; the last three are final.
 JOB_STATES = ("queued", "running", "done", "failed", "cancelled")
 UNFINISHED = ("queued", "running")
+FINAL = ("done", "failed", "cancelled")
 #: The lanes, each its own thread.
 LANES = ("study", "cohort")
 #: How long a shutdown waits for each lane's running job to notice its cancellation.
@@ -59,6 +60,16 @@ class Reporter:
 
 
 Work = Callable[[Reporter], str]
+
+
+class QuotaFullError(ConflictError):
+    """Every slot of the account's quota for this kind of job is held by an unfinished
+    job (a 409); `unfinished` are their ids."""
+
+    def __init__(self, kind: str, limit: int, unfinished: list[int]) -> None:
+        super().__init__(kind, f"at most {limit} {kind} job(s) may be queued or running "
+                         f"per account; unfinished: {unfinished}")
+        self.limit, self.unfinished = limit, unfinished
 
 
 class JobCancelledError(Exception):
@@ -154,24 +165,67 @@ class JobRunner:
     def __init__(self, sessions: sessionmaker[Session]) -> None:
         self.sessions = sessions
         self._entries: dict[int, _Entry] = {}
+        #: Reserved jobs not yet enqueued: their lane and owner.
+        self._reserved: dict[int, tuple[str, int | None]] = {}
         self._closing = False
         self._lanes = {name: _Lane(name, self._run) for name in LANES}
 
     def submit(self, kind: str, target_id: int, work: Work,
                on_failure: Callable[[str], None] | None = None, *, lane: str = "study",
-               owner_id: int | None = None) -> tuple[int, Future[None]]:
+               owner_id: int | None = None, quota: int | None = None
+               ) -> tuple[int, Future[None]]:
         """Queue `work(progress) -> message` in `lane`; returns the job id and a future
         that completes when the job has ended, however it ended. `on_failure(reason)`
         is called when the job fails or is cancelled, to leave its product final.
-        Refused (`ConflictError`, a 409) once the server is shutting down."""
+        `quota`: see `reserve`. Refused (`ConflictError`, a 409) once the server is
+        shutting down, or when the owner's quota is full (`QuotaFullError`)."""
+        job_id = self.reserve(kind, target_id, lane=lane, owner_id=owner_id, quota=quota)
+        return job_id, self.enqueue(job_id, work, on_failure)
+
+    def reserve(self, kind: str, target_id: int = 0, *, lane: str = "study",
+                owner_id: int | None = None, quota: int | None = None) -> int:
+        """Record a queued job that nothing runs yet (`enqueue` runs it, `abandon`
+        drops it); returns its id. With `quota` and an owner, the job takes one of the
+        owner's `quota` slots for this kind: the unique index on (created_by, kind,
+        quota_slot) lets the database refuse a second job in a slot, so requests that
+        arrive together cannot exceed the quota (a count read before the insert
+        could); `QuotaFullError` when every slot is held by an unfinished job."""
         if lane not in self._lanes:
             raise ValueError(f"unknown job lane {lane!r}; choose from {', '.join(LANES)}")
+        slots: list[int | None] = [None]
+        if quota is not None and owner_id is not None:
+            with self.sessions() as db:
+                held = set(db.scalars(select(Job.quota_slot).where(
+                    Job.created_by == owner_id, Job.kind == kind,
+                    Job.quota_slot.is_not(None))))
+            # The free slots first; a held one may be freed meanwhile, and a free one
+            # taken: the index decides.
+            slots = sorted(range(quota), key=lambda i: (i in held, i))
+        for slot in slots:
+            with self.sessions() as db:
+                job = Job(kind=kind, target_id=target_id, status="queued", progress=0.0,
+                          lane=lane, created_by=owner_id, quota_slot=slot)
+                db.add(job)
+                try:
+                    db.commit()
+                except IntegrityError:
+                    db.rollback()
+                    continue
+                self._reserved[job.id] = (lane, owner_id)
+                return job.id
+        assert quota is not None
         with self.sessions() as db:
-            job = Job(kind=kind, target_id=target_id, status="queued", progress=0.0,
-                      lane=lane, created_by=owner_id)
-            db.add(job)
-            db.commit()
-            job_id = job.id
+            unfinished = list(db.scalars(select(Job.id).where(
+                Job.created_by == owner_id, Job.kind == kind, Job.status.in_(UNFINISHED))
+                .order_by(Job.id)))
+        raise QuotaFullError(kind, quota, unfinished)
+
+    def enqueue(self, job_id: int, work: Work, on_failure: Callable[[str], None] | None = None,
+                *, target_id: int | None = None) -> Future[None]:
+        """Run a reserved job (`target_id`: what it produces, if known only now)."""
+        lane, owner_id = self._reserved.pop(job_id)
+        if target_id is not None:
+            self._set_status(job_id, target_id=target_id)
         entry = _Entry(job_id, work, on_failure, owner_id)
         self._entries[job_id] = entry
         try:
@@ -179,7 +233,13 @@ class JobRunner:
         except ConflictError:
             self._end(entry, "cancelled", "the server is shutting down: not started")
             raise
-        return job_id, entry.future
+        return entry.future
+
+    def abandon(self, job_id: int, reason: str) -> None:
+        """A reserved job that will not run ends `cancelled` and frees its slot."""
+        self._reserved.pop(job_id, None)
+        self._set_status(job_id, status="cancelled", message=reason[:2000],
+                         finished_at=datetime.now(UTC))
 
     def _set(self, job_id: int, **values: object) -> None:
         with self.sessions() as db:
@@ -188,7 +248,10 @@ class JobRunner:
 
     def _set_status(self, job_id: int, **values: object) -> None:
         """A status change must be stored, or a poller waits for ever: retried while
-        the database is busy beyond its timeout (a few times, then it raises)."""
+        the database is busy beyond its timeout (a few times, then it raises). A final
+        status frees the job's quota slot in the same statement."""
+        if values.get("status") in FINAL:
+            values["quota_slot"] = None
         for attempt in range(STATUS_ATTEMPTS):
             try:
                 self._set(job_id, **values)
@@ -284,6 +347,7 @@ def recover(sessions: sessionmaker[Session]) -> list[str]:
         for job in db.scalars(select(Job).where(Job.status.in_(UNFINISHED))):
             closed.append(f"job {job.id} ({job.kind}, {job.status})")
             job.status, job.message, job.finished_at = "failed", reason, when
+            job.quota_slot = None
         for ms in db.scalars(select(ModelSetRecord).where(ModelSetRecord.status == "fitting")):
             closed.append(f"model set {ms.id}")
             ms.status, ms.error = "failed", reason

@@ -10,6 +10,7 @@ a worker of its own per seed, which a running server should not do inside itself
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -17,9 +18,11 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from backend.analysis.jobs import JobRunner, Reporter
+from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
+from backend.core.errors import ConflictError
 from backend.db.evidence_tables import Job
 from backend.db.models import User
+from controller.private_files import PRIVATE_DIR, make_private_dir
 
 JOB_KIND = "replication"
 #: The newest report is read from here; report folders are named by their start time.
@@ -45,23 +48,52 @@ def compute(out: Path, seeds: int, participants: int, progress: Any) -> str:
             f"{counts['not simulated']} not simulated, in {rep.wall_s:.0f} s")
 
 
-def start(jobs: JobRunner, user: User, run_dir: Path, seeds: int,
-          participants: int) -> tuple[int, Path]:
-    """Queue a report on the cohort lane; the job id and the report's folder."""
+def start(jobs: JobRunner, user: User, run_dir: Path, seeds: int, participants: int,
+          per_account: int) -> tuple[int, Path]:
+    """Queue a report on the cohort lane; the job id and the report's folder. Refused
+    (`ConflictError`, a 409) while the account has `per_account` reports queued or
+    running, whatever its role: a report takes minutes of the server's CPU.
+
+    The folder is made when the report is queued, named by the time and the job's id
+    and created exclusively, so two reports started in the same second never share one."""
     from backend.analysis.job_process import run_in_child
 
-    out = reports_dir(run_dir) / f"{time.strftime('%Y%m%d-%H%M%S')}-seeds{seeds}"
-    if out.exists():
-        out = out.with_name(f"{out.name}-{time.monotonic_ns()}")
+    try:
+        job_id = jobs.reserve(JOB_KIND, lane="cohort", owner_id=user.id, quota=per_account)
+    except QuotaFullError as exc:
+        raise ConflictError("replication", f"account {user.username} already has "
+                            f"{len(exc.unfinished)} unfinished replication report(s) (jobs "
+                            f"{exc.unfinished}); at most {per_account} may be queued or "
+                            "running per account (setting replication_jobs_per_account): "
+                            "wait for one to finish") from None
+    try:
+        out = _new_folder(reports_dir(run_dir), f"{time.strftime('%Y%m%d-%H%M%S')}-job"
+                          f"{job_id}-seeds{seeds}")
+    except BaseException:
+        jobs.abandon(job_id, "cancelled: the report's folder could not be made")
+        raise
 
     def work(progress: Reporter) -> str:
-        out.mkdir(parents=True, exist_ok=True)
         message: str = run_in_child(compute, (out, seeds, participants), progress,
                                     progress.cancelled)
         return message
 
-    job_id, _ = jobs.submit(JOB_KIND, 0, work, lane="cohort", owner_id=user.id)
+    jobs.enqueue(job_id, work)
     return job_id, out
+
+
+def _new_folder(root: Path, name: str) -> Path:
+    """A folder under `root` that did not exist before (0700), `name` or `name-2`..."""
+    make_private_dir(root)
+    for n in range(1, 1000):
+        folder = root / (name if n == 1 else f"{name}-{n}")
+        try:
+            folder.mkdir(mode=PRIVATE_DIR)
+        except FileExistsError:
+            continue
+        os.chmod(folder, PRIVATE_DIR)
+        return folder
+    raise ConflictError("replication", f"no free folder name for {name} in {root}")
 
 
 def latest_job(db: Session) -> Job | None:

@@ -29,7 +29,7 @@ def write_study_results(engine: Engine, db: Session, study_id: int, folder: Path
         raise results.ResultsError("study", f"no study {study_id} in this database "
                                    f"(studies: {known or 'none'})")
     res = results.study_results(engine, db, study_id)
-    files = OutputFolder(folder)
+    files = OutputFolder(folder, private=True)  # participants' data: owner only
     put = files.put
 
     document = results.results_document(res).model_dump(mode="json")

@@ -24,6 +24,7 @@ from backend.core.config import Settings
 from backend.db.models import AuthToken, User
 from backend.live.runtime import Runtime
 from backend.study import access as access_rules
+from backend.study import device_grants
 from backend.study.accounts import resolve_token
 
 #: Name of the httponly cookie that carries a browser's login.
@@ -170,7 +171,7 @@ CurrentUser = Annotated[User, Depends(current_user)]
 # backend/study/access.py); a path without ids needs a login to read and admin to change.
 
 ACCESS_KEY = "x-exostudy-access"
-AccessRule = Literal["public", "participant", "login", "admin", "worker",
+AccessRule = Literal["public", "participant", "login", "admin", "worker", "device",
                      "viewer", "experimenter", "owner"]
 _READ = {"GET", "HEAD", "OPTIONS"}
 
@@ -249,6 +250,9 @@ def _check(db: Session, conn: HTTPConnection, route: BaseRoute, rule: AccessRule
         if not access_rules.at_least(access_rules.best_study_role(db, user), "experimenter"):
             _refuse(403, "controlling the worker needs the experimenter role in a study")
         return
+    if rule == "device":
+        _check_device(db, conn, route, user)
+        return
     assert rule in access_rules.STUDY_ROLES, f"unknown access rule {rule!r}"
     target = _target(db, conn, route)
     if target is None or target.study_id is None:
@@ -267,6 +271,30 @@ def _check(db: Session, conn: HTTPConnection, route: BaseRoute, rule: AccessRule
         _refuse(403, f"participant {target.participant_id}: belongs to another site than "
                 f"yours ({g.site})")
     conn.state.grant = g
+
+
+def _check_device(db: Session, conn: HTTPConnection, route: BaseRoute, user: User) -> None:
+    """Rule `device` (pulse, controller, trial, bring-up): the lab's device grant, which
+    only an administrator gives (`backend.study.device_grants`), and the experimenter
+    role in the study the path names (a trial's), else in the study whose trial or
+    recording is running, if any. Admins pass."""
+    if user.role == "admin":
+        return
+    if not device_grants.holds(db, user):
+        _refuse(403, device_grants.MISSING)
+    target = _target(db, conn, route)
+    study = target.study_id if target is not None else access_rules.running_study(db)
+    if study is None:
+        return
+    g = access_rules.grant(db, user, study)
+    if g is None or not access_rules.at_least(g.role, "experimenter"):
+        _refuse(403, f"study {study}: using the device for it needs the experimenter role "
+                "in it as well as the device grant")
+    if target is not None:
+        if not access_rules.site_allows(db, g, target.participant_id):
+            _refuse(403, f"participant {target.participant_id}: belongs to another site "
+                    f"than yours ({g.site})")
+        conn.state.grant = g
 
 
 def authorize(conn: HTTPConnection) -> None:

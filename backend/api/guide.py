@@ -42,13 +42,35 @@ def _html_csp(path: Path, mtime_ns: int) -> str:
     return page_csp(path.read_bytes())
 
 
+#: Longest name of one file or folder, and of a whole path, that a page may have (the
+#: usual file system limits; the built guide's longest path is under 100 characters).
+MAX_NAME_BYTES = 255
+MAX_PATH_BYTES = 1024
+
+
+def _plausible(rel: str) -> bool:
+    """Whether `rel` can name a file at all: no NUL or other control character (the
+    operating system refuses NUL), no name or path longer than the file system allows
+    (`ENAMETOOLONG`). Anything else is for the file system to find or not."""
+    raw = rel.encode("utf-8", "surrogateescape")
+    return (len(raw) <= MAX_PATH_BYTES and not any(ch < 0x20 or ch == 0x7F for ch in raw)
+            and all(len(part) <= MAX_NAME_BYTES for part in raw.split(b"/")))
+
+
 def _file(root: Path, rel: str) -> Path:
-    """`rel` inside `root`, or 404: no way out of the guide's folder."""
-    target = (root / (rel or "index.html")).resolve()
-    if target.is_dir():
-        target = target / "index.html"
-    if not target.is_relative_to(root.resolve()) or not target.is_file():
-        raise HTTPException(404, f"no page {rel!r} in the guide")
+    """`rel` inside `root`, or 404: no way out of the guide's folder, and a name no file
+    can have is a page that does not exist, not an error."""
+    missing = HTTPException(404, f"no page {rel[:100]!r} in the guide")
+    if not _plausible(rel):
+        raise missing
+    try:
+        target = (root / (rel or "index.html")).resolve()
+        if target.is_dir():
+            target = target / "index.html"
+        if not target.is_relative_to(root.resolve()) or not target.is_file():
+            raise missing
+    except (OSError, ValueError):  # whatever else the file system refuses to look up
+        raise missing from None
     return target
 
 

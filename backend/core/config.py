@@ -94,6 +94,28 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=1_000_000, ge=1024)
     #: Larger limit for file uploads (utility-set import, data files).
     max_upload_bytes: int = Field(default=64_000_000, ge=1024)
+    #: What one attached XDF file may make the reader build (backend/lab/xdf_reader.py);
+    #: a file beyond any of these is refused with 422. Streams: LabRecorder sessions
+    #: record a few to a few dozen.
+    xdf_max_streams: int = Field(default=100, ge=1, le=100_000)
+    #: Chunks: LabRecorder writes about two a second per stream, plus a clock offset
+    #: every 5 s and a boundary every 10 s; a file within the upload limit has far fewer.
+    xdf_max_chunks: int = Field(default=1_000_000, ge=1)
+    #: Samples of all streams together: 64 MB of the most compact samples (one int8
+    #: channel with its time stamp, 10 bytes) is 6.4 million.
+    xdf_max_samples: int = Field(default=20_000_000, ge=1)
+    #: Clock offsets of all streams together: one per stream every 5 s, so 50,000 is
+    #: about 7 hours of 10 streams.
+    xdf_max_clock_offsets: int = Field(default=50_000, ge=0)
+    #: Bytes the decoded streams may take (time stamps and values): a 64 MB file of double
+    #: samples decodes to about 70 MB. The reading process may use twice this and 512 MB.
+    xdf_max_decoded_bytes: int = Field(default=1024**3, ge=1024)
+    #: Longest (s) the reading process may take before the file is refused; a 64 MB
+    #: recording takes a few seconds.
+    xdf_parse_seconds: float = Field(default=120.0, gt=0.0, le=3600.0)
+    #: Where an upload is written for the reading process (folders 0700, files 0600,
+    #: removed after each import).
+    xdf_work_dir: Path = DATA_DIR / "xdf-work"
 
     #: Start the control worker with the server (tests switch it off).
     start_worker: bool = True
@@ -109,6 +131,10 @@ class Settings(BaseSettings):
     #: time in the cohort lane, so 3 is one running and two waiting; a 1,000-participant
     #: cohort takes minutes). Beyond it, `POST /api/cohorts` answers 409.
     cohort_jobs_per_account: int = Field(default=3, ge=1, le=100)
+    #: Replication reports one account (any role) may have queued or running at once;
+    #: they share the cohort lane and take minutes each. Beyond it, `POST
+    #: /api/replication` answers 409.
+    replication_jobs_per_account: int = Field(default=2, ge=1, le=100)
 
     @field_validator("device_address")
     @classmethod

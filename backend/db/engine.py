@@ -3,12 +3,13 @@ tick writer and the API can work at the same time and references are enforced.""
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
+
+from backend.core.data_folder import prepare_sqlite
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
@@ -21,13 +22,13 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for `url`; for a SQLite file its folder is created if missing."""
+    """An engine for `url`; a SQLite file and its folder are created private if missing."""
     parsed = make_url(url)
     kwargs: dict[str, Any] = {}
     if parsed.get_backend_name() == "sqlite":
-        database = parsed.database
-        if database and database != ":memory:":
-            Path(database).parent.mkdir(parents=True, exist_ok=True)
+        # Folder 0700 and file 0600 before SQLite makes them with the umask's modes
+        # (its -wal and -shm files then take the file's mode: backend/core/data_folder.py).
+        prepare_sqlite(url)
         kwargs["connect_args"] = {"check_same_thread": False}
     engine = create_engine(url, **kwargs)
     if parsed.get_backend_name() == "sqlite":

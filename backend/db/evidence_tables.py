@@ -10,7 +10,18 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, Float, ForeignKey, Index, Integer, String, Text, text
+from sqlalchemy import (
+    JSON,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+    text,
+)
 from sqlalchemy.orm import Mapped, mapped_column
 
 from backend.db.models import Base, utcnow
@@ -120,6 +131,10 @@ class Job(Base):
     `message` is the result's summary or the reason it failed or was cancelled."""
 
     __tablename__ = "jobs"
+    # One job per slot: the database refuses a second unfinished job of an account in
+    # the same slot, whatever the timing of the requests (NULLs never collide).
+    __table_args__ = (UniqueConstraint("created_by", "kind", "quota_slot",
+                                       name="uq_jobs_quota_slot"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     kind: Mapped[str] = mapped_column(String(32))
@@ -135,6 +150,9 @@ class Job(Base):
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     created_by: Mapped[int | None] = mapped_column(
         ForeignKey("users.id", ondelete="SET NULL", name="fk_jobs_created_by"))
+    #: While unfinished, a job limited per account holds one of its account's slots
+    #: 0..limit-1 for its kind; a finished job frees it (null).
+    quota_slot: Mapped[int | None] = mapped_column(Integer, nullable=True)
 
 
 class Trial(Base):

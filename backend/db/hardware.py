@@ -1,9 +1,14 @@
 """Hardware profiles: the outcome of a hardware bring-up (docs/hardware-bringup.md).
 
 One row per bring-up: the encoder calibration it measured, which exoskeleton and link
-it was measured on (firmware version, a fingerprint of the link key, never the key),
-who ran it and when, and each step's verdict. The profile in effect (the latest one
-completed with every step passed) is recorded on every session and trial.
+it was measured on (the identity the device proved in its CHALLENGE: unique id and
+firmware, and the key id, never the key), who ran it and when, and each step's verdict.
+The profile in effect (the latest one completed with every step passed) is recorded on
+every session and trial, and applied only to the device it was made on.
+
+A device grant is the lab's permission for one account to use the exoskeleton (pulse a
+solenoid, start a controller or a trial, run the bring-up): given and revoked by an
+administrator, never implied by a study role (docs/access.md).
 """
 
 from __future__ import annotations
@@ -24,13 +29,19 @@ class HardwareProfile(Base):
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     #: draft (steps still running), complete (every step passed), failed (finished
-    #: with a step not passed: kept for the record, never in effect)
+    #: with a step not passed: kept for the record, never in effect), expired (a draft
+    #: closed unfinished: past its lifetime, or another device came on the link)
     status: Mapped[str] = mapped_column(String(16), default="draft")
     #: `sim` (in-process simulator), `udp-sim` (the simulator process) or `udp` (hardware)
     device: Mapped[str] = mapped_column(String(16))
     firmware_version: Mapped[str] = mapped_column(String(200))
-    #: First 8 hex digits of SHA-256 of the link key ("" without a key).
+    #: The link key's id (16 hex digits, `controller.device.auth.key_id`; "" without a
+    #: link; 8 hex digits of SHA-256 of the key in profiles made before protocol 3).
     key_id: Mapped[str] = mapped_column(String(16))
+    #: The unique id the device reported in its CHALLENGE (32 hex digits; "" for the
+    #: in-process simulator, and in profiles made before protocol 3, which therefore
+    #: match no device).
+    unique_id: Mapped[str] = mapped_column(String(32), default="", server_default="")
     precompression_pct: Mapped[float] = mapped_column(Float)
     #: Counts at zero angle and signs, in sample order (left output, left cam, right
     #: output, right cam): `controller.lowlevel.encoders.EncoderLayout`.
@@ -42,4 +53,19 @@ class HardwareProfile(Base):
     steps: Mapped[dict[str, Any]] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     completed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
+    #: A draft is closed as `expired` at this time (docs/hardware-bringup.md).
+    expires_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+
+class DeviceGrant(Base):
+    """An account's right to use the exoskeleton, given by an administrator. One row per
+    account holding it; revoking deletes the row (the audit log keeps the history)."""
+
+    __tablename__ = "device_grants"
+
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"),
+                                         primary_key=True)
+    granted_by: Mapped[int | None] = mapped_column(ForeignKey("users.id",
+                                                              ondelete="SET NULL"))
+    granted_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

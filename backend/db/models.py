@@ -212,6 +212,19 @@ class LoginFailure(Base):
     address: Mapped[str] = mapped_column(String(64), index=True)
 
 
+class LoginThrottle(Base):
+    """The login attempts one account (`account:NAME`) or one address (`address:IP`)
+    has made in its current window. An attempt is counted before its password is
+    checked, by one conditional UPDATE (backend/study/accounts.py), so concurrent
+    attempts cannot all pass the limit; a successful login gives its attempt back."""
+
+    __tablename__ = "login_throttles"
+
+    key: Mapped[str] = mapped_column(String(80), primary_key=True)
+    window_start: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+
+
 class Participant(Base):
     """A participant under a pseudonymous code; no name or contact is ever stored."""
 

@@ -1,7 +1,9 @@
 """LabRecorder XDF files attached to a session, aligned with ExoStudy's own ticks.
 
-pyxdf reads the file and maps every stream onto the recording computer's LSL clock with
-the clock offsets LabRecorder stored (no de-jittering: the stamps stay as sent). When
+The file is read by ExoStudy's own bounded reader in a child process
+(`backend/lab/xdf_child.py`): every stream is mapped onto the recording computer's LSL
+clock with the clock offsets LabRecorder stored (no de-jittering: the stamps stay as
+sent), and only a summary and the tick stream's (time, seq) columns come back. When
 LabRecorder ran on the ExoStudy machine, that clock is ours; when it ran elsewhere, the
 ExoStudy tick stream inside the file gives the difference: its samples carry the device
 sequence number, so each can be matched with the stored tick and its LSL time (the
@@ -13,54 +15,51 @@ Every stream's span, moved onto our clock, is then compared with the trials' spa
 from __future__ import annotations
 
 import math
-from typing import Any
+from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import tick_queries
+from backend.core.config import Settings
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
-from backend.lab import xdf_limits
+from backend.lab import xdf_child
+from backend.lab.xdf_child import ParsedStream
+from backend.lab.xdf_reader import XdfError, XdfLimits
 from backend.schemas.lab import XdfStreamSummary
 
-
-def _first(info: dict[str, Any], key: str, default: str = "") -> str:
-    v = info.get(key)
-    if isinstance(v, list):
-        return str(v[0]) if v and v[0] is not None else default
-    return default if v is None else str(v)
+#: Rows of a tick stream's columns read from disk at a time (4 MB).
+_BLOCK_ROWS = 262_144
 
 
-def _channels(info: dict[str, Any]) -> list[str]:
-    try:
-        chans = info["desc"][0]["channels"][0]["channel"]
-        return [_first(c, "label") for c in chans]
-    except (KeyError, IndexError, TypeError):
-        return []
+def limits(settings: Settings) -> XdfLimits:
+    """The reader's limits from the server's settings."""
+    return XdfLimits(max_streams=settings.xdf_max_streams,
+                     max_chunks=settings.xdf_max_chunks,
+                     max_samples=settings.xdf_max_samples,
+                     max_clock_offsets=settings.xdf_max_clock_offsets,
+                     max_decoded_bytes=settings.xdf_max_decoded_bytes)
 
 
-def read(data: bytes) -> list[dict[str, Any]]:
-    """The streams of an XDF file as pyxdf gives them; ValueError names the problem.
-
-    The declared sizes are checked first (`xdf_limits.check`: nothing is allocated for a
-    file that declares more than it holds), then pyxdf reads the checked bytes in a
-    child process with a memory ceiling (`xdf_limits.load`).
-    """
-    plan = xdf_limits.check(data)
-    streams = xdf_limits.load(data[:plan.readable_bytes])
-    # pyxdf recovers what it can from a damaged file (a LabRecorder killed mid-write);
-    # a file from which nothing can be recovered is refused.
-    if not any(len(s.get("time_stamps", [])) for s in streams):
-        raise ValueError("no stream in the XDF file holds samples (empty or damaged file)")
-    return list(streams)
+def import_file(engine: Engine, db: Session, session_id: int, data: bytes,
+                settings: Settings) -> list[XdfStreamSummary]:
+    """The aligned summary of the XDF file `data` for the session; `XdfError` (a
+    ValueError) says what is wrong with the file."""
+    with xdf_child.parsed(data, limits(settings), settings.xdf_work_dir,
+                          settings.xdf_parse_seconds) as streams:
+        # A file cut short early (a LabRecorder killed mid-write) may hold headers only.
+        if not any(s.samples for s in streams):
+            raise XdfError("no stream in the XDF file holds samples (empty or damaged file)")
+        return align(engine, db, session_id, streams)
 
 
-def _trial_spans(db: Session, session_id: int) -> dict[int, tuple[float, float, int, float]]:
-    """trial id -> (LSL start, LSL stop, run id, LSL minus Unix time) from the trial's
-    start and stop markers."""
-    spans: dict[int, tuple[float, float, int, float]] = {}
+def _trial_spans(db: Session, session_id: int) -> dict[int, tuple[float, float, int]]:
+    """trial id -> (LSL start, LSL stop, run id) from the trial's start and stop
+    markers."""
+    spans: dict[int, tuple[float, float, int]] = {}
     rows = db.execute(select(Trial.id, Trial.run_id).where(Trial.session_id == session_id,
                                                            Trial.run_id.is_not(None)))
     for trial_id, run_id in rows:
@@ -74,67 +73,84 @@ def _trial_spans(db: Session, session_id: int) -> dict[int, tuple[float, float, 
             continue
         spans[trial_id] = (start.lsl_time,
                            stop.lsl_time if stop is not None and stop.lsl_time is not None
-                           else math.inf, run_id, math.nan)
+                           else math.inf, run_id)
     return spans
 
 
 def _clock_of_run(engine: Engine, db: Session, trial_id: int, run_id: int
-                  ) -> tuple[float, dict[int, float]]:
-    """(LSL minus Unix offset, seq -> tick LSL time) of a trial's run."""
+                  ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """(seq, LSL time) of the ticks of a trial's run."""
     start = db.scalar(select(Marker).where(Marker.trial_id == trial_id,
                                            Marker.label == "trial_start",
                                            Marker.source == "system"))
-    cols = tick_queries.columns(engine, run_id)
+    cols = tick_queries.columns(engine, run_id, fields=("seq", "t", "t_host"))
     if start is None or start.t is None or start.lsl_time is None or cols["t"].size == 0:
-        return math.nan, {}
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
     i = int(np.argmin(np.abs(cols["t"] - start.t)))
     offset = float(start.lsl_time - cols["t_host"][i])
-    return offset, {int(s): float(h + offset)
-                    for s, h in zip(cols["seq"], cols["t_host"], strict=True)}
+    lsl = cols["t_host"].astype(np.float64) + offset
+    keep = np.isfinite(lsl)
+    return cols["seq"].astype(np.int64)[keep], lsl[keep]
 
 
-def align(engine: Engine, db: Session, session_id: int, streams: list[dict[str, Any]]
+def _stored_ticks(engine: Engine, db: Session, spans: dict[int, tuple[float, float, int]]
+                  ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Stored ticks of the session's trials as (seq, LSL time), sorted by seq; of ticks
+    sharing a seq, the later trial's."""
+    parts = [_clock_of_run(engine, db, trial_id, run_id)
+             for trial_id, (_, _, run_id) in spans.items()]
+    seq = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
+    lsl = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
+    # The last occurrence of each seq: the first in the reversed order.
+    unique, first_of_reversed = np.unique(seq[::-1], return_index=True)
+    return unique, lsl[::-1][first_of_reversed]
+
+
+def _tick_offset(path: Path, seq: NDArray[np.int64], lsl: NDArray[np.float64]
+                 ) -> float | None:
+    """Median of (file time - stored LSL time) over the stored ticks the file's tick
+    stream holds, read from disk a block at a time; None if none match. Memory is
+    bounded by the stored ticks, however many samples the file repeats."""
+    cols = np.load(path, mmap_mode="r", allow_pickle=False)
+    if cols.ndim != 2 or cols.shape[1] != 2 or seq.size == 0:
+        return None
+    diff = np.full(seq.size, np.nan)
+    for lo in range(0, cols.shape[0], _BLOCK_ROWS):
+        block = np.asarray(cols[lo:lo + _BLOCK_ROWS])
+        q = block[:, 1].astype(np.int64)
+        at = np.minimum(np.searchsorted(seq, q), seq.size - 1)
+        hit = seq[at] == q
+        diff[at[hit]] = block[hit, 0] - lsl[at[hit]]
+    found = diff[np.isfinite(diff)]
+    return float(np.median(found)) if found.size else None
+
+
+def align(engine: Engine, db: Session, session_id: int, streams: list[ParsedStream]
           ) -> list[XdfStreamSummary]:
     """Summaries of the file's streams, on ExoStudy's LSL clock, with covered trials."""
     spans = _trial_spans(db, session_id)
-    # Stored tick LSL times of every trial of the session, by sequence number.
-    by_seq: dict[int, float] = {}
-    for trial_id, (_, _, run_id, _) in spans.items():
-        by_seq.update(_clock_of_run(engine, db, trial_id, run_id)[1])
-    shift = 0.0  # file clock minus ExoStudy's clock
+    seq, lsl = _stored_ticks(engine, db, spans)
     own_offsets: dict[int, float] = {}
     for k, s in enumerate(streams):
-        info = s["info"]
-        labels = _channels(info)
-        if _first(info, "type") == "ExoskeletonTicks" and "seq" in labels and by_seq:
-            ts = np.asarray(s["time_stamps"], dtype=np.float64)
-            seqs = np.asarray(s["time_series"], dtype=np.float64)[:, labels.index("seq")]
-            diffs = [t - by_seq[int(q)] for q, t in zip(seqs, ts, strict=True)
-                     if int(q) in by_seq]
-            if diffs:
-                own_offsets[k] = float(np.median(diffs))
-    if own_offsets:
-        shift = next(iter(own_offsets.values()))
+        if s.ticks is not None:
+            offset = _tick_offset(s.ticks, seq, lsl)
+            if offset is not None:
+                own_offsets[k] = offset
+    shift = next(iter(own_offsets.values()), 0.0)  # file clock minus ExoStudy's clock
     out = []
     for k, s in enumerate(streams):
-        info = s["info"]
-        ts = np.asarray(s["time_stamps"], dtype=np.float64)
-        first = float(ts[0]) if ts.size else None
-        last = float(ts[-1]) if ts.size else None
-        covered = []
-        if first is not None and last is not None:
-            lo, hi = first - shift, last - shift
-            covered = sorted(tid for tid, (a, b, _, _) in spans.items() if lo <= b and hi >= a)
-        name = _first(info, "name")
+        covered: list[int] = []
+        if s.first_time is not None and s.last_time is not None:
+            lo = min(s.first_time, s.last_time) - shift
+            hi = max(s.first_time, s.last_time) - shift
+            covered = sorted(tid for tid, (a, b, _) in spans.items() if lo <= b and hi >= a)
         out.append(XdfStreamSummary(
-            stream_id=int(_first(info, "stream_id", str(k)) or k), name=name,
-            type=_first(info, "type"),
-            channel_count=int(_first(info, "channel_count", "0") or 0),
-            nominal_srate=float(_first(info, "nominal_srate", "0") or 0.0),
-            samples=int(ts.size), first_time=first, last_time=last,
-            channels=_channels(info),
-            exostudy=_first(info, "type") in ("ExoskeletonTicks",) or name.startswith(
-                "ExoStudy"),
+            stream_id=s.stream_id, name=s.name, type=s.type,
+            channel_count=s.channel_count, nominal_srate=s.nominal_srate,
+            samples=s.samples, first_time=s.first_time, last_time=s.last_time,
+            channels=s.channels,
+            exostudy=s.type == xdf_child.TICK_STREAM_TYPE or s.name.startswith("ExoStudy"),
             trial_ids=covered,
             offset_ms=own_offsets[k] * 1000.0 if k in own_offsets else None))
     return out
+

@@ -17,9 +17,12 @@ from sqlalchemy import Engine
 
 from backend import bootstrap
 from backend.core.config import Settings
+from backend.core.resources import version
 from backend.lab.hub import Lab
 from backend.live import device_process
+from backend.live.device_binding import BoundDevice, mismatch
 from backend.live.recorder import TickRecorder
+from backend.live.solenoid_duty import SolenoidDuty
 from backend.live.stream import LiveStream
 from backend.schemas.live import (
     DatabaseHealth,
@@ -45,6 +48,7 @@ from controller.controllers import registry
 from controller.controllers.factory import needs_models
 from controller.controllers.spec import ControllerSpec
 from controller.device.auth import load_or_create_key
+from controller.device.base import DeviceIdentity
 from controller.lowlevel.encoders import EncoderLayout
 
 log = logging.getLogger(__name__)
@@ -70,10 +74,12 @@ class Runtime:
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self._command_waiters: dict[int, asyncio.Future[CommandResult]] = {}
         self._bringup_waiters: dict[int, asyncio.Future[BringupResult]] = {}
-        #: The encoder layout of the hardware profile in effect, which every controller
-        #: decodes counts with; None keeps `ControllerConfig`'s default, the simulator's
-        #: own mounting (see `hardware_is_simulated` and docs/hardware-bringup.md).
-        self.encoder_layout: EncoderLayout | None = None
+        #: The hardware profile in effect (the latest completed one) with the device it
+        #: is bound to; its layout applies only while that device is on the link
+        #: (`encoder_layout`, docs/hardware-bringup.md).
+        self.hardware_profile: tuple[int, BoundDevice, EncoderLayout] | None = None
+        #: The solenoids' duty-cycle budget for bring-up steps.
+        self.solenoid_duty = SolenoidDuty()
         self._run_ids: dict[int, int] = {}  # worker run token -> runs.id
         self._runs_started = 0
         self._last_run_token = 0
@@ -119,16 +125,17 @@ class Runtime:
         return self.settings.device_kind == "sim" or self.settings.device_spawn_simulator
 
     def load_hardware_layout(self) -> None:
-        """Take the encoder layout of the hardware profile in effect (the latest one
-        completed), for real hardware only: a simulator keeps its own mounting, which a
-        bring-up on a simulated wearer would otherwise shift by the wearer's standing
-        posture (docs/hardware-bringup.md)."""
+        """Take the hardware profile in effect (the latest one completed), for real
+        hardware only: a simulator keeps its own mounting, which a bring-up on a
+        simulated wearer would otherwise shift by the wearer's standing posture
+        (docs/hardware-bringup.md). Its layout applies only to the device it was made
+        on (`encoder_layout`)."""
         from sqlalchemy import select
         from sqlalchemy.orm import Session
 
         from backend.db.hardware import HardwareProfile
 
-        self.encoder_layout = None
+        self.hardware_profile = None
         if self.hardware_is_simulated:
             return
         with Session(self.recorder.engine) as db:
@@ -136,8 +143,55 @@ class Runtime:
                                  .where(HardwareProfile.status == "complete")
                                  .order_by(HardwareProfile.id.desc()).limit(1)).first()
             if profile is not None:
-                self.encoder_layout = EncoderLayout(tuple(profile.encoder_offsets),  # type: ignore[arg-type]
-                                                    tuple(profile.encoder_directions))  # type: ignore[arg-type]
+                made_on = BoundDevice(profile.device, profile.key_id, profile.unique_id,
+                                      profile.firmware_version)
+                layout = EncoderLayout(tuple(profile.encoder_offsets),  # type: ignore[arg-type]
+                                       tuple(profile.encoder_directions))  # type: ignore[arg-type]
+                self.hardware_profile = (profile.id, made_on, layout)
+
+    @property
+    def device_identity(self) -> DeviceIdentity | None:
+        """The identity the device proved on the link, as the worker last reported it
+        (None before it joined, without a worker, and for the in-process simulator)."""
+        status = self.supervisor.state.status
+        return None if status is None or not self.supervisor.state.alive else status.identity
+
+    def bound_device(self) -> BoundDevice | None:
+        """The device on the link as profiles record it; None while a device on the
+        link has not proved its identity yet."""
+        kind = self.settings.device_kind
+        if kind == "sim":
+            return BoundDevice("sim", "", "", f"in-process simulator, ExoStudy {version()}")
+        identity = self.device_identity
+        if identity is None:
+            return None
+        return BoundDevice.of("udp-sim" if self.settings.device_spawn_simulator else "udp",
+                              identity)
+
+    def profile_verdict(self) -> str:
+        """Why the profile in effect is not applied to the device on the link ("" when
+        it is, or when there is none)."""
+        if self.hardware_profile is None:
+            return ""
+        profile_id, made_on, _ = self.hardware_profile
+        now = self.bound_device()
+        if now is None:
+            return (f"hardware profile {profile_id} is not applied yet: the device has not "
+                    "proved its identity on the link")
+        why = mismatch(made_on, now)
+        if why:
+            return (f"hardware profile {profile_id} is refused on this device ({why}): "
+                    f"this is {now.describe()}; run the bring-up again on it")
+        return ""
+
+    @property
+    def encoder_layout(self) -> EncoderLayout | None:
+        """The encoder layout every controller decodes counts with: the profile in
+        effect's, while the device it was made on is on the link; None (the default
+        layout, the simulator's own mounting) otherwise."""
+        if self.hardware_profile is None or self.profile_verdict():
+            return None
+        return self.hardware_profile[2]
 
     def utilities_path(self) -> Path:
         """The default utility set for the configured precompression."""
@@ -503,7 +557,8 @@ class Runtime:
         report = s.device if s else DeviceReport(alive=False)
         device = DeviceHealth(**report.model_dump(exclude={"alive"}),
                               alive=bool(status_fresh and report.alive),
-                              kind=self.settings.device_kind)
+                              kind=self.settings.device_kind,
+                              identity=s.identity if s else None)
         db = DatabaseHealth(
             ticks_written=self.recorder.written,
             write_failures=self.recorder.failures,

@@ -10,9 +10,18 @@ cannot produce).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+#: A study's own instruments (imported) must keep their form usable on a tablet: at most
+#: this many points on the scale (0 to 100 is the widest), and at most this many answer
+#: choices on one form (items x points; the SUS has 50, a 0-100 rating of 49 items
+#: 4,949). A scale of -1000..1000 with 200 items once made a form of 400,200 choices
+#: that took two minutes to show.
+MAX_SCALE_POINTS = 101
+MAX_FORM_CHOICES = 5_000
 
 KEY_PATTERN = r"^[a-z][a-z0-9_-]{0,63}$"
 VERSION_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,31}$"
@@ -166,3 +175,43 @@ class InstrumentDefinition(_Strict):
         if self.missing.neutral_value is not None:
             return self.missing.neutral_value
         return (self.scale.min + self.scale.max) / 2
+
+
+class ImportedScale(ResponseScale):
+    """The scale of an imported instrument: at most `MAX_SCALE_POINTS` points, and at
+    most one label per point, each with its own words."""
+
+    labels: list[ScaleLabel] = Field(default_factory=list, max_length=MAX_SCALE_POINTS)
+
+    @model_validator(mode="after")
+    def _bounded(self) -> ImportedScale:
+        points = self.max - self.min + 1
+        if points > MAX_SCALE_POINTS:
+            raise ValueError(f"{self.min}..{self.max} has {points} points; at most "
+                             f"{MAX_SCALE_POINTS} are allowed (for example 0..100)")
+        twice = sorted(v for v, n in Counter(lab.value for lab in self.labels).items()
+                       if n > 1)
+        if twice:
+            raise ValueError(f"labels: more than one label for value(s) {twice[:10]}")
+        words = Counter(lab.label.strip().casefold() for lab in self.labels)
+        same = sorted(w for w, n in words.items() if n > 1)
+        if same:
+            raise ValueError(f"labels: the same words at several values: {same[:5]}")
+        return self
+
+
+class ImportedInstrument(InstrumentDefinition):
+    """A definition a study imports: the format's rules, plus limits that keep its form
+    usable (`ImportedScale`, at most `MAX_FORM_CHOICES` answer choices). Instruments
+    stored before these limits are read as `InstrumentDefinition`, unchanged."""
+
+    scale: ImportedScale
+
+    @model_validator(mode="after")
+    def _form_size(self) -> ImportedInstrument:
+        choices = len(self.items) * (self.scale.max - self.scale.min + 1)
+        if choices > MAX_FORM_CHOICES:
+            raise ValueError(f"the form would show {choices} answer choices ({len(self.items)}"
+                             f" items x {self.scale.max - self.scale.min + 1} points); at most "
+                             f"{MAX_FORM_CHOICES}: fewer items or a shorter scale")
+        return self

@@ -3,15 +3,29 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from backend.schemas.fields import UtcDatetime
 
 Side = Literal["left", "right"]
 STEP_NAMES: tuple[str, ...] = ("zero", "direction_left", "direction_right", "offset",
-                               "pulse_left", "pulse_right", "watchdog", "link")
+                               "pulse_left", "pulse_right", "watchdog", "hardware_release",
+                               "link")
+
+
+def _json_bool(value: object) -> object:
+    """Only JSON true or false: a safety confirmation is never read from "yes", "on",
+    "1", 1 or 1.0 (pydantic's lax mode would take them all)."""
+    if isinstance(value, bool):
+        return value
+    raise ValueError(f"must be JSON true or false, not {value!r}: a safety confirmation "
+                     "is never guessed from a string or a number")
+
+
+#: A boolean that confirms something about a person's safety: JSON true/false only.
+SafetyBool = Annotated[bool, BeforeValidator(_json_bool)]
 
 
 class CaptureIn(BaseModel):
@@ -39,7 +53,7 @@ class PulseIn(BaseModel):
     side: Side
     duration_ms: float = Field(default=300.0, ge=10.0, le=300.0,
                                description="pulse length, at most the 0.3 s lock hold")
-    nobody_wearing: bool = False
+    nobody_wearing: SafetyBool = False
 
 
 class WatchdogIn(BaseModel):
@@ -47,12 +61,22 @@ class WatchdogIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     side: Side = "left"
-    nobody_wearing: bool = False
+    nobody_wearing: SafetyBool = False
+
+
+class ReleaseIn(BaseModel):
+    """The hardware release test on one side (the heartbeat monitor cuts the drivers);
+    `nobody_wearing` as for the pulse."""
+
+    model_config = ConfigDict(extra="forbid")
+    side: Side = "left"
+    nobody_wearing: SafetyBool = False
 
 
 class FinishIn(BaseModel):
-    """Close the draft profile. `firmware_version`: what real firmware reports (its
-    boot banner or label); ignored for the simulators, whose version is known."""
+    """Close the draft profile. `firmware_version`: only for a device that reports no
+    firmware in its CHALLENGE (what its boot banner or label says); a reported one
+    always wins."""
 
     model_config = ConfigDict(extra="forbid")
     firmware_version: str | None = Field(default=None, max_length=200)
@@ -76,6 +100,7 @@ class ProfileOut(BaseModel):
     device: str
     firmware_version: str
     key_id: str
+    unique_id: str = Field(description="the unique id the device reported (32 hex)")
     precompression_pct: float
     encoder_offsets: list[int]
     encoder_directions: list[int]
@@ -83,6 +108,8 @@ class ProfileOut(BaseModel):
     steps: dict[str, StepOut]
     created_at: UtcDatetime
     completed_at: UtcDatetime | None
+    expires_at: UtcDatetime | None = Field(
+        default=None, description="a draft is closed as `expired` at this time")
     created_by: int | None
 
 
@@ -105,5 +132,22 @@ class HardwareStateOut(BaseModel):
     #: The encoder layout the worker decodes counts with now (offsets, directions).
     applied_offsets: list[int]
     applied_directions: list[int]
-    #: Why the applied layout is not the active profile's (simulators), else "".
+    #: Why the applied layout is not the active profile's (simulators, another
+    #: device on the link), else "".
     applied_note: str
+    #: The device on the link as it proved itself (unique id, firmware, key id); ""
+    #: before it did.
+    identity: str = ""
+    #: The active profile applies, but the device's firmware changed since ("" if not).
+    firmware_notice: str = ""
+    #: Seconds until each side's solenoid may be energised again (duty cycle).
+    cooldown_s: dict[str, float] = Field(default_factory=dict)
+
+
+class DeviceGrantOut(BaseModel):
+    """An account's device grant (docs/access.md): it may pulse a solenoid, start a
+    controller or a trial, and run the bring-up."""
+
+    username: str
+    granted_at: UtcDatetime
+    granted_by: str | None = Field(description="the administrator who gave it")

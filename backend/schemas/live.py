@@ -13,7 +13,7 @@ from typing import Annotated, Literal
 from pydantic import AfterValidator, BaseModel, Field
 
 from backend.core.resources import version
-from controller.device.base import MAX_SPEED
+from controller.device.base import MAX_SPEED, DeviceIdentity
 
 #: Tick fields sent to consoles, in column order.
 STREAM_FIELDS: tuple[str, ...] = (
@@ -106,14 +106,17 @@ class DeviceReport(BaseModel):
         "samples of the current run that failed a plausibility check (no lock taken)"))
     link_drops: dict[str, int] = Field(default_factory=dict, description=(
         "packets dropped by the UDP link since the worker started, by reason: host side "
-        "(auth, replay, ...) and, as the device reports them, device side (device_auth, "
-        "device_replay)"))
+        "(auth, replay, stale, version, ...) and, as the device reports them, device side "
+        "(device_auth, device_replay, device_stale)"))
 
 
 class DeviceHealth(DeviceReport):
-    """The exoskeleton link: the worker's `DeviceReport` and the configured kind."""
+    """The exoskeleton link: the worker's `DeviceReport`, the configured kind, and the
+    identity the device proved when the host joined it (None before, and without a
+    link)."""
 
     kind: str
+    identity: DeviceIdentity | None = None
 
 
 class DatabaseHealth(BaseModel):

@@ -10,7 +10,9 @@ import re
 from datetime import UTC, datetime, timedelta
 from typing import Literal
 
-from sqlalchemy import delete, select
+from sqlalchemy import case, delete, or_, select, update
+from sqlalchemy.dialects.postgresql import insert as postgresql_insert
+from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.orm import Session
 
 from backend.core.security import (
@@ -20,13 +22,15 @@ from backend.core.security import (
     token_digest,
     verify_password,
 )
-from backend.db.models import AuthToken, LoginFailure, User
+from backend.db.models import AuthToken, LoginFailure, LoginThrottle, User
 from backend.study import password_policy
 
 USERNAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
 
-#: Login throttling: at most this many failures per account, and per address, within
-#: `THROTTLE_WINDOW`; then 429 until the oldest failure leaves the window. NIST SP
+#: Login throttling: at most this many attempts per account, and per address, within a
+#: `THROTTLE_WINDOW` that starts with the first; then 429 until it ends. An attempt is
+#: counted before its password is checked and a successful one is given back, so the
+#: limit counts failures and holds for attempts sent all at once. NIST SP
 #: 800-63B asks for at most 100 consecutive failures per account; 10 per quarter hour
 #: still lets a person mistype several times and costs a guesser 40 tries an hour.
 THROTTLE_WINDOW = timedelta(minutes=15)
@@ -119,26 +123,69 @@ def published_password_accounts(session: Session) -> list[str]:
         User.password_published.is_(True), User.active.is_(True))))
 
 
-def throttled_for(session: Session, username: str, address: str) -> int | None:
-    """Seconds to wait before this account or address may try again, or None."""
+def _throttle_keys(username: str, address: str) -> list[tuple[str, int]]:
+    return [(f"account:{username[:64]}", MAX_FAILURES_PER_ACCOUNT),
+            (f"address:{address[:64]}", MAX_FAILURES_PER_ADDRESS)]
+
+
+def _take(session: Session, key: str, limit: int, now: datetime) -> int | None:
+    """Count one attempt for `key` if its window has room (or has ended: a new window
+    starts now); else the seconds until the window ends. One conditional UPDATE, which
+    the database runs one at a time per row (a row lock on PostgreSQL, the write lock
+    on SQLite), so `limit` attempts pass however many arrive together."""
+    t = LoginThrottle
+    insert = postgresql_insert if session.get_bind().dialect.name == "postgresql" \
+        else sqlite_insert
+    session.execute(insert(t).values(key=key, window_start=now, attempts=0)
+                    .on_conflict_do_nothing(index_elements=["key"]))
+    ended = t.window_start <= now - THROTTLE_WINDOW
+    counted = session.execute(
+        update(t).where(t.key == key, or_(ended, t.attempts < limit))
+        .values(attempts=case((ended, 1), else_=t.attempts + 1),
+                window_start=case((ended, now), else_=t.window_start))
+        .execution_options(synchronize_session=False))
+    if getattr(counted, "rowcount", 0) == 1:
+        return None
+    start = session.scalars(select(t.window_start).where(t.key == key)).one()
+    return max(1, int((_aware(start) + THROTTLE_WINDOW - now).total_seconds()) + 1)
+
+
+def take_attempt(session: Session, username: str, address: str) -> int | None:
+    """Count a login attempt against the account and the address before the password
+    is checked (not committed: the caller commits at once, so that concurrent attempts
+    see it). None: go ahead; else the seconds to wait, and nothing was counted."""
     now = datetime.now(UTC)
-    since = now - THROTTLE_WINDOW
-    waits = []
-    for column, value, limit in ((LoginFailure.username, username, MAX_FAILURES_PER_ACCOUNT),
-                                 (LoginFailure.address, address, MAX_FAILURES_PER_ADDRESS)):
-        times = list(session.scalars(select(LoginFailure.at).where(
-            column == value, LoginFailure.at > since).order_by(LoginFailure.at.desc())
-            .limit(limit)))
-        if len(times) >= limit:
-            waits.append((_aware(times[-1]) + THROTTLE_WINDOW - now).total_seconds())
-    return max(1, int(max(waits)) + 1) if waits else None
+    taken: list[str] = []
+    for key, limit in _throttle_keys(username, address):
+        wait = _take(session, key, limit, now)
+        if wait is not None:
+            for k in taken:
+                _give_back(session, k)
+            return wait
+        taken.append(key)
+    return None
+
+
+def _give_back(session: Session, key: str) -> None:
+    t = LoginThrottle
+    session.execute(update(t).where(t.key == key, t.attempts > 0)
+                    .values(attempts=t.attempts - 1)
+                    .execution_options(synchronize_session=False))
+
+
+def give_back_attempt(session: Session, username: str, address: str) -> None:
+    """A successful login does not count against the limits (not committed)."""
+    for key, _ in _throttle_keys(username, address):
+        _give_back(session, key)
 
 
 def record_failure(session: Session, username: str, address: str) -> None:
-    """Remember a failed login (not committed); failures older than a day are dropped
-    (the audit log keeps them)."""
+    """Remember a failed login (not committed; its attempt is already counted); failures
+    and throttle windows older than a day are dropped (the audit log keeps them)."""
     now = datetime.now(UTC)
     session.execute(delete(LoginFailure).where(LoginFailure.at < now - timedelta(days=1)))
+    session.execute(delete(LoginThrottle).where(
+        LoginThrottle.window_start < now - timedelta(days=1)))
     session.add(LoginFailure(at=now, username=username[:64], address=address[:64]))
     session.flush()
 

@@ -3,10 +3,11 @@ for its few seconds.
 
 The server judges what the samples mean (`controller.lowlevel.bringup`); the worker only does what
 needs the device at 100 Hz: capture raw samples with the solenoids off, drive one
-bounded solenoid pulse, or go silent and time the device's command watchdog. Each
-handler answers every sample it reads with a command (the heartbeat), except the
-watchdog test's silence, and every handler ends with `device.release()` whatever
-happens, so no path leaves a solenoid energised. Handlers run only while the
+bounded solenoid pulse, go silent and time the device's command watchdog, or stop the
+firmware's heartbeat output and time the hardware release. Each handler answers every
+sample it reads with a command (the link's keep-alive), except the watchdog test's
+silence, and every handler ends with `device.release()` whatever happens, so no path
+leaves a solenoid energised. Handlers run only while the
 controller is `none` (the server also refuses them during a trial or recording).
 """
 
@@ -19,6 +20,7 @@ from backend.worker.messages import (
     BringupCapture,
     BringupCommand,
     BringupPulse,
+    BringupRelease,
     BringupResult,
     BringupWatchdog,
     RawSample,
@@ -37,6 +39,11 @@ PRECHECK_SAMPLES = 5
 #: The device must release within 100-110 ms of the last command (docs/device-protocol.md);
 #: the test waits up to this long for the release before it reports a failure.
 WATCHDOG_WAIT_S = 0.5
+#: The hardware release test waits this long (device clock) after the first sample
+#: with HEARTBEAT_STOPPED for DRIVERS_OFF, and as long for HEARTBEAT_STOPPED itself.
+RELEASE_WAIT_S = 0.5
+#: After the heartbeat resumes, the drivers must be enabled again within this long.
+DRIVERS_BACK_WAIT_S = 0.3
 #: Samples after a pulse in which the solenoid bit must have cleared.
 RELEASE_SAMPLES = 10
 SOLENOIDS = Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT
@@ -52,6 +59,8 @@ class _Step:
         self.samples: list[RawSample] = []
         self.last_command_s = math.nan
         self._seq = 0
+        self.energised_s = 0.0  # commanded-on time of closed intervals
+        self._on_since: float | None = None
 
     def now(self) -> float:
         return time.monotonic() - self.t0
@@ -64,12 +73,21 @@ class _Step:
                                  int(sample.status)))
         return sample
 
-    def send(self, left: bool, right: bool) -> None:
+    def send(self, left: bool, right: bool, stop_heartbeat: bool = False) -> None:
         self._seq += 1
         # Stamped before the send: a pause between the two can only make the measured
         # watchdog delay longer (pessimistic), never shorter.
-        self.last_command_s = self.now()
-        self.device.send(LockCommand(self._seq, left, right))
+        now = self.last_command_s = self.now()
+        if (left or right) and self._on_since is None:
+            self._on_since = now
+        elif not (left or right):
+            self._close_on(now)
+        self.device.send(LockCommand(self._seq, left, right, stop_heartbeat=stop_heartbeat))
+
+    def _close_on(self, now: float) -> None:
+        if self._on_since is not None:
+            self.energised_s += now - self._on_since
+            self._on_since = None
 
     def device_time(self, worker_s: float) -> float:
         """The device time at step time `worker_s`, at the latest: the device's times
@@ -80,8 +98,12 @@ class _Step:
         return worker_s + lead
 
     def result(self, request_id: int, ok: bool, message: str, **kw: object) -> BringupResult:
+        # A lock still commanded counts until now (the handler releases right after).
+        self._close_on(self.now())
         return BringupResult(request_id, ok, message, tuple(self.samples),
-                             last_command_s=self.last_command_s, **kw)  # type: ignore[arg-type]
+                             last_command_s=self.last_command_s,
+                             energised_s=self.energised_s, identity=self.device.identity,
+                             **kw)  # type: ignore[arg-type]
 
 
 def handle(cmd: BringupCommand, device: Device) -> BringupResult:
@@ -94,6 +116,8 @@ def handle(cmd: BringupCommand, device: Device) -> BringupResult:
             return capture(cmd, step)
         if isinstance(cmd, BringupPulse):
             return pulse(cmd, step)
+        if isinstance(cmd, BringupRelease):
+            return hardware_release(cmd, step)
         return watchdog(cmd, step)
     except Exception as exc:  # answered, never a dead worker loop
         return step.result(cmd.request_id, False, f"bring-up step failed: {exc!r}")
@@ -252,3 +276,99 @@ def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
     return step.result(cmd.request_id, False, f"the device did not release within "
                        f"{1000 * WATCHDOG_WAIT_S:.0f} ms of the last command",
                        solenoid_seen=True)
+
+
+def _needs_link(step: _Step, request_id: int, what: str) -> BringupResult | None:
+    if step.device.kind == "udp":
+        return None
+    return step.result(request_id, False, f"{what}: this test needs a device on the UDP "
+                       "link (hardware or a device simulator)", refused=True)
+
+
+def _energise(step: _Step, side: str, stop_heartbeat: bool = False) -> Sample | None:
+    """Command `side` on until the device reports its solenoid (at most `PULSE_MAX_S`);
+    the sample that showed it, or None."""
+    bit, left, right = _side_bits(side)
+    began = step.now()
+    step.send(left, right, stop_heartbeat)
+    while step.now() - began + SAMPLE_PERIOD_S <= PULSE_MAX_S:
+        sample = step.read()
+        if sample is None:
+            continue
+        if Status(sample.status) & bit:
+            return sample
+        step.send(left, right, stop_heartbeat)
+    return None
+
+
+def hardware_release(cmd: BringupRelease, step: _Step) -> BringupResult:
+    """Energise one solenoid with the heartbeat running, then keep commanding it with
+    STOP_HEARTBEAT: the firmware stops toggling its heartbeat output and the external
+    monostable must cut the drivers by itself. Times, on the device's clock, the first
+    sample with HEARTBEAT_STOPPED to the first with DRIVERS_OFF (the server judges it);
+    then releases, resumes the heartbeat and checks that the drivers come back."""
+    refused = _needs_link(step, cmd.request_id, "the hardware release lives on the board")
+    if refused is not None:
+        return refused
+    bit, left, right = _side_bits(cmd.side)
+    layout = EncoderLayout(cmd.offsets, cmd.directions)
+    reason = _precheck(step, layout, cmd.max_alpha_deg)
+    if reason:
+        return step.result(cmd.request_id, False, f"hardware release test refused: {reason}",
+                           refused=True)
+    on = _energise(step, cmd.side)
+    if on is None:
+        return step.result(cmd.request_id, False, f"the device never reported "
+                           f"SOLENOID_{cmd.side.upper()}: nothing to release")
+    if Status(on.status) & Status.DRIVERS_OFF:
+        return step.result(cmd.request_id, False, "the device reports DRIVERS_OFF while its "
+                           "heartbeat runs: the drivers' enable readback is miswired, or the "
+                           "monitor never enables them", solenoid_seen=True)
+    # Keep the lock asked for, heartbeat stopped: only the hardware can release now.
+    stopped_t = drivers_off_t = math.nan
+    began = step.now()
+    step.send(left, right, stop_heartbeat=True)
+    while True:
+        sample = step.read()
+        waited = step.now() - began
+        if sample is not None:
+            st = Status(sample.status)
+            if math.isnan(stopped_t) and st & Status.HEARTBEAT_STOPPED:
+                stopped_t = sample.t
+            if not math.isnan(stopped_t) and st & Status.DRIVERS_OFF:
+                drivers_off_t = sample.t
+                break
+            if not math.isnan(stopped_t) and sample.t - stopped_t > RELEASE_WAIT_S:
+                break
+        if math.isnan(stopped_t) and waited > RELEASE_WAIT_S:
+            break
+        if waited > 2 * RELEASE_WAIT_S + 0.5:  # a device that stalls is not waited for
+            break
+        if sample is not None:
+            step.send(left, right, stop_heartbeat=True)
+    # Release, heartbeat back on: the drivers must be enabled again.
+    step.send(False, False)
+    back = False
+    resumed = step.now()
+    while step.now() - resumed < DRIVERS_BACK_WAIT_S:
+        sample = step.read()
+        if sample is None:
+            continue
+        step.send(False, False)
+        st = Status(sample.status)
+        if not st & (Status.DRIVERS_OFF | Status.HEARTBEAT_STOPPED | bit):
+            back = True
+            break
+    seen = dict(solenoid_seen=True, heartbeat_stopped_t=stopped_t,
+                drivers_off_t=drivers_off_t, drivers_back=back)
+    if math.isnan(stopped_t):
+        return step.result(cmd.request_id, False, "the device never reported "
+                           "HEARTBEAT_STOPPED: its firmware does not honour STOP_HEARTBEAT "
+                           "(protocol 3)", **seen)
+    if math.isnan(drivers_off_t):
+        return step.result(cmd.request_id, False, "no DRIVERS_OFF within "
+                           f"{1000 * RELEASE_WAIT_S:.0f} ms of HEARTBEAT_STOPPED", **seen)
+    delay_ms = 1000 * (drivers_off_t - stopped_t)
+    return step.result(cmd.request_id, True, f"drivers off {delay_ms:.1f} ms after the "
+                       "heartbeat stopped (device clock)",
+                       released_seen=back, **seen)

@@ -33,7 +33,9 @@ from backend.worker import bringup
 from backend.worker.devices import make_device
 from backend.worker.messages import (
     BringupCapture,
+    BringupCommand,
     BringupPulse,
+    BringupRelease,
     BringupResult,
     BringupWatchdog,
     Calibrate,
@@ -123,7 +125,7 @@ EDGES: frozenset[tuple[State, State]] = frozenset({
 
 _TRIAL_RUNS = "a timed trial is running"
 _TRIAL_BRINGUP = f"{_TRIAL_RUNS}: bring-up needs the worker idle"
-_BRINGUP_TYPES = (BringupCapture, BringupPulse, BringupWatchdog)
+_BRINGUP_TYPES = (BringupCapture, BringupPulse, BringupWatchdog, BringupRelease)
 
 
 def _needs_none(m: Machine, _cmd: WorkerCommand) -> str:
@@ -159,25 +161,26 @@ def _simulated(m: Machine, _cmd: WorkerCommand) -> str:
 RULES: dict[State, dict[type, str | Callable[[Machine, WorkerCommand], str] | None]] = {
     State.IDLE: {
         SetController: None, SetSimulation: _simulated, Calibrate: None,
-        BringupCapture: None, BringupPulse: None, BringupWatchdog: None, StopWorker: None,
+        BringupCapture: None, BringupPulse: None, BringupWatchdog: None,
+        BringupRelease: None, StopWorker: None,
     },
     State.CONTROLLING: {
         SetController: None, SetSimulation: _simulated, Calibrate: None,
         BringupCapture: _needs_none, BringupPulse: _needs_none,
-        BringupWatchdog: _needs_none, StopWorker: None,
+        BringupWatchdog: _needs_none, BringupRelease: _needs_none, StopWorker: None,
     },
     State.TRIAL: {
         SetController: _only_release,
         SetSimulation: f"{_TRIAL_RUNS}: the simulated wearer cannot change under it",
         Calibrate: f"{_TRIAL_RUNS}: a calibration would change its controller",
         BringupCapture: _TRIAL_BRINGUP, BringupPulse: _TRIAL_BRINGUP,
-        BringupWatchdog: _TRIAL_BRINGUP, StopWorker: None,
+        BringupWatchdog: _TRIAL_BRINGUP, BringupRelease: _TRIAL_BRINGUP, StopWorker: None,
     },
     State.CALIBRATING: {
         SetController: _no_trial_while_calibrating, SetSimulation: _simulated,
         Calibrate: "a calibration is already being collected",
         BringupCapture: _needs_none, BringupPulse: _needs_none,
-        BringupWatchdog: _needs_none, StopWorker: None,
+        BringupWatchdog: _needs_none, BringupRelease: _needs_none, StopWorker: None,
     },
 }
 
@@ -260,6 +263,7 @@ class Machine:
             BringupCapture: self.on_bringup,
             BringupPulse: self.on_bringup,
             BringupWatchdog: self.on_bringup,
+            BringupRelease: self.on_bringup,
             StopWorker: self.on_stop,
         }
         try:
@@ -399,7 +403,7 @@ class Machine:
         self.calibration = CalibrationJob(cmd, self.config)
         self.go(State.CALIBRATING)
 
-    def on_bringup(self, cmd: BringupCapture | BringupPulse | BringupWatchdog) -> None:
+    def on_bringup(self, cmd: BringupCommand) -> None:
         """The step owns the device for its few seconds (the loop pauses; the step
         answers samples itself) and always releases after it."""
         self.abandon("a hardware bring-up step ran")
@@ -603,4 +607,5 @@ def status(
                             implausible_samples=loop.implausible,
                             link_drops=loop.device.link_counters()),
         state=state.value,
+        identity=loop.device.identity,
     )

@@ -9,6 +9,7 @@ from typing import Any
 
 from backend.schemas.live import DeviceReport, LoopReport
 from controller.controllers.spec import ControllerSpec
+from controller.device.base import DeviceIdentity
 from controller.tick_codec import TickBlock, pack, unpack
 from controller.tick_record import TickRecord
 
@@ -84,6 +85,9 @@ class WorkerStatus:
     #: The worker's state (`backend.worker.machine.State` value: idle, controlling,
     #: trial, calibrating).
     state: str = ""
+    #: The identity the device proved on the link (None before it joined, and for the
+    #: in-process simulator): what hardware profiles are bound to.
+    identity: DeviceIdentity | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,6 +227,20 @@ class BringupWatchdog:
     request_id: int = 0
 
 
+@dataclass(frozen=True, slots=True)
+class BringupRelease:
+    """Hardware bring-up: energise one solenoid of an unloaded device, then keep
+    commanding it with STOP_HEARTBEAT and time, on the device's clock, how long the
+    external heartbeat monitor takes to cut the drivers (see `BringupPulse` for the
+    layout)."""
+
+    side: str
+    offsets: tuple[int, int, int, int]
+    directions: tuple[int, int, int, int]
+    max_alpha_deg: float
+    request_id: int = 0
+
+
 #: One raw sample seen during a bring-up step: (seconds since the step began, on the
 #: worker's monotonic clock, when the sample arrived; device sequence; device time (s);
 #: the four counts; the status word).
@@ -253,12 +271,22 @@ class BringupResult:
     release_device_s: float = float("nan")
     #: Seconds (step clock, as in `samples`) of the last command sent (NaN: none).
     last_command_s: float = float("nan")
+    #: Hardware release: device time (s) of the first sample with HEARTBEAT_STOPPED and
+    #: of the first one after it with DRIVERS_OFF (NaN: never seen).
+    heartbeat_stopped_t: float = float("nan")
+    drivers_off_t: float = float("nan")
+    #: Hardware release: the drivers were enabled again once the heartbeat resumed.
+    drivers_back: bool = False
+    #: Seconds the step commanded a solenoid on (its share of the duty-cycle budget).
+    energised_s: float = 0.0
+    #: The device the step ran on, as it proved on the link (None: no link).
+    identity: DeviceIdentity | None = None
     #: The step did not start: controller not `none`, or the device showed a load or
     #: fault before a pulse (nothing was energised).
     refused: bool = False
 
 
-BringupCommand = BringupCapture | BringupPulse | BringupWatchdog
+BringupCommand = BringupCapture | BringupPulse | BringupWatchdog | BringupRelease
 
 #: Everything the server sends the worker (`backend.worker.machine` has a handler each).
 WorkerCommand = SetController | SetSimulation | Calibrate | StopWorker | BringupCommand

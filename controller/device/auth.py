@@ -1,19 +1,14 @@
-"""Authentication of the device link: the shared key, sessions and the replay window.
+"""Authentication of the device link: the shared key, its public name, and sessions.
 
-Every packet of protocol version 2 ends with an HMAC-SHA256 tag over everything before
-it, computed with a 32-byte key that only the host and the device hold. A packet that
-fails the tag is dropped before it can change anything, so a process on the same
-machine or network that can send datagrams still cannot lock the exoskeleton or feed the
-worker samples. Authentic packets can be recorded and sent again, so each side also
-keeps (see `PeerSessions`):
-
-- the peer's session: a random 64-bit number each side draws when it starts, carried in
-  every packet, with the receiver's session as the sender knows it. A packet addressed
-  to another session of the receiver (one before a restart) is stale; a session of the
-  peer seen before and replaced is never accepted again.
-- a sliding window of the last 64 sequence numbers of the current peer session, as in
-  IPsec (RFC 4303, section 3.4.3): a number already seen, or older than the window, is a
-  replay.
+Every packet of the protocol ends with an HMAC-SHA256 tag over everything before it,
+computed with a 32-byte key that only the host and the device hold. A packet that fails
+the tag is dropped before it can change anything, so a process on the same machine or
+network that can send datagrams still cannot lock the exoskeleton or feed the worker
+samples. Authentic packets can be recorded and sent again; version 3 makes that useless
+without any memory of old sessions (docs/device-protocol.md, "Threat model"): a host
+session opens only by answering the device's single-use challenge, and a command counts
+only against a sample the device sent less than 100 ms earlier. So this module keeps no
+replay window and no list of retired sessions: there is nothing an attacker can overflow.
 
 The key file holds the key as 64 hexadecimal digits. It is created at first start with
 mode 0600 (owner read/write only) and refused if anyone else may read it.
@@ -30,9 +25,10 @@ from pathlib import Path
 
 KEY_BYTES = 32
 TAG_BYTES = 32
-WINDOW = 64  # sequence numbers remembered per peer session
-RETIRED_MAX = 1024  # replaced peer sessions remembered (a restart each; oldest forgotten)
-_SEQ_MODULUS = 1 << 32
+KEY_ID_BYTES = 8  # the key id: this many bytes of HMAC(key, KEY_ID_LABEL), as hex
+KEY_ID_LABEL = b"exostudy key id"
+UNIQUE_ID_BYTES = 16
+SIMULATED_ID_LABEL = b"exostudy simulated device"
 
 
 class KeyFileError(ValueError):
@@ -47,6 +43,30 @@ def tag(key: bytes, data: bytes | memoryview) -> bytes:
 def verify(key: bytes, data: bytes | memoryview, received: bytes | memoryview) -> bool:
     """Whether `received` is the tag of `data`, compared in constant time."""
     return hmac.compare_digest(tag(key, data), bytes(received))
+
+
+def key_id(key: bytes) -> str:
+    """The key's public name (16 lowercase hex digits): names a key in hardware
+    profiles, logs and the console without revealing it (HMAC is one-way)."""
+    return tag(key, KEY_ID_LABEL)[:KEY_ID_BYTES].hex()
+
+
+def simulated_unique_id(key: bytes) -> bytes:
+    """The unique id both simulators (Python and C) report by default: derived from
+    the key, so that a hardware profile follows the simulated device whichever
+    implementation runs it, and differs between labs."""
+    return tag(key, SIMULATED_ID_LABEL)[:UNIQUE_ID_BYTES]
+
+
+def parse_unique_id(text: str) -> bytes:
+    """A `--device-id` argument: 1..32 hex digits, zero-padded to 16 bytes (the digits
+    first, as they are written)."""
+    if not 1 <= len(text) <= 2 * UNIQUE_ID_BYTES or any(
+            c not in "0123456789abcdefABCDEF" for c in text):
+        raise ValueError(f"device id {text!r}: expected 1..{2 * UNIQUE_ID_BYTES} hex digits")
+    if len(text) % 2:
+        text += "0"
+    return bytes.fromhex(text).ljust(UNIQUE_ID_BYTES, b"\0")
 
 
 def new_session() -> int:
@@ -100,60 +120,3 @@ def load_or_create_key(path: Path) -> bytes:
         return create_key(path)
     except FileExistsError:
         return load_key(path)
-
-
-class ReplayWindow:
-    """Which of the last `WINDOW` uint32 sequence numbers were seen (RFC 4303 style).
-
-    `accept` says whether a number is new, and marks it. Order is serial arithmetic
-    (RFC 1982), so the window works across the 2^32 wrap.
-    """
-
-    def __init__(self, size: int = WINDOW) -> None:
-        self.size = size
-        self.top: int | None = None
-        self.bits = 0  # bit i: top - i was seen
-
-    def accept(self, seq: int) -> bool:
-        """True if `seq` was not seen and is inside the window; it is then marked."""
-        if self.top is None:
-            self.top, self.bits = seq, 1
-            return True
-        d = (seq - self.top) % _SEQ_MODULUS
-        if d and d < _SEQ_MODULUS // 2:  # newer: slide the window up
-            self.bits = ((self.bits << d) | 1) & ((1 << self.size) - 1) if d < self.size else 1
-            self.top = seq
-            return True
-        back = (self.top - seq) % _SEQ_MODULUS
-        if back >= self.size or (self.bits >> back) & 1:
-            return False
-        self.bits |= 1 << back
-        return True
-
-
-class PeerSessions:
-    """The peer's current session, the sessions it had before, and the replay window.
-
-    `check(session, seq, may_start)` returns "ok" (new number in the current session),
-    "new" (a session never seen, now current; only if `may_start`), or "replay".
-    """
-
-    def __init__(self) -> None:
-        self.current: int | None = None
-        self.window = ReplayWindow()
-        self._retired: dict[int, None] = {}  # insertion-ordered set
-
-    def check(self, session: int, seq: int, may_start: bool = True) -> str:
-        """Classify one authentic packet (see the class docstring)."""
-        if session == self.current:
-            return "ok" if self.window.accept(seq) else "replay"
-        if session in self._retired or not may_start or session == 0:
-            return "replay"
-        if self.current is not None:
-            self._retired[self.current] = None
-            if len(self._retired) > RETIRED_MAX:
-                del self._retired[next(iter(self._retired))]
-        self.current = session
-        self.window = ReplayWindow()
-        self.window.accept(seq)
-        return "new"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import enum
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Self
 
 ENCODER_BITS = 14
 ENCODER_COUNTS = 1 << ENCODER_BITS  # 16384 counts per turn, 0.0219 deg per count
@@ -41,6 +42,12 @@ class Status(enum.IntFlag):
     ENCODER_FAULT = 1 << 6
     WATCHDOG_RELEASED = 1 << 7
     SUPPLY_FAULT = 1 << 8
+    #: The firmware stopped toggling its heartbeat output because the latest applied
+    #: command asked it to (the bring-up probe of the hardware release).
+    HEARTBEAT_STOPPED = 1 << 9
+    #: The board reads its solenoid drivers' enable as off: the hardware heartbeat
+    #: monitor cut them, and no firmware output can energise a solenoid.
+    DRIVERS_OFF = 1 << 10
 
     @property
     def is_fault(self) -> bool:
@@ -80,14 +87,33 @@ class Sample:
 @dataclass(frozen=True, slots=True)
 class LockCommand:
     """Energise the solenoid of each side (True) or not. There is no commanded unlock:
-    a side releases by itself when its spring deflection returns to zero."""
+    a side releases by itself when its spring deflection returns to zero.
+
+    `stop_heartbeat` is the bring-up probe of the hardware release: the firmware stops
+    toggling its heartbeat output while the latest applied command carries it, so that
+    the external monitor must cut the drivers. It never energises anything itself."""
 
     seq: int
     lock_left: bool
     lock_right: bool
+    stop_heartbeat: bool = False
 
 
 NO_LOCK = LockCommand(seq=-1, lock_left=False, lock_right=False)
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceIdentity:
+    """Which device is on the link, as it proved with its CHALLENGE: what hardware
+    profiles are bound to. `unique_id` is 32 lowercase hex digits (the processor's id or
+    a simulator's configured one), `firmware` its name and version, `key_id` names the
+    link key (16 hex digits, `controller.device.auth.key_id`), `device_session` the
+    device's boot session."""
+
+    unique_id: str
+    firmware: str
+    key_id: str
+    device_session: int
 
 
 class DeviceError(RuntimeError):
@@ -127,12 +153,17 @@ class Device(ABC):
         """Human-readable faults seen since the last call (link loss, late packets, ...)."""
         return []
 
+    @property
+    def identity(self) -> DeviceIdentity | None:
+        """The device's identity once the link has proved it; None without a link."""
+        return None
+
     def link_counters(self) -> dict[str, int]:
         """Packets dropped since `open()`, by reason (authentication, replay, ...), as the
         host and, where it reports them, the device counted them; empty without a link."""
         return {}
 
-    def __enter__(self) -> Device:
+    def __enter__(self) -> Self:
         self.open()
         return self
 

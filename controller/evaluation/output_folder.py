@@ -8,19 +8,30 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from controller.private_files import make_private_dir, write_private
+
 
 class OutputFolder:
-    """Creates the folder and records every file written into it, in order."""
+    """Creates the folder and records every file written into it, in order.
 
-    def __init__(self, path: Path) -> None:
-        path.mkdir(parents=True, exist_ok=True)
+    `private`: the report holds participant data (a study's results), so new folders
+    are made 0700 and files 0600 whatever the umask (controller/private_files.py)."""
+
+    def __init__(self, path: Path, *, private: bool = False) -> None:
+        if private:
+            make_private_dir(path)
+        else:
+            path.mkdir(parents=True, exist_ok=True)
         self.path = path
+        self.private = private
         self.written: list[Path] = []
 
     def put(self, name: str, data: str | bytes) -> None:
         """Write `data` (text or bytes) as `name` inside the folder."""
         path = self.path / name
-        if isinstance(data, str):
+        if self.private:
+            write_private(path, data)
+        elif isinstance(data, str):
             path.write_text(data)
         else:
             path.write_bytes(data)

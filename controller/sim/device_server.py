@@ -1,22 +1,27 @@
 """The simulated exoskeleton as a network device: the device side of `docs/device-protocol.md`.
 
 It behaves like the firmware would, so the host cannot tell the difference: samples at
-100 Hz on an absolute schedule, commands only from the configured host address and only
-with a valid authentication tag (the key shared with the host), never a replayed or
-stale one (`controller.device.auth`), the 100 ms watchdog that drops the solenoids, and
-a count of every packet sent late or dropped. The host's port and session are learned
-from its first authentic HELLO or COMMAND (from the configured IP); the simulated
-wearer starts moving at that moment, so a given seed gives the host the same data every
-run.
+100 Hz on an absolute schedule, datagrams only from the configured host IP and at most
+8 tag checks per sample period, a host session only through a JOIN that answers the
+device's current single-use challenge, commands only of that session, with a later
+sequence number and answering a sample sent less than 100 ms earlier, the 100 ms
+watchdog that drops the solenoids, and a count of every packet sent late or dropped.
+It also models the board's hardware release: the firmware toggles a heartbeat output
+once per period, an external monostable keeps the solenoid drivers enabled for 30 ms
+after each edge, and the simulated mechanism is energised only where the firmware
+drives a solenoid and the drivers are enabled. The simulated wearer starts moving at
+the first JOIN, so a given seed gives the host the same data every run.
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import hmac
 import json
 import math
 import os
+import secrets
 import select
 import signal
 import socket
@@ -30,26 +35,46 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Protocol
 
-from controller.device.auth import PeerSessions, load_key, new_session
+from controller.device.auth import load_key, new_session, parse_unique_id, simulated_unique_id
 from controller.device.base import LockCommand, Sample, Status
 from controller.device.protocol import (
+    CHALLENGE_BYTES,
+    CHALLENGE_LIFETIME_MS,
     DEFAULT_PORT,
+    LOWEST_VERSION,
     MAX_PACKET,
+    SEQ_MODULUS,
+    VERSION,
+    ChallengePacket,
     CommandPacket,
     HelloPacket,
+    JoinPacket,
     ProtocolError,
+    VersionPacket,
     decode_frame,
+    encode_challenge,
     encode_sample,
+    encode_version,
     seq_diff,
 )
 from controller.stop_flag import SignalSafeFlag
 
 WATCHDOG_S = 0.100  # no valid command for this long: solenoids off, WATCHDOG_RELEASED
+FRESH_S = 0.100  # a command must answer a sample sent at most this long ago
 LATE_S = 0.002  # a sample sent more than this after its due time counts as late
 RESYNC_S = 0.25  # further behind than this (process stalled): rebase the schedule, no burst
-RTT_RING = 1024  # send times kept for matching echoed sequence numbers
+SENT_RING = 16  # send times of the last samples, for freshness and round trips
+AUTH_BUDGET = 8  # datagrams from the host IP handled per sample period; the rest: flood
+CHALLENGE_REDRAW_S = 0.5  # a HELLO draws a new challenge when the current one is older
+CHALLENGE_LIFETIME_S = CHALLENGE_LIFETIME_MS / 1000
+CHALLENGE_GAP_S = 0.05  # at most one CHALLENGE per this long
+VERSION_GAP_S = 1.0  # at most one VERSION reply per this long
+HEARTBEAT_HOLD_S = 0.030  # the drivers' monostable holds the enable this long per edge
+DRAIN_MAX = 64  # datagrams read per wake-up at most, so a flood cannot starve the sample
 KEEP = 360_000  # lateness and round-trip values kept for percentiles: the last hour
 SOLENOIDS = Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT
+#: The firmware string the Python simulator reports in its CHALLENGE.
+FIRMWARE = "exostudy-sim 3"
 
 
 class ExoskeletonModel(Protocol):
@@ -63,7 +88,8 @@ class ExoskeletonModel(Protocol):
         ...
 
     def tick(self, command: LockCommand | None) -> Sample:
-        """Advance one period with this solenoid command and return the new sample."""
+        """Advance one period with the solenoid command as the mechanism gets it (driven
+        and enabled) and return the new sample."""
         ...
 
 
@@ -89,16 +115,17 @@ class ServerStats:
     samples_sent: int = 0
     late: int = 0  # samples sent more than LATE_S after their due time
     commands: int = 0  # valid commands applied
-    stale_commands: int = 0  # valid but older than the last applied one
     hellos: int = 0
-    foreign: int = 0  # datagrams from any IP but the configured host
-    unexpected: int = 0  # valid packets of a type a host never sends
-    malformed: Counter[str] = field(default_factory=Counter)  # by ProtocolError reason
-    # Authentic but seen before, from a replaced host session, or addressed to an
-    # earlier boot of this device.
-    replayed: int = 0
+    challenges: int = 0  # CHALLENGEs sent
+    joins: int = 0  # JOINs accepted
+    versions_sent: int = 0  # VERSION answers to authentic packets of another version
+    #: Every dropped datagram by reason: the validation reasons and the state drops
+    #: (foreign, flood, replay, stale_echo, unexpected, challenge_limited), the names
+    #: `controller.device.protocol` and the C core share.
+    drops: Counter[str] = field(default_factory=Counter)
     watchdog_releases: int = 0  # transitions from commanded to released
-    host_changes: int = 0  # the host's port changed after it was first learned
+    driver_cutoffs: int = 0  # transitions of the drivers' enable from on to off
+    host_changes: int = 0  # the host's port changed at a JOIN after it was first learned
     resyncs: int = 0  # schedule rebased after a stall
     send_errors: int = 0
     host: str = ""  # learned host address, "ip:port"
@@ -112,8 +139,14 @@ class ServerStats:
         """Fraction of samples sent late."""
         return self.late / self.samples_sent if self.samples_sent else 0.0
 
+    @property
+    def malformed(self) -> Counter[str]:
+        """Drops by a validation reason only (the packet itself was wrong)."""
+        return Counter({k: v for k, v in self.drops.items() if k in _VALIDATION})
+
     def summary(self) -> dict[str, Any]:
         """Counters and percentiles (ms) as plain JSON-able values."""
+        d = self.drops
         return {
             "samples_sent": self.samples_sent,
             "late": self.late,
@@ -126,21 +159,41 @@ class ServerStats:
             "rtt_p99_ms": 1e3 * _percentile(self.rtt_s, 99),
             "rtt_max_ms": 1e3 * max(self.rtt_s, default=math.nan),
             "commands": self.commands,
-            "stale_commands": self.stale_commands,
+            "stale_commands": d["stale_echo"],
             "hellos": self.hellos,
-            "foreign": self.foreign,
-            "unexpected": self.unexpected,
+            "challenges": self.challenges,
+            "challenge_limited": d["challenge_limited"],
+            "joins": self.joins,
+            "versions_sent": self.versions_sent,
+            "foreign": d["foreign"],
+            "flood": d["flood"],
+            "unexpected": d["unexpected"],
             "malformed": dict(self.malformed),
-            "auth_failures": self.malformed.get("auth", 0),
-            "replayed": self.replayed,
-            "unknown_version": self.malformed.get("version", 0),
+            "drops": dict(d),
+            "auth_failures": d["auth"],
+            "replayed": d["replay"],
+            "unknown_version": d["version"],
             "watchdog_releases": self.watchdog_releases,
+            "driver_cutoffs": self.driver_cutoffs,
             "host_changes": self.host_changes,
             "resyncs": self.resyncs,
             "send_errors": self.send_errors,
             "host": self.host,
             "streaming_s": self.streaming_s,
         }
+
+
+_VALIDATION = frozenset(("short", "magic", "length", "auth", "version", "type", "flags",
+                         "counts", "status", "reserved", "truth", "identity"))
+
+
+@dataclass
+class _Challenge:
+    """The device's one challenge: its bytes, when it was drawn, whether it was spent."""
+
+    value: bytes
+    drawn_at: float
+    spent: bool = False
 
 
 class DeviceServer:
@@ -156,14 +209,15 @@ class DeviceServer:
         stop: StopFlag,
         key: bytes,
         rate_factor: int = 1,
+        unique_id: bytes | None = None,
     ) -> None:
         if rate_factor < 1:
             raise ValueError(f"rate_factor must be >= 1, got {rate_factor}")
         self.sock = sock
         self.key = key
-        #: This boot of the device; samples carry it, commands must name it.
+        #: This boot of the device; samples carry it, JOINs and commands must name it.
         self.session = new_session()
-        self.hosts = PeerSessions()
+        self.unique_id = simulated_unique_id(key) if unique_id is None else unique_id
         #: Fault probe: each model period is sent as this many samples, evenly spaced
         #: in real and device time (a device sending too fast, with honest times).
         self.rate_factor = rate_factor
@@ -175,22 +229,39 @@ class DeviceServer:
         self.duration = duration
         self.stop = stop
         self.stats = ServerStats()
-        self._last_host_seq: int | None = None
+        #: The one host session (None before the first JOIN) and its last host_seq.
+        self.host_session: int | None = None
+        self._last_host_seq = 0
+        self._challenge: _Challenge | None = None
+        self._challenge_sent_at = -math.inf
+        self._version_sent_at = -math.inf
+        self._budget = AUTH_BUDGET
         self._locks = (False, False)
+        self._stop_heartbeat = False
         self._cmd_seq = -1
         self._last_cmd_at: float | None = None
         self._released = True
-        self._sent_at = [math.nan] * RTT_RING
-        self._sent_seq = [-1] * RTT_RING
+        self._sent: deque[tuple[int, float]] = deque(maxlen=SENT_RING)  # (wire seq, at)
+        # The heartbeat output and the monostable on the drivers' enable: off at boot.
+        self._heartbeat = 0
+        self._last_edge = -math.inf
+        self._drivers_on = False
 
     def run(self) -> ServerStats:
-        """Wait for the host, then stream until stopped, finished or out of time."""
+        """Wait for a host to join, then stream until stopped, finished or out of time."""
         began = time.monotonic()
         end = math.inf if self.duration is None else began + self.duration
+        idle = began
         while self.host_port is None:
             if self.stop.is_set() or time.monotonic() >= end:
                 return self.stats
-            self._wait_and_receive(min(time.monotonic() + 0.05, end))
+            # One idle period: a fresh authentication budget and a heartbeat edge.
+            idle += self.model.dt
+            self._budget = AUTH_BUDGET
+            self._beat(time.monotonic())
+            self._wait_and_receive(min(idle, end))
+            if time.monotonic() - idle > RESYNC_S:
+                idle = time.monotonic()
         dt = self.model.dt / self.rate_factor
         start = time.monotonic()
         k = 0
@@ -213,40 +284,66 @@ class DeviceServer:
         self.stats.streaming_s = time.monotonic() - start
         return self.stats
 
+    def _beat(self, at: float) -> None:
+        """Toggle the heartbeat output unless the applied command stopped it; the
+        monostable then holds the drivers' enable until `at + HEARTBEAT_HOLD_S`."""
+        if not self._stop_heartbeat:
+            self._heartbeat ^= 1
+            self._last_edge = at
+
+    def _drivers_enabled(self, at: float) -> bool:
+        on = at - self._last_edge < HEARTBEAT_HOLD_S
+        if self._drivers_on and not on:
+            self.stats.driver_cutoffs += 1
+        self._drivers_on = on
+        return on
+
     def _tick(self, k: int, due: float) -> None:
-        """Apply the watchdog, advance the model one period and send the sample."""
+        """Apply the watchdog, toggle the heartbeat, advance the model one period with
+        what the mechanism gets, and send the sample."""
+        self._budget = AUTH_BUDGET
         now = time.monotonic()
         alive = self._last_cmd_at is not None and now - self._last_cmd_at <= WATCHDOG_S
         if alive:
-            command = LockCommand(self._cmd_seq, *self._locks)
+            left, right = self._locks
             self._released = False
         else:
-            command = LockCommand(self._cmd_seq, False, False)
+            left = right = False
+            self._stop_heartbeat = False  # the heartbeat resumes when the watchdog releases
             if not self._released:
                 self.stats.watchdog_releases += 1
             self._released = True
+        # The schedule's time, not the wake-up's: the monostable's 30 ms are then exact.
+        self._beat(due)
+        enabled = self._drivers_enabled(due)
+        command = LockCommand(self._cmd_seq, left and enabled, right and enabled)
         if k % self.rate_factor == 0 or self._last_sim is None:
             self._last_sim = self.model.tick(command)
         sim = self._last_sim
-        # The device knows what it drives: solenoid bits mirror the command applied.
-        status = (sim.status & ~SOLENOIDS) | (Status.SOLENOID_LEFT if command.lock_left else 0)
-        status |= Status.SOLENOID_RIGHT if command.lock_right else 0
+        # The device knows what it drives (solenoid bits mirror its outputs) and reads
+        # the drivers' enable back.
+        status = (sim.status & ~SOLENOIDS) | (Status.SOLENOID_LEFT if left else 0)
+        status |= Status.SOLENOID_RIGHT if right else 0
         if not alive:
             status |= Status.WATCHDOG_RELEASED
+        if self._stop_heartbeat:
+            status |= Status.HEARTBEAT_STOPPED
+        if not enabled:
+            status |= Status.DRIVERS_OFF
         dt = self.model.dt / self.rate_factor
         wire = Sample(seq=k, t=k * dt, counts=sim.counts, status=Status(status), truth=sim.truth)
-        assert self.host_port is not None and self.hosts.current is not None
+        assert self.host_port is not None and self.host_session is not None
+        d = self.stats.drops
         try:
-            data = encode_sample(wire, self.key, self.session, self.hosts.current,
-                                 self.stats.malformed.get("auth", 0), self.stats.replayed)
+            data = encode_sample(wire, self.key, self.session, self.host_session,
+                                 d["auth"], d["replay"], d["stale_echo"])
             self.sock.sendto(data, (self.host_ip, self.host_port))
         except (OSError, ProtocolError):
             # A model that produced an unencodable sample must not stop the device; the
             # host sees the missing sequence number as a gap.
             self.stats.send_errors += 1
         sent = time.monotonic()
-        slot = k % RTT_RING
-        self._sent_at[slot], self._sent_seq[slot] = sent, k % (1 << 32)
+        self._sent.append((k % SEQ_MODULUS, sent))
         lateness = sent - due
         self.stats.samples_sent += 1
         self.stats.lateness_s.append(lateness)
@@ -266,7 +363,7 @@ class DeviceServer:
                 return
 
     def _drain(self) -> None:
-        while True:
+        for _ in range(DRAIN_MAX):
             try:
                 data, addr = self.sock.recvfrom(MAX_PACKET + 1, socket.MSG_DONTWAIT)
             except (BlockingIOError, InterruptedError):
@@ -275,52 +372,97 @@ class DeviceServer:
                 continue  # ICMP error reports; nothing to do on a datagram socket
             self._handle(data, str(addr[0]), int(addr[1]), time.monotonic())
 
+    def _send(self, data: bytes, ip: str, port: int) -> None:
+        try:
+            self.sock.sendto(data, (ip, port))
+        except OSError:
+            self.stats.send_errors += 1
+
     def _handle(self, data: bytes, ip: str, port: int, now: float) -> None:
+        """One datagram through the device's rules, in the documented order."""
+        drops = self.stats.drops
         if ip != self.host_ip:
-            self.stats.foreign += 1
+            drops["foreign"] += 1
             return
+        if self._budget <= 0:
+            drops["flood"] += 1
+            return
+        self._budget -= 1
         try:
             frame = decode_frame(data, self.key)
         except ProtocolError as exc:
-            self.stats.malformed[exc.reason] += 1
+            drops[exc.reason] += 1
+            if exc.reason == "version" and now - self._version_sent_at >= VERSION_GAP_S:
+                self._version_sent_at = now
+                self._send(encode_version(VersionPacket(LOWEST_VERSION, VERSION), self.key),
+                           ip, port)
+                self.stats.versions_sent += 1
             return
         packet = frame.packet
-        if not isinstance(packet, CommandPacket | HelloPacket):
-            self.stats.unexpected += 1
-            return
-        # A COMMAND must name this boot of the device (a recorded one names an earlier
-        # boot); a HELLO may not know it yet. A new host session may start with either.
-        if isinstance(packet, CommandPacket) and frame.receiver != self.session:
-            self.stats.replayed += 1
-            return
-        verdict = self.hosts.check(frame.sender, packet.host_seq)
-        if verdict == "replay":
-            self.stats.replayed += 1
-            return
-        if port != self.host_port or verdict == "new":
-            if self.host_port is not None and port != self.host_port:
-                self.stats.host_changes += 1
-            self.host_port = port
-            self.stats.host = f"{ip}:{port}"
-            self._last_host_seq = None
         if isinstance(packet, HelloPacket):
-            # HELLO restarts the host's sequence, so a restarted host is not "stale".
-            self.stats.hellos += 1
-            self._last_host_seq = packet.host_seq
+            self._on_hello(packet, frame.sender, ip, port, now)
+        elif isinstance(packet, JoinPacket):
+            self._on_join(packet, frame.sender, frame.receiver, ip, port, now)
+        elif isinstance(packet, CommandPacket):
+            self._on_command(packet, frame.sender, frame.receiver, now)
+        else:
+            drops["unexpected"] += 1
+
+    def _on_hello(self, packet: HelloPacket, sender: int, ip: str, port: int,
+                  now: float) -> None:
+        self.stats.hellos += 1
+        c = self._challenge
+        if c is None or c.spent or now - c.drawn_at > CHALLENGE_REDRAW_S:
+            c = self._challenge = _Challenge(secrets.token_bytes(CHALLENGE_BYTES), now)
+        if now - self._challenge_sent_at < CHALLENGE_GAP_S:
+            self.stats.drops["challenge_limited"] += 1
             return
-        if self._last_host_seq is not None and seq_diff(packet.host_seq, self._last_host_seq) <= 0:
-            self.stats.stale_commands += 1
+        self._challenge_sent_at = now
+        answer = ChallengePacket(hello_seq=packet.host_seq, challenge=c.value,
+                                 unique_id=self.unique_id, firmware=FIRMWARE)
+        self._send(encode_challenge(answer, self.key, self.session, sender), ip, port)
+        self.stats.challenges += 1
+
+    def _on_join(self, packet: JoinPacket, sender: int, receiver: int, ip: str, port: int,
+                 now: float) -> None:
+        c = self._challenge
+        if (receiver != self.session or c is None
+                or not hmac.compare_digest(packet.challenge, c.value)
+                or c.spent or now - c.drawn_at > CHALLENGE_LIFETIME_S):
+            self.stats.drops["replay"] += 1
+            return
+        c.spent = True
+        self.stats.joins += 1
+        self.host_session = sender
+        self._last_host_seq = packet.host_seq
+        if self.host_port is not None and port != self.host_port:
+            self.stats.host_changes += 1
+        self.host_port = port
+        self.stats.host = f"{ip}:{port}"
+        # A new session inherits no lock: released, the watchdog starts released.
+        self._locks = (False, False)
+        self._stop_heartbeat = False
+        self._last_cmd_at = None
+        self._sent.clear()
+
+    def _on_command(self, packet: CommandPacket, sender: int, receiver: int,
+                    now: float) -> None:
+        drops = self.stats.drops
+        if (receiver != self.session or sender != self.host_session
+                or seq_diff(packet.host_seq, self._last_host_seq) <= 0):
+            drops["replay"] += 1
+            return
+        sent_at = next((at for seq, at in self._sent if seq == packet.echo_seq), None)
+        if sent_at is None or now - sent_at > FRESH_S:
+            drops["stale_echo"] += 1
             return
         self._last_host_seq = packet.host_seq
         self._locks = (packet.lock_left, packet.lock_right)
+        self._stop_heartbeat = packet.stop_heartbeat
         self._cmd_seq = packet.host_seq
         self._last_cmd_at = now
         self.stats.commands += 1
-        if packet.echo_seq is not None:
-            slot = packet.echo_seq % RTT_RING
-            if self._sent_seq[slot] == packet.echo_seq:
-                self.stats.rtt_s.append(now - self._sent_at[slot])
-                self._sent_seq[slot] = -1  # one round trip per sample
+        self.stats.rtt_s.append(now - sent_at)
 
 
 def _warm_up(model: ExoskeletonModel) -> None:
@@ -365,6 +507,7 @@ def serve(
     bind_address: str | None = None,
     key: bytes,
     rate_factor: int = 1,
+    unique_id: bytes | None = None,
 ) -> ServerStats:
     """Run the simulated exoskeleton on UDP `port` for the host at `host_address`.
 
@@ -372,7 +515,8 @@ def serve(
     script ends (`loop=False`) or `duration` seconds after the call. `model` replaces
     the `SimulatedExoskeleton` built from seed/script (tests use a stub). `key` is the
     link key shared with the host; `rate_factor` > 1 makes a device that sends that
-    many times too fast (a fault probe).
+    many times too fast (a fault probe); `unique_id` (16 bytes) the identity reported
+    in CHALLENGEs (default: derived from the key, as the C simulator does).
     """
     if model is None:
         from controller.sim.exoskeleton import SimulatedExoskeleton
@@ -396,7 +540,7 @@ def serve(
         sock.bind((bind_address or _default_bind(host_address), port))
         sock.setblocking(False)
         return DeviceServer(sock, model, host_address, loop, duration, stop, key,
-                            rate_factor).run()
+                            rate_factor, unique_id).run()
     finally:
         sock.close()
         for signum, handler in previous.items():
@@ -436,9 +580,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the link key shared with the host (64 hex digits, mode 0600)")
     parser.add_argument("--rate-factor", type=int, default=1,
                         help="fault probe: send each sample this many times, as fast")
+    parser.add_argument("--device-id", default=None,
+                        help="unique id reported in CHALLENGEs, 1..32 hex digits (default: "
+                             "derived from the key)")
     args = parser.parse_args(argv)
     try:
         key = load_key(args.key_file)
+        unique_id = None if args.device_id is None else parse_unique_id(args.device_id)
     except ValueError as exc:
         parser.error(str(exc))
     if not 1 <= args.rate_factor <= 100:
@@ -462,6 +610,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         bind_address=args.bind,
         key=key,
         rate_factor=args.rate_factor,
+        unique_id=unique_id,
     )
     print(json.dumps(stats.summary()), flush=True)
     return 0

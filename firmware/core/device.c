@@ -1,6 +1,10 @@
 /*
- * device.c - the device's main loop: receive and validate, learn the host, apply
- * commands under the watchdog, read the encoders, send one SAMPLE per period.
+ * device.c - the device's main loop, protocol version 3 (docs/device-protocol.md,
+ * "The device's rules"): receive and validate under a tag-check budget, answer HELLOs
+ * with a single-use CHALLENGE, accept a host session only by a JOIN that answers it,
+ * apply COMMANDs that advance host_seq and echo a sample sent less than 100 ms ago,
+ * drive the solenoids under the watchdog, toggle the heartbeat, read the encoders,
+ * send one SAMPLE per period.
  *
  * It does what controller/sim/device_server.py (the reference device) does, decision
  * for decision, so that the host cannot tell them apart and their drop counts mean
@@ -50,17 +54,21 @@ int exo_device_init(exo_device *dev, const exo_board *board, const exo_config *c
     uint32_t rate = cfg->rate_factor ? cfg->rate_factor : 1u;
     if (rate > MAX_RATE_FACTOR || cfg->bus > EXO_BUS_DAISY_CHAIN)
         return -1;
+    memcpy(dev->firmware, cfg->firmware, EXO_FIRMWARE_BYTES);
+    if (!exo_firmware_valid(dev->firmware))
+        return -1; /* every CHALLENGE would be invalid: the host could never join */
+    memcpy(dev->unique_id, cfg->unique_id, EXO_UNIQUE_ID_BYTES);
 
     dev->host_ip = cfg->host_ip;
     dev->bus = cfg->bus;
     dev->period_us = cfg->sample_period_us ? cfg->sample_period_us : EXO_SAMPLE_PERIOD_US;
     dev->rate_factor = rate;
     exo_hmac_set_key(&dev->key, cfg->key, EXO_KEY_BYTES);
-    exo_peer_init(&dev->host_sessions);
     exo_as5048a_init(&dev->encoders);
+    exo_sent_clear(&dev->sent);
 
-    /* A fresh random session per boot is what makes commands recorded before a reboot
-     * useless (they name the old one); 0 means "unknown" on the wire. */
+    /* A fresh random session per boot is what makes commands and JOINs recorded
+     * before a reboot useless (they name the old one); 0 is never a session. */
     for (int attempt = 0; attempt < 8 && dev->session == 0; attempt++) {
         uint8_t r[8];
         if (board->random_bytes(board->ctx, r, sizeof r) != 0)
@@ -75,38 +83,123 @@ int exo_device_init(exo_device *dev, const exo_board *board, const exo_config *c
     return 0;
 }
 
-/* The host has just been learned or has changed (port or session). */
-static void learn_host(exo_device *dev, exo_endpoint from, uint64_t now)
+static void send_to(exo_device *dev, size_t len, exo_endpoint to)
 {
-    if (dev->stats.host_known && from.port != dev->stats.host.port)
-        dev->stats.host_changes++;
-    dev->stats.host_known = 1;
-    dev->stats.host = from;
-    dev->have_last_host_seq = 0; /* a restarted host starts its sequence afresh */
+    if (len == 0 || dev->board.send(dev->board.ctx, dev->tx, len, to) != 0)
+        dev->stats.send_errors++;
+}
+
+/* An authentic datagram of another protocol version: say which versions this device
+ * speaks, at most once per second (an answer costs a tag, as the check did). */
+static void answer_version(exo_device *dev, exo_endpoint from, uint64_t now)
+{
+    if (dev->version_sent && now - dev->last_version_us < EXO_VERSION_INTERVAL_US)
+        return;
+    dev->version_sent = 1;
+    dev->last_version_us = now;
+    size_t len = exo_wire_encode_version(&dev->key, EXO_WIRE_LOWEST_VERSION, EXO_WIRE_VERSION,
+                                         dev->tx, sizeof dev->tx);
+    send_to(dev, len, from);
+    dev->stats.versions_sent++;
+}
+
+/* HELLO: changes nothing about the host; draws a challenge if needed, answers it. */
+static void on_hello(exo_device *dev, const exo_packet *pkt, exo_endpoint from, uint64_t now)
+{
+    exo_stats *st = &dev->stats;
+    st->hellos++;
+    exo_challenge *c = &dev->challenge;
+    if (exo_challenge_stale(c, now)) {
+        /* The old challenge dies at once, sent or not. */
+        c->present = 0;
+        if (dev->board.random_bytes(dev->board.ctx, c->bytes, EXO_CHALLENGE_BYTES) != 0) {
+            st->random_errors++;
+            return;
+        }
+        c->present = 1;
+        c->spent = 0;
+        c->drawn_us = now;
+    }
+    if (dev->challenge_sent && now - dev->last_challenge_us < EXO_CHALLENGE_INTERVAL_US) {
+        st->challenge_limited++;
+        return;
+    }
+    exo_challenge_fields f;
+    f.hello_seq = pkt->host_seq;
+    f.lifetime_ms = EXO_CHALLENGE_LIFETIME_MS;
+    memcpy(f.challenge, c->bytes, EXO_CHALLENGE_BYTES);
+    memcpy(f.unique_id, dev->unique_id, EXO_UNIQUE_ID_BYTES);
+    memcpy(f.firmware, dev->firmware, EXO_FIRMWARE_BYTES);
+    size_t len = exo_wire_encode_challenge(&dev->key, &f, dev->session, pkt->sender, dev->tx,
+                                           sizeof dev->tx);
+    dev->challenge_sent = 1;
+    dev->last_challenge_us = now;
+    send_to(dev, len, from);
+    st->challenges++;
+}
+
+/* JOIN: the one way a host session starts (or restarts). */
+static void on_join(exo_device *dev, const exo_packet *pkt, exo_endpoint from, uint64_t now)
+{
+    exo_stats *st = &dev->stats;
+    /* Both conditions are evaluated (no early exit between them). */
+    int to_me = pkt->receiver == dev->session;
+    int answers = exo_challenge_accepts(&dev->challenge, pkt->join_challenge, now);
+    if (!to_me || !answers) {
+        st->replayed++;
+        return;
+    }
+    dev->challenge.spent = 1;
+    if (st->host_known && (from.ip != st->host.ip || from.port != st->host.port))
+        st->host_changes++;
+    dev->host.joined = 1;
+    dev->host.session = pkt->sender;
+    dev->host.last_host_seq = pkt->host_seq;
+    dev->host.addr = from;
+    st->host_known = 1;
+    st->host = from;
+    /* A new session inherits no lock: released from the next period on, watchdog
+     * released, and only samples sent from now on can be echoed. */
+    dev->locks = 0;
+    dev->stop_heartbeat = 0;
+    exo_watchdog_release(&dev->watchdog);
+    exo_sent_clear(&dev->sent);
+    st->joins++;
     if (!dev->streaming) {
-        /* The stream's clock starts at the first valid packet from the host: seq 0 at
-         * t_us 0, so a simulated wearer gives the same data every run. */
+        /* The stream starts at the first JOIN of the boot: seq 0 at t_us 0, so a
+         * simulated wearer gives the same data every run. */
         dev->streaming = 1;
         dev->start_us = now;
         dev->k = 0;
     }
 }
 
-static void note_round_trip(exo_device *dev, uint32_t echo, uint64_t now)
+/* COMMAND: of this boot and the current host session, later than the last applied
+ * one, answering a sample sent at most 100 ms ago. */
+static void on_command(exo_device *dev, const exo_packet *pkt, uint64_t now)
 {
-    uint32_t slot = echo % EXO_RTT_RING;
-    uint8_t bit = (uint8_t)(1u << (slot % 8u));
-    if ((dev->sent_valid[slot / 8u] & bit) && dev->sent_seq[slot] == echo) {
-        ring_push(dev->stats.rtt_us, &dev->stats.rtt_n, &dev->stats.rtt_max_us,
-                  now - dev->sent_at_us[slot]);
-        dev->sent_valid[slot / 8u] = (uint8_t)(dev->sent_valid[slot / 8u] & ~bit);
+    exo_stats *st = &dev->stats;
+    if (pkt->receiver != dev->session || !dev->host.joined || pkt->sender != dev->host.session
+        || exo_serial_diff(pkt->host_seq, dev->host.last_host_seq) <= 0) {
+        st->replayed++;
+        return;
     }
+    int slot = exo_sent_fresh(&dev->sent, pkt->echo_seq, now);
+    if (slot < 0) {
+        st->stale_echo++;
+        return;
+    }
+    dev->host.last_host_seq = pkt->host_seq;
+    dev->locks = pkt->locks;
+    dev->stop_heartbeat = pkt->stop_heartbeat;
+    exo_watchdog_feed(&dev->watchdog, now);
+    st->commands++;
+    ring_push(st->rtt_us, &st->rtt_n, &st->rtt_max_us, now - dev->sent.sent_us[slot]);
 }
 
-/* One datagram, in the reference device's order: source IP, validation (wire.c),
- * type, addressed to this boot, peer session and window, host address, then HELLO or
- * COMMAND. Every early return only counts; no state changes before the packet is
- * known to be authentic and fresh. */
+/* One datagram through the rules in the protocol's order: source, tag-check budget,
+ * validation (wire.c), type. Every early return only counts; no state changes before
+ * the packet is known to be authentic and fresh. */
 static void handle(exo_device *dev, long got, exo_endpoint from, uint64_t now)
 {
     exo_stats *st = &dev->stats;
@@ -114,6 +207,13 @@ static void handle(exo_device *dev, long got, exo_endpoint from, uint64_t now)
         st->foreign++;
         return;
     }
+    /* Every datagram from the host's IP takes one unit of the period's budget, so at
+     * most EXO_AUTH_BUDGET reach the tag check; the rest are not read at all. */
+    if (dev->auth_checks >= EXO_AUTH_BUDGET) {
+        st->flood++;
+        return;
+    }
+    dev->auth_checks++;
     if ((unsigned long)got > sizeof dev->rx) {
         st->malformed[EXO_DROP_LENGTH]++; /* longer than any packet; never read */
         return;
@@ -122,44 +222,23 @@ static void handle(exo_device *dev, long got, exo_endpoint from, uint64_t now)
     exo_drop_reason why = exo_wire_decode(&dev->key, dev->rx, (size_t)got, &pkt);
     if (why != EXO_DROP_NONE) {
         st->malformed[why]++;
+        if (why == EXO_DROP_VERSION)
+            answer_version(dev, from, now);
         return;
     }
-    if (pkt.type == EXO_TYPE_SAMPLE) {
+    switch (pkt.type) {
+    case EXO_TYPE_HELLO:
+        on_hello(dev, &pkt, from, now);
+        break;
+    case EXO_TYPE_JOIN:
+        on_join(dev, &pkt, from, now);
+        break;
+    case EXO_TYPE_COMMAND:
+        on_command(dev, &pkt, now);
+        break;
+    default: /* SAMPLE, CHALLENGE, VERSION: only a device sends them */
         st->unexpected++;
-        return;
     }
-    /* A COMMAND must name this boot (a recorded one names an earlier boot); a HELLO
-     * may not know it yet. */
-    if (pkt.type == EXO_TYPE_COMMAND && pkt.receiver != dev->session) {
-        st->replayed++;
-        return;
-    }
-    exo_peer_verdict verdict = exo_peer_check(&dev->host_sessions, pkt.sender, pkt.host_seq);
-    if (verdict == EXO_PEER_REPLAY) {
-        st->replayed++;
-        return;
-    }
-    if (!st->host_known || from.port != st->host.port || verdict == EXO_PEER_NEW)
-        learn_host(dev, from, now);
-    if (pkt.type == EXO_TYPE_HELLO) {
-        /* HELLO restarts the host's sequence, so a restarted host is not "stale". It
-         * never feeds the watchdog: only a COMMAND may keep a solenoid energised. */
-        st->hellos++;
-        dev->have_last_host_seq = 1;
-        dev->last_host_seq = pkt.host_seq;
-        return;
-    }
-    if (dev->have_last_host_seq && exo_serial_diff(pkt.host_seq, dev->last_host_seq) <= 0) {
-        st->stale_commands++; /* reordered in the network: a newer one was applied */
-        return;
-    }
-    dev->have_last_host_seq = 1;
-    dev->last_host_seq = pkt.host_seq;
-    dev->locks = pkt.locks;
-    exo_watchdog_feed(&dev->watchdog, now);
-    st->commands++;
-    if (pkt.echo_valid)
-        note_round_trip(dev, pkt.echo_seq, now);
 }
 
 static void receive_all(exo_device *dev)
@@ -167,23 +246,36 @@ static void receive_all(exo_device *dev)
     for (unsigned n = 0; n < EXO_RX_PER_POLL; n++) {
         exo_endpoint from = {0, 0};
         long got = dev->board.receive(dev->board.ctx, dev->rx, sizeof dev->rx, &from);
-        if (got == 0)
+        if (got == EXO_RX_NONE)
             return;
         if (got < 0) {
             dev->stats.receive_errors++; /* e.g. an ICMP error report; go on */
             continue;
         }
+        /* got == 0 is an empty datagram: read, and counted as `short` (or foreign). */
         handle(dev, got, from, dev->board.now_us(dev->board.ctx));
     }
 }
 
-/* Status bits a board may report; the core owns SOLENOID_* and WATCHDOG_RELEASED, and
- * reserved bits must never reach the wire (they would make the sample invalid). */
+/* One heartbeat edge (boards without the pin pass NULL). */
+static void heartbeat_toggle(exo_device *dev)
+{
+    dev->heartbeat_level = !dev->heartbeat_level;
+    dev->stats.heartbeat_edges++;
+    if (dev->board.heartbeat)
+        dev->board.heartbeat(dev->board.ctx, dev->heartbeat_level);
+}
+
+/* Status bits a board may report; the core owns SOLENOID_*, WATCHDOG_RELEASED and
+ * HEARTBEAT_STOPPED, and reserved bits must never reach the wire (they would make the
+ * sample invalid). */
 #define BOARD_STATUS                                                                     \
     (EXO_STATUS_LOCKED_LEFT | EXO_STATUS_LOCKED_RIGHT | EXO_STATUS_HARD_STOP_LEFT        \
-     | EXO_STATUS_HARD_STOP_RIGHT | EXO_STATUS_ENCODER_FAULT | EXO_STATUS_SUPPLY_FAULT)
+     | EXO_STATUS_HARD_STOP_RIGHT | EXO_STATUS_ENCODER_FAULT | EXO_STATUS_SUPPLY_FAULT   \
+     | EXO_STATUS_DRIVERS_OFF)
 
-/* Sample k, due at `due`: watchdog, solenoids, encoders, then build and send. */
+/* Sample k, due at `due`: watchdog, heartbeat, solenoids, encoders, then build and
+ * send; a new period of tag checks begins. */
 static void tick(exo_device *dev, uint64_t due)
 {
     const exo_board *b = &dev->board;
@@ -191,6 +283,11 @@ static void tick(exo_device *dev, uint64_t due)
     uint64_t now = b->now_us(b->ctx);
     int alive = exo_watchdog_check(&dev->watchdog, now);
     st->watchdog_releases = dev->watchdog.releases;
+    if (!alive)
+        dev->stop_heartbeat = 0; /* the heartbeat resumes when the watchdog releases */
+    int stopped = dev->stop_heartbeat;
+    if (!stopped)
+        heartbeat_toggle(dev);
     int left = alive && (dev->locks & EXO_LOCK_LEFT);
     int right = alive && (dev->locks & EXO_LOCK_RIGHT);
     /* Solenoids before encoders: on hardware the order is immaterial (microseconds),
@@ -210,26 +307,25 @@ static void tick(exo_device *dev, uint64_t due)
         status |= EXO_STATUS_ENCODER_FAULT;
     if (!alive)
         status |= EXO_STATUS_WATCHDOG_RELEASED;
+    if (stopped)
+        status |= EXO_STATUS_HEARTBEAT_STOPPED;
     s.status = status;
     s.t_us = offset_us(dev, dev->k);
     s.seq = (uint32_t)dev->k; /* wraps 2^32 - 1 -> 0, as the protocol says */
     s.auth_drops = saturate_u32(st->malformed[EXO_DROP_AUTH]);
     s.replay_drops = saturate_u32(st->replayed);
+    s.stale_drops = saturate_u32(st->stale_echo);
     if (b->truth && b->truth(b->ctx, &s.truth) == 1)
         s.has_truth = 1;
 
-    size_t len = exo_wire_encode_sample(&dev->key, &s, dev->session, dev->host_sessions.current,
-                                        dev->tx, sizeof dev->tx);
+    size_t len = exo_wire_encode_sample(&dev->key, &s, dev->session, dev->host.session, dev->tx,
+                                        sizeof dev->tx);
     /* An unencodable sample (a simulator's bad truth) or a full socket buffer costs
      * this one sample; the host sees the gap in seq. Never retried. */
-    if (len == 0 || b->send(b->ctx, dev->tx, len, st->host) != 0)
-        st->send_errors++;
+    send_to(dev, len, dev->host.addr);
 
     uint64_t sent = b->now_us(b->ctx);
-    uint32_t slot = s.seq % EXO_RTT_RING;
-    dev->sent_seq[slot] = s.seq;
-    dev->sent_at_us[slot] = sent;
-    dev->sent_valid[slot / 8u] = (uint8_t)(dev->sent_valid[slot / 8u] | (1u << (slot % 8u)));
+    exo_sent_note(&dev->sent, s.seq, sent);
 
     uint64_t lateness = sent > due ? sent - due : 0;
     st->samples_sent++;
@@ -238,6 +334,7 @@ static void tick(exo_device *dev, uint64_t due)
         st->late++;
     st->streaming_us = sent - dev->start_us;
     dev->k++;
+    dev->auth_checks = 0;
     if (b->kick_watchdog)
         b->kick_watchdog(b->ctx);
 }
@@ -251,10 +348,13 @@ uint32_t exo_device_poll(exo_device *dev)
     uint64_t now = b->now_us(b->ctx);
 
     if (!dev->streaming) {
-        /* Nothing to send until the host is known; keep the hardware watchdog fed. */
+        /* Nothing to send before the first JOIN; the idle period still feeds the
+         * hardware watchdog, toggles the heartbeat and renews the tag-check budget. */
         if (now >= dev->idle_due_us) {
+            heartbeat_toggle(dev);
             if (b->kick_watchdog)
                 b->kick_watchdog(b->ctx);
+            dev->auth_checks = 0;
             dev->idle_due_us += dev->period_us;
             if (dev->idle_due_us <= now)
                 dev->idle_due_us = now + dev->period_us;
@@ -284,4 +384,6 @@ void exo_device_stop(exo_device *dev)
     dev->running = 0;
     if (dev->streaming && dev->board.now_us)
         dev->stats.streaming_us = dev->board.now_us(dev->board.ctx) - dev->start_us;
+    exo_secure_zero(&dev->key, sizeof dev->key);
+    exo_secure_zero(&dev->challenge, sizeof dev->challenge);
 }

@@ -16,6 +16,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* exo_board.receive: no datagram is waiting (0 is an empty datagram, -1 an error). */
+#define EXO_RX_NONE (-2L)
+
 /* An IPv4 address and UDP port, host byte order (192.168.1.2 is 0xC0A80102). */
 typedef struct {
     uint32_t ip;
@@ -53,7 +56,8 @@ typedef struct {
 
     /* Energise (1) or release (0) each solenoid. Called at init and stop (0, 0) and
      * once per sample while samples stream, with the state the watchdog allows, before
-     * the encoders are read (a simulator port may advance its wearer here). */
+     * the encoders are read (a simulator port may advance its wearer here). A JOIN's
+     * release takes effect at the next sample period's call, like any command. */
     void (*set_solenoids)(void *ctx, int left, int right);
 
     /* Send one datagram to `to`. Returns 0, or -1 if it could not be sent (counted,
@@ -61,11 +65,13 @@ typedef struct {
     int (*send)(void *ctx, const uint8_t *data, size_t len, exo_endpoint to);
 
     /* Take one received datagram if there is one, without blocking. Returns its
-     * length (1..cap), 0 if none is waiting, -1 on an error; fills `from`. For a
-     * datagram longer than `cap` the port returns a value above `cap` (its true
-     * length) and the core counts it as malformed ("length") without reading `buf`.
-     * A port may instead truncate to `cap` bytes: the core's buffer is one byte longer
-     * than the largest packet, so a truncated datagram still fails the length check. */
+     * length (0 for an EMPTY datagram, which the core reads and counts as `short`:
+     * every datagram is counted, a flood of empty ones included), EXO_RX_NONE if none
+     * is waiting, -1 on an error; fills `from` for every datagram. For a datagram
+     * longer than `cap` the port returns a value above `cap` (its true length) and the
+     * core counts it as malformed ("length") without reading `buf`. A port may instead
+     * truncate to `cap` bytes: the core's buffer is one byte longer than the largest
+     * packet, so a truncated datagram still fails the length check. */
     long (*receive)(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *from);
 
     /* Fill `out` with `n` random bytes for session numbers (a hardware RNG, or
@@ -78,10 +84,20 @@ typedef struct {
      * board boots with its solenoids off. */
     void (*kick_watchdog)(void *ctx);
 
-    /* Optional (NULL if absent): mechanism and supply status bits the board can sense
-     * (LOCKED_*, HARD_STOP_*, SUPPLY_FAULT of the protocol's status word). The core
-     * sets the SOLENOID_*, ENCODER_FAULT and WATCHDOG_RELEASED bits itself. */
+    /* Optional (NULL if absent): mechanism, supply and driver status bits the board
+     * can sense (LOCKED_*, HARD_STOP_*, SUPPLY_FAULT, and DRIVERS_OFF if it reads the
+     * solenoid drivers' enable line back and finds it off). The core sets the
+     * SOLENOID_*, ENCODER_FAULT, WATCHDOG_RELEASED and HEARTBEAT_STOPPED bits itself;
+     * any other bit is ignored. */
     uint32_t (*sense_status)(void *ctx);
+
+    /* Optional (NULL if the board has no heartbeat pin): drive the heartbeat output
+     * to `level` (0 or 1). The core toggles it once per sample period while streaming
+     * and once per idle period before, unless the latest applied COMMAND carried
+     * STOP_HEARTBEAT (a bring-up probe). An external retriggerable monostable holds
+     * the solenoid drivers' enable for 30 ms after each edge, so a firmware that stops
+     * running releases the solenoids without the firmware's help. */
+    void (*heartbeat)(void *ctx, int level);
 
     /* Optional (NULL on real hardware): the simulated wearer's ground truth for the
      * sample being built. Returns 1 if `out` was filled. */

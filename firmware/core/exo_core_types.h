@@ -24,12 +24,17 @@
 
 #define EXO_LATE_US 2000u     /* sent more than this after its due time: late */
 #define EXO_RESYNC_US 250000u /* further behind than this: rebase the schedule, no burst */
-#define EXO_RTT_RING 1024u    /* send times kept for matching echoed sample numbers */
 #define EXO_STATS_RING 1024u  /* latest lateness and round-trip values kept */
 #define EXO_RX_PER_POLL 64u   /* datagrams handled per poll at most (a flood cannot starve the sample) */
+#define EXO_AUTH_BUDGET 8u    /* host-IP datagrams read per sample period (idle period
+                                 before streaming); the rest: flood, unread */
+#define EXO_VERSION_INTERVAL_US 1000000u /* at most one VERSION answer per second */
 
 /* What happened since init: the counters of the reference device's ServerStats, so a
  * port can print the same summary. Counters are 64-bit and never wrap in practice.
+ * Every datagram the board hands over is counted exactly once: as foreign, flood,
+ * malformed[reason], unexpected, replayed, stale_echo, or as a hello, join or
+ * command (challenge_limited and the sends are counted besides).
  *
  * Percentiles: the core keeps the latest EXO_STATS_RING lateness and round-trip
  * values in rings. `*_n` counts every value ever written; value j (0-based, j < n)
@@ -45,23 +50,32 @@ typedef struct {
     uint64_t rtt_n;
     uint32_t rtt_max_us;
     uint32_t rtt_us[EXO_STATS_RING]; /* sample sent -> COMMAND echoing it received */
-    uint64_t commands;       /* valid commands applied */
-    uint64_t stale_commands; /* valid, but host_seq not after the last applied one */
-    uint64_t hellos;
+    uint64_t commands;   /* valid commands applied */
+    uint64_t hellos;     /* authentic HELLOs (answered or not) */
+    uint64_t joins;      /* JOINs accepted */
+    uint64_t challenges; /* CHALLENGEs sent */
+    uint64_t challenge_limited; /* HELLOs not answered: a CHALLENGE went out < 50 ms ago */
+    uint64_t versions_sent;     /* VERSION answers sent */
     uint64_t foreign;    /* datagrams from any IP but the configured host */
-    uint64_t unexpected; /* valid packets of a type a host never sends (SAMPLE) */
+    uint64_t flood;      /* from the host IP, over the period's tag-check budget: unread */
+    uint64_t unexpected; /* valid packets of a type a host never sends */
     uint64_t malformed[EXO_DROP_REASONS]; /* by exo_drop_reason; [EXO_DROP_AUTH] is
                                              auth_failures, [EXO_DROP_VERSION]
                                              unknown_version; [0] stays 0 */
-    uint64_t replayed; /* authentic, but seen before, from a replaced host session, or
-                          a COMMAND addressed to an earlier boot of this device */
+    uint64_t replayed;   /* authentic JOIN/COMMAND not of this boot or the current host
+                            session, not advancing host_seq, or answering a spent,
+                            expired or unknown challenge (SAMPLE cmd_replay_drops) */
+    uint64_t stale_echo; /* COMMANDs of the current session echoing a sample older than
+                            100 ms or unknown (SAMPLE cmd_stale_drops) */
     uint64_t watchdog_releases; /* transitions from commanded to released */
-    uint64_t host_changes;      /* the host's port changed after it was first learned */
+    uint64_t host_changes;      /* a JOIN moved the host's address after the first */
     uint64_t resyncs;           /* schedule rebased after a stall */
-    uint64_t send_errors;       /* sample not encodable or board send failed */
+    uint64_t send_errors;       /* a packet not encodable or board send failed */
     uint64_t receive_errors;    /* board receive returned -1 (not in the Python summary) */
+    uint64_t random_errors;     /* no entropy for a challenge (the HELLO goes unanswered) */
+    uint64_t heartbeat_edges;   /* heartbeat output toggles */
     int host_known;
-    exo_endpoint host;     /* learned host address (valid if host_known) */
+    exo_endpoint host;     /* where samples go: the latest JOIN's source (if host_known) */
     uint64_t streaming_us; /* since the stream started (schedule origin, as Python) */
 } exo_stats;
 
@@ -72,25 +86,33 @@ typedef struct exo_device_s {
     uint32_t period_us;   /* the configured sample period */
     uint32_t rate_factor; /* fault probe: each period sent as this many samples */
     exo_hmac_key key;     /* the link key, absorbed (the raw key is not kept) */
-    uint64_t session;     /* this boot's session, never 0 */
+    uint64_t session;     /* this boot's session D, never 0 */
     int running;          /* init succeeded and stop was not called; else poll does
                              nothing (a zeroed, never initialised device is inert too) */
+    uint8_t unique_id[EXO_UNIQUE_ID_BYTES];
+    uint8_t firmware[EXO_FIRMWARE_BYTES];
 
-    exo_peer_sessions host_sessions;
-    int have_last_host_seq; /* for stale COMMANDs; reset when the host (re)starts */
-    uint32_t last_host_seq;
-    unsigned locks; /* EXO_LOCK_* of the latest applied COMMAND */
+    exo_host host;           /* H, its last host_seq and address */
+    exo_challenge challenge; /* the one challenge */
+    int challenge_sent;      /* a CHALLENGE has gone out (last_challenge_us valid) */
+    uint64_t last_challenge_us;
+    int version_sent;        /* a VERSION has gone out (last_version_us valid) */
+    uint64_t last_version_us;
+    unsigned auth_checks;    /* datagrams from the host IP this period (budget
+                                EXO_AUTH_BUDGET: the most that reach the tag check) */
+
+    unsigned locks;     /* EXO_LOCK_* of the latest applied COMMAND */
+    int stop_heartbeat; /* the latest applied COMMAND had STOP_HEARTBEAT */
+    int heartbeat_level;
     exo_watchdog watchdog;
     exo_as5048a encoders;
 
-    int streaming;      /* the host is known; samples are due */
-    uint64_t start_us;  /* schedule origin: sample k is due at start + offset(k) */
-    uint64_t k;         /* next sample's index */
-    uint64_t idle_due_us; /* before streaming: next hardware-watchdog kick */
+    int streaming;        /* the first JOIN was accepted; samples are due */
+    uint64_t start_us;    /* schedule origin: sample k is due at start + offset(k) */
+    uint64_t k;           /* next sample's index (seq is its low 32 bits) */
+    uint64_t idle_due_us; /* before streaming: next idle period (watchdog kick, heartbeat) */
 
-    uint32_t sent_seq[EXO_RTT_RING]; /* round trip: seq and send time per ring slot */
-    uint64_t sent_at_us[EXO_RTT_RING];
-    uint8_t sent_valid[EXO_RTT_RING / 8u]; /* one round trip per sample */
+    exo_sent_ring sent; /* send times of the last 16 samples (cleared at JOIN) */
 
     uint8_t rx[EXO_MAX_PACKET + 1u]; /* one byte more than any valid packet */
     uint8_t tx[EXO_MAX_PACKET];

@@ -36,15 +36,23 @@ typedef struct {
      * spaced, with honest device times: a device sending N times too fast. 1..100, as
      * the reference device's --rate-factor. */
     uint32_t rate_factor;
+    /* The device identity its CHALLENGEs carry (protocol "CHALLENGE"), to which the
+     * host binds hardware profiles: the processor's unique id or a serial number,
+     * zero-padded; and the firmware name and version, printable ASCII, NUL-padded,
+     * at most 16 characters, not empty (init refuses anything else). */
+    uint8_t unique_id[16];
+    char firmware[16];
 } exo_config;
 
 /* exo_device, exo_stats: defined in the core (see exo_core_types.h). */
 #include "exo_core_types.h"
 
 /* 0 on success; -1 if the board gave no entropy for the session number, lacks a
- * required function, or the config is out of range (then every later poll does
- * nothing). Either way both solenoids are released; WATCHDOG_RELEASED stays set until
- * the first valid COMMAND. */
+ * required function, or the config is out of range or has no valid firmware name
+ * (then every later poll does nothing). Either way both solenoids are released;
+ * WATCHDOG_RELEASED stays set until the first valid COMMAND. The core keeps no copy
+ * of cfg->key (only its absorbed HMAC state); the port should wipe its own copy
+ * (exo_secure_zero) once init has returned. */
 int exo_device_init(exo_device *dev, const exo_board *board, const exo_config *cfg);
 
 /* Handle every waiting datagram, run the watchdog, and build and send the sample if
@@ -52,7 +60,8 @@ int exo_device_init(exo_device *dev, const exo_board *board, const exo_config *c
  * the longest the port may wait before calling again. */
 uint32_t exo_device_poll(exo_device *dev);
 
-/* Release both solenoids (the port is about to exit or reset). */
+/* Release both solenoids (the port is about to exit or reset) and wipe the key
+ * state; `stats` stay readable. */
 void exo_device_stop(exo_device *dev);
 
 #endif /* EXO_DEVICE_H */

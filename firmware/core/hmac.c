@@ -23,8 +23,8 @@ void exo_hmac_set_key(exo_hmac_key *k, const uint8_t *key, size_t key_len)
         pad[i] = (uint8_t)(block[i] ^ 0x5cu);
     exo_sha256_init(&k->outer);
     exo_sha256_update(&k->outer, pad, sizeof pad);
-    memset(block, 0, sizeof block);
-    memset(pad, 0, sizeof pad);
+    exo_secure_zero(block, sizeof block);
+    exo_secure_zero(pad, sizeof pad);
 }
 
 void exo_hmac_sha256(const exo_hmac_key *k, const uint8_t *a, size_t a_len, const uint8_t *b,
@@ -39,6 +39,9 @@ void exo_hmac_sha256(const exo_hmac_key *k, const uint8_t *a, size_t a_len, cons
     c = k->outer;
     exo_sha256_update(&c, inner_digest, sizeof inner_digest);
     exo_sha256_final(&c, out);
+    /* The state copied from the absorbed key is as good as the key for forging tags. */
+    exo_secure_zero(&c, sizeof c);
+    exo_secure_zero(inner_digest, sizeof inner_digest);
 }
 
 int exo_ct_equal(const uint8_t *a, const uint8_t *b, size_t n)
@@ -49,4 +52,11 @@ int exo_ct_equal(const uint8_t *a, const uint8_t *b, size_t n)
     for (size_t i = 0; i < n; i++)
         diff = (uint8_t)(diff | (a[i] ^ b[i]));
     return diff == 0;
+}
+
+void exo_secure_zero(void *p, size_t n)
+{
+    volatile uint8_t *v = (volatile uint8_t *)p;
+    for (size_t i = 0; i < n; i++)
+        v[i] = 0;
 }

@@ -32,4 +32,10 @@ void exo_hmac_sha256(const exo_hmac_key *k, const uint8_t *a, size_t a_len, cons
  * its leading bytes were right). */
 int exo_ct_equal(const uint8_t *a, const uint8_t *b, size_t n);
 
+/* Overwrite `n` bytes at `p` with zeros in a way the compiler may not remove: every
+ * store goes through a volatile pointer, so it is an observable side effect even when
+ * the buffer is dead afterwards (a plain memset of a dead buffer may be optimised
+ * away). Used for everything that holds key material. */
+void exo_secure_zero(void *p, size_t n);
+
 #endif /* EXO_HMAC_H */

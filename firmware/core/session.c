@@ -1,8 +1,5 @@
 /*
- * session.c - peer sessions, retired sessions and the 64-number replay window.
- *
- * Behaviour matches controller/device/auth.py (ReplayWindow, PeerSessions) decision
- * for decision, so the firmware and the reference device drop the same packets.
+ * session.c - the device's host session, challenge and sent-sample ring (session.h).
  */
 #include "session.h"
 
@@ -14,55 +11,39 @@ int64_t exo_serial_diff(uint32_t new_seq, uint32_t old_seq)
     return d >= 0x80000000u ? (int64_t)d - 0x100000000 : (int64_t)d;
 }
 
-int exo_window_accept(exo_replay_window *w, uint32_t seq)
+int exo_challenge_stale(const exo_challenge *c, uint64_t now_us)
 {
-    if (!w->have_top) {
-        w->have_top = 1;
-        w->top = seq;
-        w->bits = 1;
-        return 1;
-    }
-    uint32_t ahead = seq - w->top;
-    if (ahead != 0 && ahead < 0x80000000u) {
-        /* Newer: slide the window up; numbers that fall off the bottom are forgotten
-         * (and from then on count as too old). */
-        w->bits = ahead < EXO_WINDOW ? (w->bits << ahead) | 1u : 1u;
-        w->top = seq;
-        return 1;
-    }
-    uint32_t back = w->top - seq;
-    if (back >= EXO_WINDOW || ((w->bits >> back) & 1u))
-        return 0;
-    w->bits |= (uint64_t)1 << back;
-    return 1;
+    return !c->present || c->spent || now_us < c->drawn_us
+           || now_us - c->drawn_us > EXO_CHALLENGE_REDRAW_US;
 }
 
-void exo_peer_init(exo_peer_sessions *p) { memset(p, 0, sizeof *p); }
-
-static int is_retired(const exo_peer_sessions *p, uint64_t session)
+int exo_challenge_accepts(const exo_challenge *c, const uint8_t answer[EXO_CHALLENGE_BYTES],
+                          uint64_t now_us)
 {
-    for (uint32_t i = 0; i < p->n_retired; i++)
-        if (p->retired[i] == session)
-            return 1;
-    return 0;
+    /* The comparison runs whatever the other conditions say, so its time tells a
+     * forger nothing (not even whether a challenge is out). */
+    int same = exo_ct_equal(c->bytes, answer, EXO_CHALLENGE_BYTES);
+    int fresh = now_us >= c->drawn_us
+                && now_us - c->drawn_us <= (uint64_t)EXO_CHALLENGE_LIFETIME_MS * 1000u;
+    return same && c->present && !c->spent && fresh;
 }
 
-exo_peer_verdict exo_peer_check(exo_peer_sessions *p, uint64_t session, uint32_t seq)
+void exo_sent_clear(exo_sent_ring *r) { memset(r, 0, sizeof *r); }
+
+void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us)
 {
-    if (p->have_current && session == p->current)
-        return exo_window_accept(&p->window, seq) ? EXO_PEER_OK : EXO_PEER_REPLAY;
-    if (session == 0 || is_retired(p, session))
-        return EXO_PEER_REPLAY;
-    if (p->have_current) {
-        /* Retire the old session; past 1024 the oldest is forgotten (a ring). */
-        p->retired[p->next_retired] = p->current;
-        p->next_retired = (p->next_retired + 1u) % EXO_RETIRED_MAX;
-        if (p->n_retired < EXO_RETIRED_MAX)
-            p->n_retired++;
-    }
-    p->have_current = 1;
-    p->current = session;
-    memset(&p->window, 0, sizeof p->window);
-    exo_window_accept(&p->window, seq);
-    return EXO_PEER_NEW;
+    uint32_t slot = seq % EXO_SENT_RING;
+    r->seq[slot] = seq;
+    r->sent_us[slot] = sent_us;
+    r->valid[slot] = 1;
+}
+
+int exo_sent_fresh(const exo_sent_ring *r, uint32_t seq, uint64_t now_us)
+{
+    uint32_t slot = seq % EXO_SENT_RING;
+    if (!r->valid[slot] || r->seq[slot] != seq)
+        return -1; /* never sent, or overwritten by a later sample: unknown */
+    if (now_us < r->sent_us[slot] || now_us - r->sent_us[slot] > EXO_FRESH_US)
+        return -1;
+    return (int)slot;
 }

@@ -1,53 +1,63 @@
 /*
- * session.h - the peer's sessions and the replay window (protocol "Authentication,
- * sessions and replays"; the Python twin is controller/device/auth.py).
- *
- * An authentic packet can still be a recording. The receiver remembers the peer's
- * current session number, the sessions it saw replaced (a restarted peer never comes
- * back with an old number, so an old number is a replay), and which of the last 64
- * sequence numbers of the current session it has seen (RFC 4303 section 3.4.3).
+ * session.h - what the device remembers about the host (protocol "The device's
+ * rules"): one host session with its last applied host_seq, one single-use challenge,
+ * and the send times of its last 16 samples. Nothing grows and nothing is a list an
+ * attacker could overflow; the Python twin is controller/sim/device_server.py.
  */
 #ifndef EXO_SESSION_H
 #define EXO_SESSION_H
 
 #include <stdint.h>
 
-#define EXO_WINDOW 64u         /* sequence numbers remembered per session */
-#define EXO_RETIRED_MAX 1024u  /* replaced peer sessions remembered; oldest forgotten */
+#include "wire.h"
+
+#define EXO_SENT_RING 16u                 /* samples whose send time is kept */
+#define EXO_FRESH_US 100000u              /* a COMMAND must echo a sample this recent */
+#define EXO_CHALLENGE_LIFETIME_MS 1000u   /* a JOIN must answer a challenge this recent */
+#define EXO_CHALLENGE_REDRAW_US 500000u   /* a HELLO redraws a challenge older than this */
+#define EXO_CHALLENGE_INTERVAL_US 50000u  /* at most one CHALLENGE per this */
 
 /* Signed distance from `old` to `new` in uint32 serial arithmetic (RFC 1982): > 0 if
  * `new` is later, < 0 if earlier, also across the wrap. A distance of exactly 2^31 is
  * "earlier", as in the Python seq_diff. */
 int64_t exo_serial_diff(uint32_t new_seq, uint32_t old_seq);
 
+/* The device's one challenge. */
 typedef struct {
-    int have_top;  /* 0 until the first number */
-    uint32_t top;  /* highest number seen */
-    uint64_t bits; /* bit i: top - i was seen */
-} exo_replay_window;
+    int present;  /* drawn at least once */
+    int spent;    /* a JOIN has used it */
+    uint64_t drawn_us;
+    uint8_t bytes[EXO_CHALLENGE_BYTES];
+} exo_challenge;
 
-/* 1 if `seq` is new and inside the window (it is then marked), 0 if it is a replay. */
-int exo_window_accept(exo_replay_window *w, uint32_t seq);
+/* 1 if the challenge must be redrawn before it is sent at `now_us`: absent, spent, or
+ * drawn more than EXO_CHALLENGE_REDRAW_US ago. */
+int exo_challenge_stale(const exo_challenge *c, uint64_t now_us);
 
-typedef enum {
-    EXO_PEER_OK = 0,     /* a new number in the current session */
-    EXO_PEER_NEW = 1,    /* a session never seen: the peer restarted; now current */
-    EXO_PEER_REPLAY = -1 /* seen before, too old, or a replaced session */
-} exo_peer_verdict;
+/* 1 if `answer` (from a JOIN arriving at `now_us`) is the present, unspent challenge,
+ * at most EXO_CHALLENGE_LIFETIME_MS old. The bytes are compared in constant time. */
+int exo_challenge_accepts(const exo_challenge *c, const uint8_t answer[EXO_CHALLENGE_BYTES],
+                          uint64_t now_us);
 
+/* Send times of the latest EXO_SENT_RING samples of the current host session. */
 typedef struct {
-    int have_current;
-    uint64_t current;
-    exo_replay_window window;
-    uint64_t retired[EXO_RETIRED_MAX]; /* ring of replaced sessions */
-    uint32_t n_retired;                /* how many are valid (<= EXO_RETIRED_MAX) */
-    uint32_t next_retired;             /* slot the next retired session overwrites */
-} exo_peer_sessions;
+    uint32_t seq[EXO_SENT_RING];
+    uint64_t sent_us[EXO_SENT_RING];
+    uint8_t valid[EXO_SENT_RING];
+} exo_sent_ring;
 
-void exo_peer_init(exo_peer_sessions *p);
+void exo_sent_clear(exo_sent_ring *r);
+void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us);
+/* The slot of sample `seq` if it is in the ring and was sent at most EXO_FRESH_US
+ * before `now_us`, else -1. */
+int exo_sent_fresh(const exo_sent_ring *r, uint32_t seq, uint64_t now_us);
 
-/* Classify one authentic packet from session `session` with sequence `seq`. Session 0
- * ("unknown" on the wire) is never accepted as a sender. */
-exo_peer_verdict exo_peer_check(exo_peer_sessions *p, uint64_t session, uint32_t seq);
+/* The host as far as the device knows it. */
+typedef struct {
+    int joined;             /* a JOIN has been accepted this boot */
+    uint64_t session;       /* H */
+    uint32_t last_host_seq; /* of the latest JOIN or applied COMMAND */
+    exo_endpoint addr;      /* where samples go: the latest JOIN's source */
+} exo_host;
 
 #endif /* EXO_SESSION_H */

@@ -23,6 +23,16 @@ static const uint32_t K[64] = {
     0x5b9cca4fu, 0x682e6ff3u, 0x748f82eeu, 0x78a5636fu, 0x84c87814u, 0x8cc70208u,
     0x90befffau, 0xa4506cebu, 0xbef9a3f7u, 0xc67178f2u};
 
+/* Zeros through a volatile pointer: stores the compiler may not drop, even into a
+ * buffer that is dead afterwards (the same as exo_secure_zero in hmac.c, which builds
+ * on this file). The key blocks of HMAC pass through here. */
+static void wipe(void *p, size_t n)
+{
+    volatile uint8_t *v = (volatile uint8_t *)p;
+    for (size_t i = 0; i < n; i++)
+        v[i] = 0;
+}
+
 static uint32_t rotr(uint32_t x, unsigned n) { return (x >> n) | (x << (32u - n)); }
 
 static uint32_t load_be32(const uint8_t *p)
@@ -73,6 +83,7 @@ static void compress(uint32_t h[8], const uint8_t block[EXO_SHA256_BLOCK])
     h[4] += e;
     h[5] += f;
     h[6] += g;
+    wipe(w, sizeof w); /* the schedule of a key block is key material */
     h[7] += k;
 }
 
@@ -121,7 +132,7 @@ void exo_sha256_final(exo_sha256_ctx *c, uint8_t out[EXO_SHA256_BYTES])
     compress(c->h, c->block);
     for (unsigned i = 0; i < 8; i++)
         store_be32(out + 4 * i, c->h[i]);
-    memset(c, 0, sizeof *c); /* no key-dependent state left behind */
+    wipe(c, sizeof *c); /* no key-dependent state left behind */
 }
 
 void exo_sha256(const uint8_t *data, size_t len, uint8_t out[EXO_SHA256_BYTES])

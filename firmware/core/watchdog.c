@@ -18,6 +18,8 @@ void exo_watchdog_feed(exo_watchdog *w, uint64_t now_us)
     w->last_cmd_us = now_us;
 }
 
+void exo_watchdog_release(exo_watchdog *w) { w->fed = 0; }
+
 int exo_watchdog_check(exo_watchdog *w, uint64_t now_us)
 {
     /* now_us >= last_cmd_us always (monotonic clock); written to stay safe if not. */

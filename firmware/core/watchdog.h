@@ -26,6 +26,10 @@ void exo_watchdog_init(exo_watchdog *w);
 /* A valid COMMAND arrived at `now_us`. (HELLO never feeds it.) */
 void exo_watchdog_feed(exo_watchdog *w, uint64_t now_us);
 
+/* A JOIN: the new session inherits no command. The next check releases (and counts
+ * a release if a command was holding). */
+void exo_watchdog_release(exo_watchdog *w);
+
 /* Once per sample period: 1 if the latest command may be applied now, 0 if the
  * solenoids must be released (counting a release when this is a change). */
 int exo_watchdog_check(exo_watchdog *w, uint64_t now_us);

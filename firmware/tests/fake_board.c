@@ -23,6 +23,7 @@ void fake_init(fake_board *f)
 {
     memset(f, 0, sizeof *f);
     f->now = 1000000; /* an arbitrary origin, not 0 */
+    f->heartbeat_level = -1;
     for (unsigned i = 0; i < 4; i++) {
         f->enc[i].angle = (uint16_t)(1000u * (i + 1) + 7u);
         f->enc[i].diag = 0x0100u | 0x80u; /* offset compensation done, AGC 128 */
@@ -131,7 +132,7 @@ static long receive(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *from)
         return -1;
     }
     if (f->in_count == 0)
-        return 0;
+        return EXO_RX_NONE;
     fake_datagram *d = &f->inbox[f->in_head];
     f->in_head = (f->in_head + 1u) % FAKE_QUEUE;
     f->in_count--;
@@ -153,11 +154,20 @@ static int random_bytes(void *ctx, uint8_t *out, size_t n)
         return 0;
     }
     for (size_t i = 0; i < n; i++)
-        out[i] = f->random[i % sizeof f->random];
+        out[i] = (uint8_t)(f->random[i % sizeof f->random] + f->random_draws);
+    f->random_draws++; /* every draw differs from the one before (challenges) */
     return 0;
 }
 
 static void kick(void *ctx) { ((fake_board *)ctx)->kicks++; }
+
+static void heartbeat(void *ctx, int level)
+{
+    fake_board *f = ctx;
+    if (level != f->heartbeat_level)
+        f->heartbeat_edges++;
+    f->heartbeat_level = level;
+}
 
 static uint32_t sense_status(void *ctx) { return ((fake_board *)ctx)->status; }
 
@@ -185,6 +195,7 @@ exo_board fake_interface(fake_board *f, int optional)
         b.kick_watchdog = kick;
         b.sense_status = sense_status;
         b.truth = truth;
+        b.heartbeat = heartbeat;
     }
     return b;
 }

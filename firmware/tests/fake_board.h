@@ -64,8 +64,11 @@ typedef struct {
     int random_fail;
     unsigned random_zero_draws; /* the first N draws return all zeros */
     uint8_t random[8];
+    unsigned random_draws; /* draw n returns random[i % 8] + n */
 
     unsigned kicks;
+    int heartbeat_level;      /* as last driven (-1: never) */
+    unsigned heartbeat_edges; /* calls that changed the level */
     uint32_t status; /* what sense_status returns */
     int truth_on;
     exo_truth truth;
@@ -73,11 +76,12 @@ typedef struct {
 
 void fake_init(fake_board *f);
 
-/* The board interface over `f`; `optional` also fills kick_watchdog, sense_status and
- * truth. */
+/* The board interface over `f`; `optional` also fills kick_watchdog, sense_status,
+ * heartbeat and truth. */
 exo_board fake_interface(fake_board *f, int optional);
 
-/* Queue one datagram for receive (len > sizeof data simulates an oversize one). */
+/* Queue one datagram for receive (len > sizeof data simulates an oversize one, 0 an
+ * empty one). */
 void fake_push(fake_board *f, const uint8_t *data, long len, uint32_t ip, uint16_t port);
 
 /* The latest send (NULL if none). */

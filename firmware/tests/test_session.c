@@ -1,7 +1,7 @@
 /*
- * test_session.c - RFC 1982 serial arithmetic, the 64-number replay window (also
- * across the 2^32 wrap), and peer sessions: new, current, retired, 0, and the 1024
- * retired sessions of which the oldest is forgotten.
+ * test_session.c - RFC 1982 serial arithmetic (also across the 2^32 wrap), the
+ * single-use challenge (redraw age, lifetime, spent, constant-time match), and the
+ * ring of the last 16 samples' send times (freshness, overwrite, wrap of seq).
  */
 #include <string.h>
 
@@ -21,77 +21,65 @@ static void serial(void)
     CHECK(exo_serial_diff(10, 0x80000010u) == 0x7FFFFFFA);
 }
 
-static void window(void)
+static void challenge(void)
 {
-    exo_replay_window w;
-    memset(&w, 0, sizeof w);
-    CHECK(exo_window_accept(&w, 100) == 1); /* first number: anything */
-    CHECK(exo_window_accept(&w, 100) == 0); /* duplicate */
-    CHECK(exo_window_accept(&w, 101) == 1);
-    CHECK(exo_window_accept(&w, 99) == 1);  /* late but unseen, inside the window */
-    CHECK(exo_window_accept(&w, 99) == 0);
-    CHECK(exo_window_accept(&w, 200) == 1); /* jump: the window slides */
-    CHECK(exo_window_accept(&w, 137) == 1); /* 63 below the top: last slot */
-    CHECK(exo_window_accept(&w, 136) == 0); /* 64 below: too old */
-    CHECK(exo_window_accept(&w, 101) == 0);
-    CHECK(exo_window_accept(&w, 137) == 0);
-    CHECK(exo_window_accept(&w, 199) == 1);
-    /* Slide by exactly 63 and 64: what was seen is kept or forgotten accordingly. */
-    CHECK(exo_window_accept(&w, 263) == 1); /* 200 is now 63 below */
-    CHECK(exo_window_accept(&w, 200) == 0);
-    CHECK(exo_window_accept(&w, 264) == 1); /* 200 is now 64 below: too old */
-    CHECK(exo_window_accept(&w, 200) == 0);
-    CHECK(exo_window_accept(&w, 201) == 1); /* 63 below, never seen */
+    exo_challenge c;
+    memset(&c, 0, sizeof c);
+    uint8_t answer[EXO_CHALLENGE_BYTES];
+    memset(answer, 0, sizeof answer);
+    CHECK(exo_challenge_stale(&c, 0) == 1);          /* absent */
+    CHECK(exo_challenge_accepts(&c, answer, 0) == 0); /* zeros match, but none is out */
 
-    /* Across the wrap. */
-    memset(&w, 0, sizeof w);
-    CHECK(exo_window_accept(&w, 0xFFFFFFFEu) == 1);
-    CHECK(exo_window_accept(&w, 0xFFFFFFFFu) == 1);
-    CHECK(exo_window_accept(&w, 0) == 1);
-    CHECK(exo_window_accept(&w, 1) == 1);
-    CHECK(exo_window_accept(&w, 0xFFFFFFFFu) == 0);
-    CHECK(exo_window_accept(&w, 0xFFFFFFFEu) == 0);
-    CHECK(exo_window_accept(&w, 0xFFFFFFFDu) == 1); /* 4 below the top, unseen */
-    CHECK(w.top == 1);
-    /* Half the number space ahead counts as behind (RFC 1982): too old, dropped. */
-    CHECK(exo_window_accept(&w, 0x80000001u) == 0);
-    CHECK(w.top == 1);
+    const uint64_t t0 = 0xFFFFFFF0ull; /* near the 32-bit microsecond wrap (71 min) */
+    c.present = 1;
+    c.drawn_us = t0;
+    memset(c.bytes, 0x5A, sizeof c.bytes);
+    memcpy(answer, c.bytes, sizeof answer);
+    CHECK(exo_challenge_stale(&c, t0 + 500000) == 0);
+    CHECK(exo_challenge_stale(&c, t0 + 500001) == 1); /* older than 500 ms: redraw */
+    CHECK(exo_challenge_accepts(&c, answer, t0) == 1);
+    CHECK(exo_challenge_accepts(&c, answer, t0 + 1000000) == 1);
+    CHECK(exo_challenge_accepts(&c, answer, t0 + 1000001) == 0); /* expired */
+    CHECK(exo_challenge_accepts(&c, answer, t0 - 1) == 0);       /* clock went back */
+    for (unsigned i = 0; i < EXO_CHALLENGE_BYTES; i++)
+        for (unsigned bit = 0; bit < 8; bit++) {
+            answer[i] = (uint8_t)(answer[i] ^ (1u << bit));
+            CHECK(exo_challenge_accepts(&c, answer, t0 + 1) == 0);
+            answer[i] = c.bytes[i];
+        }
+    c.spent = 1;
+    CHECK(exo_challenge_accepts(&c, answer, t0 + 1) == 0);
+    CHECK(exo_challenge_stale(&c, t0 + 1) == 1); /* spent: a HELLO redraws */
 }
 
-static exo_peer_sessions peers; /* 8 KiB: static, as in the device */
-
-static void sessions(void)
+static void sent_ring(void)
 {
-    exo_peer_init(&peers);
-    CHECK(exo_peer_check(&peers, 0, 1) == EXO_PEER_REPLAY); /* 0 is "unknown", never a sender */
-    CHECK(peers.have_current == 0);
-    CHECK(exo_peer_check(&peers, 0xAAAA, 1) == EXO_PEER_NEW);
-    CHECK(exo_peer_check(&peers, 0xAAAA, 2) == EXO_PEER_OK);
-    CHECK(exo_peer_check(&peers, 0xAAAA, 2) == EXO_PEER_REPLAY);
-    CHECK(exo_peer_check(&peers, 0, 3) == EXO_PEER_REPLAY);
-    /* The peer restarts: new session, fresh window (number 1 again is fine). */
-    CHECK(exo_peer_check(&peers, 0xBBBB, 1) == EXO_PEER_NEW);
-    CHECK(exo_peer_check(&peers, 0xBBBB, 1) == EXO_PEER_REPLAY);
-    CHECK(exo_peer_check(&peers, 0xAAAA, 50) == EXO_PEER_REPLAY); /* retired */
-    CHECK(peers.current == 0xBBBB);
-    CHECK(peers.n_retired == 1);
-
-    /* 1024 retired sessions are remembered; the 1025th retirement forgets the oldest. */
-    exo_peer_init(&peers);
-    for (uint64_t s = 1; s <= 1025; s++)
-        CHECK_EQ(exo_peer_check(&peers, s, 0), EXO_PEER_NEW);
-    CHECK_EQ(peers.n_retired, 1024); /* sessions 1..1024 retired, 1025 current */
-    CHECK(exo_peer_check(&peers, 1, 9) == EXO_PEER_REPLAY);
-    CHECK(exo_peer_check(&peers, 1024, 9) == EXO_PEER_REPLAY);
-    CHECK(exo_peer_check(&peers, 1026, 0) == EXO_PEER_NEW);   /* retires 1025, forgets 1 */
-    CHECK(exo_peer_check(&peers, 2, 9) == EXO_PEER_REPLAY);   /* still remembered */
-    CHECK(exo_peer_check(&peers, 1025, 9) == EXO_PEER_REPLAY);
-    CHECK(exo_peer_check(&peers, 1, 9) == EXO_PEER_NEW);      /* forgotten: looks new */
+    exo_sent_ring r;
+    exo_sent_clear(&r);
+    CHECK(exo_sent_fresh(&r, 0, 0) == -1); /* cleared: slot 0 holds seq 0, but invalid */
+    const uint64_t t0 = 5000000;
+    /* 20 samples across the u32 wrap: 0xFFFFFFF6 .. 0x00000009 */
+    for (uint32_t i = 0; i < 20; i++)
+        exo_sent_note(&r, 0xFFFFFFF6u + i, t0 + 10000u * i);
+    uint64_t now = t0 + 10000u * 19;
+    CHECK(exo_sent_fresh(&r, 0xFFFFFFF6u, now) == -1); /* overwritten by a later one */
+    CHECK(exo_sent_fresh(&r, 0xFFFFFFF9u, now) == -1);
+    CHECK(exo_sent_fresh(&r, 0xFFFFFFFAu, now) == -1); /* in the ring, but 150 ms old */
+    CHECK(exo_sent_fresh(&r, 0xFFFFFFFEu, now) == -1); /* 110 ms old */
+    CHECK(exo_sent_fresh(&r, 0xFFFFFFFFu, now) >= 0);  /* exactly 100 ms: fresh */
+    CHECK(exo_sent_fresh(&r, 0, now) >= 0);             /* 90 ms: fresh */
+    CHECK(exo_sent_fresh(&r, 9, now) >= 0);
+    CHECK(exo_sent_fresh(&r, 10, now) == -1); /* never sent */
+    /* exactly 100 ms is still fresh; one microsecond more is not */
+    CHECK(exo_sent_fresh(&r, 9, now + 100000) >= 0);
+    CHECK(exo_sent_fresh(&r, 9, now + 100001) == -1);
+    exo_sent_clear(&r);
+    CHECK(exo_sent_fresh(&r, 9, now) == -1);
 }
 
 void test_session(void)
 {
     serial();
-    window();
-    sessions();
+    challenge();
+    sent_ring();
 }

@@ -3,12 +3,30 @@
 import * as api from "/static/api_client.js";
 import { $, act, fmtDate, formData, h, showFatal } from "/static/dom.js";
 
+function deviceCell(u, granted, me) {
+  if (u.role === "admin") return h("td", {}, "yes (admin)");
+  const has = granted.has(u.username);
+  return h("td", {}, has ? "yes " : "no ", h("button", {
+    type: "button",
+    class: "toggle-device",
+    onclick: (ev) => act(ev.target, $("#users-msg"), async () => {
+      if (has) await api.accounts.revokeDevice(u.username);
+      else await api.accounts.grantDevice(u.username);
+      await loadUsers(me);
+      return `${u.username}: device grant ${has ? "revoked" : "given"}`;
+    }),
+  }, has ? "Revoke" : "Grant"));
+}
+
 async function loadUsers(me) {
-  const users = await api.accounts.listUsers();
+  const [users, grants] = await Promise.all([api.accounts.listUsers(),
+    api.accounts.listDeviceGrants()]);
+  const granted = new Set(grants.map((g) => g.username));
   $("#users tbody").replaceChildren(...users.map((u) => h("tr", { "data-user": u.username },
     h("td", {}, u.username),
     h("td", {}, u.role),
     h("td", {}, u.active ? "active" : "disabled"),
+    deviceCell(u, granted, me),
     h("td", {}, fmtDate(u.created_at)),
     h("td", {}, u.id === me.id ? "(you)" : h("button", {
       type: "button",

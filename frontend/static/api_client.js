@@ -16,10 +16,30 @@ export const accounts = Object.freeze({
    */
   addUser: operation("accounts.addUser", "POST", "/api/users", {"params": [], "query": [], "body": true}),
   /**
+   * PUT /api/device-grants/{username}: Give the account the device grant (unchanged if it
+   * holds one).
+   * @param {string} username
+   * @returns {Promise<DeviceGrantOut>}
+   */
+  grantDevice: operation("accounts.grantDevice", "PUT", "/api/device-grants/{username}", {"params": ["username"], "query": [], "body": false}),
+  /**
+   * GET /api/device-grants: Every account holding the device grant (admins hold it without
+   * one).
+   * @returns {Promise<Array<DeviceGrantOut>>}
+   */
+  listDeviceGrants: operation("accounts.listDeviceGrants", "GET", "/api/device-grants", {"params": [], "query": [], "body": false}),
+  /**
    * GET /api/users: Every account, by name.
    * @returns {Promise<Array<UserOut>>}
    */
   listUsers: operation("accounts.listUsers", "GET", "/api/users", {"params": [], "query": [], "body": false}),
+  /**
+   * DELETE /api/device-grants/{username}: Take the device grant from the account (404 if it
+   * holds none).
+   * @param {string} username
+   * @returns {Promise<null>}
+   */
+  revokeDevice: operation("accounts.revokeDevice", "DELETE", "/api/device-grants/{username}", {"params": ["username"], "query": [], "body": false}),
   /**
    * PATCH /api/users/{user_id}: Change an account's role, disable or enable it (disabling
    * ends its logins), or set a new password (its logins end).
@@ -131,12 +151,21 @@ export const hardware = Object.freeze({
    */
   direction: operation("hardware.direction", "POST", "/api/hardware/direction", {"params": [], "query": [], "body": true}),
   /**
-   * POST /api/hardware/profile: Close the bring-up: `complete` (in effect from now on) if
-   * every step passed, else `failed`.
+   * POST /api/hardware/profile: Close the bring-up: `complete` (in effect from now on, on
+   * the device it was made on) if every step passed, else `failed`. 409 while something
+   * runs, and when the draft expired or belongs to another device.
    * @param {FinishIn} body
    * @returns {Promise<ProfileOut>}
    */
   finish: operation("hardware.finish", "POST", "/api/hardware/profile", {"params": [], "query": [], "body": true}),
+  /**
+   * POST /api/hardware/release: Step f: energise one side, stop the firmware's heartbeat
+   * output, time the hardware monitor's release of the drivers (device clock; at most 30 ms
+   * + 2 sample periods).
+   * @param {ReleaseIn} body
+   * @returns {Promise<StepResultOut>}
+   */
+  hardwareRelease: operation("hardware.hardwareRelease", "POST", "/api/hardware/release", {"params": [], "query": [], "body": true}),
   /**
    * GET /api/hardware: The bring-up in progress, the profile in effect and the layout
    * applied now.
@@ -144,7 +173,7 @@ export const hardware = Object.freeze({
    */
   hardwareState: operation("hardware.hardwareState", "GET", "/api/hardware", {"params": [], "query": [], "body": false}),
   /**
-   * POST /api/hardware/link: Step f: the link's statistics (drops by reason, gaps, timing).
+   * POST /api/hardware/link: Step g: the link's statistics (drops by reason, gaps, timing).
    * @returns {Promise<StepResultOut>}
    */
   link: operation("hardware.link", "POST", "/api/hardware/link", {"params": [], "query": [], "body": false}),
@@ -210,9 +239,10 @@ export const lab = Object.freeze({
   /**
    * POST /api/sessions/{session_id}/xdf: Attach a LabRecorder XDF file (at most
    * `max_upload_bytes`): kept whole, its streams aligned with the session's ticks on the LSL
-   * clock, and for each the trials it covers. A file that declares more samples or channels
-   * than it holds, or that would take more than 1 GiB to decode, is refused (422) before it
-   * is parsed.
+   * clock, and for each the trials it covers. ExoStudy's own reader decodes it in a child
+   * process within the `xdf_max_*` settings and `xdf_parse_seconds`; a malformed file, one
+   * that declares more than it holds or more than those limits, or an ExoStudy tick stream
+   * with unusable fields is refused (422, saying what and where).
    * @param {number} sessionId
    * @param {Body_attach_xdf_api_sessions__session_id__xdf_post} body
    * @returns {Promise<XdfAttachmentOut>}
@@ -657,7 +687,8 @@ export const replication = Object.freeze({
   reportPage: operation("replication.reportPage", "GET", "/api/replication/report", {"params": [], "query": [], "body": false}),
   /**
    * POST /api/replication: Run the replication report in the background (the `cohort`
-   * engine); poll `GET /api/replication` for its progress, then its claims.
+   * engine); poll `GET /api/replication` for its progress, then its claims. 409 while the
+   * account already has `replication_jobs_per_account` reports queued or running.
    * @param {ReplicationIn} body
    * @returns {Promise<ReplicationStarted>}
    */
@@ -1000,14 +1031,24 @@ export const sockets = Object.freeze({"live": "/ws/live"});
  */
 
 /**
- * The exoskeleton link: the worker's `DeviceReport` and the configured kind.
+ * The exoskeleton link: the worker's `DeviceReport`, the configured kind, and the identity the device proved when the host joined it (None before, and without a link).
  * @typedef {object} DeviceHealth
  * @property {boolean} alive
  * @property {(number|null)} last_sample_age_s
  * @property {Array<string>} faults
  * @property {number} implausible_samples samples of the current run that failed a plausibility check (no lock taken)
- * @property {Object<string, number>} link_drops packets dropped by the UDP link since the worker started, by reason: host side (auth, replay, ...) and, as the device reports them, device side (device_auth, device_replay)
+ * @property {Object<string, number>} link_drops packets dropped by the UDP link since the worker started, by reason: host side (auth, replay, stale, version, ...) and, as the device reports them, device side (device_auth, device_replay, device_stale)
  * @property {string} kind
+ * @property {(DeviceIdentity|null)} identity
+ */
+
+/**
+ * Which device is on the link, as it proved with its CHALLENGE: what hardware profiles are bound to. `unique_id` is 32 lowercase hex digits (the processor's id or a simulator's configured one), `firmware` its name and version, `key_id` names the link key (16 hex digits, `controller.device.auth.key_id`), `device_session` the device's boot session.
+ * @typedef {object} DeviceIdentity
+ * @property {string} unique_id
+ * @property {string} firmware
+ * @property {string} key_id
+ * @property {number} device_session
  */
 
 /**

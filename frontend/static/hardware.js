@@ -19,7 +19,9 @@ const STEPS = [
     op: api.hardware.pulse, body: () => ({ side: "right", duration_ms: 300, nobody_wearing: nobody() }) },
   { name: "watchdog", label: "e. Watchdog test", ask: "nobody wearing it", wearing: true,
     op: api.hardware.watchdog, body: () => ({ side: "left", nobody_wearing: nobody() }) },
-  { name: "link", label: "f. Link statistics", ask: "", op: api.hardware.link, body: () => undefined },
+  { name: "hardware_release", label: "f. Hardware release (heartbeat)", ask: "nobody wearing it", wearing: true,
+    op: api.hardware.hardwareRelease, body: () => ({ side: "left", nobody_wearing: nobody() }) },
+  { name: "link", label: "g. Link statistics", ask: "", op: api.hardware.link, body: () => undefined },
 ];
 
 const nobody = () => $("#nobody-wearing").checked;
@@ -47,7 +49,8 @@ function showResult(name, result) {
 function profileRow(p) {
   return h("tr", { "data-profile": p.id }, h("td", {}, p.id),
     h("td", {}, h("span", { class: "badge", "data-status": p.status === "complete" ? "done" : p.status }, p.status)),
-    h("td", {}, p.device), h("td", {}, p.firmware_version), h("td", {}, p.key_id || "–"),
+    h("td", {}, p.device), h("td", {}, p.unique_id || "–"), h("td", {}, p.firmware_version),
+    h("td", {}, p.key_id || "–"),
     h("td", {}, p.encoder_offsets.join(", ")), h("td", {}, p.encoder_directions.join(", ")),
     h("td", {}, fmtDate(p.completed_at)));
 }
@@ -56,9 +59,15 @@ async function refresh() {
   const [state, profiles] = await Promise.all([api.hardware.hardwareState(), api.hardware.profiles()]);
   $("#device").textContent = `device: ${state.device}` + (state.simulated ? " (simulated)" : "") +
     (state.active ? ` · profile in effect: ${state.active.id}` : " · no profile in effect");
+  $("#identity").textContent = state.identity
+    ? `on the link: ${state.identity}` : "the device has not proved its identity on the link yet";
   $("#applied").textContent = `applied encoder offsets ${state.applied_offsets.join(", ")}, ` +
     `directions ${state.applied_directions.join(", ")}` +
     (state.applied_note ? ` — ${state.applied_note}` : "");
+  $("#firmware-notice").textContent = state.firmware_notice || "";
+  const cooling = Object.entries(state.cooldown_s || {}).filter(([, s]) => s > 0);
+  $("#cooldown").textContent = cooling.length
+    ? "cooling down: " + cooling.map(([side, s]) => `${side} ${s} s`).join(", ") : "";
   for (const s of STEPS) showResult(s.name, state.draft ? state.draft.steps[s.name] : null);
   $("#profiles tbody").replaceChildren(...profiles.map(profileRow));
 }

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import json
 
+import httpx
 import pytest
+from sqlalchemy import select
 
 from backend.core.config import Settings
+from backend.db.engine import make_engine, make_session_factory
+from backend.db.models import AuthToken
 from backend.hardware_cli import main
 from tests.live_server import running_server
 from tests.polling import free_udp_port, wait_for
@@ -31,7 +35,10 @@ def test_steps_from_the_command_line(settings: Settings, experimenter: dict[str,
         monkeypatch.setenv("EXOSTUDY_PASSWORD", experimenter["password"])
 
         def streaming() -> bool:
-            main([*base, "--json", "link"])
+            # Refused (2) until the device has joined and proved its identity.
+            if main([*base, "--json", "link"]) == 2:
+                assert "not proved its identity" in capsys.readouterr().err
+                return False
             out = json.loads(capsys.readouterr().out)
             return bool(out["result"]["passed"])
 
@@ -59,3 +66,33 @@ def test_steps_from_the_command_line(settings: Settings, experimenter: dict[str,
         assert main([*base, "--json", "profile", "--list"]) == 0
         listed = json.loads(capsys.readouterr().out)
         assert [p["status"] for p in listed] == ["failed"]
+
+
+def test_a_login_with_a_password_leaves_no_token_behind(
+        settings: Settings, experimenter: dict[str, str], db_url: str,
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each call made a 30-day bearer token and kept it; now it revokes it at exit,
+    and a token given in EXOSTUDY_TOKEN is used, not revoked."""
+    monkeypatch.delenv("EXOSTUDY_TOKEN", raising=False)
+    monkeypatch.setenv("EXOSTUDY_PASSWORD", experimenter["password"])
+    with running_server(settings) as url:
+        base = ["--url", url, "--user", experimenter["username"]]
+        for _ in range(3):
+            assert main([*base, "--json", "profile", "--list"]) == 0
+            assert json.loads(capsys.readouterr().out) == []
+        assert main([*base, "pulse", "--side", "left"]) == 2  # refused steps too
+        assert "refused: 422" in capsys.readouterr().err
+        assert _live_bearer_tokens(db_url) == 0
+        given = httpx.post(f"{url}/api/auth/token", json=experimenter).json()
+        monkeypatch.setenv("EXOSTUDY_TOKEN", given["access_token"])
+        assert main([*base, "--json", "profile", "--list"]) == 0
+        assert _live_bearer_tokens(db_url) == 1
+
+
+def _live_bearer_tokens(db_url: str) -> int:
+    engine = make_engine(db_url)
+    with make_session_factory(engine)() as db:
+        n = len(list(db.scalars(select(AuthToken).where(
+            AuthToken.kind == "bearer", AuthToken.revoked_at.is_(None)))))
+    engine.dispose()
+    return n

@@ -164,3 +164,53 @@ def test_the_form_on_a_tablet_shows_anchors_progress_big_targets_and_keeps_answe
     responses = api.get(f"/api/participants/{pid}/responses").json()
     assert [r["score"] for r in responses] == [_sus(answers)] == [85.0]
     assert [p["choice"] for p in api.get(f"/api/participants/{pid}/preferences").json()] == ["B"]
+
+
+#: An anchor label at the length limit: words a tablet cannot fit whole, one of them a
+#: single unbroken 60-letter word.
+LONG_ANCHOR = ("Extraordinarily " + "a" * 60 + " " + "unbearably strenuous beyond " * 5)[:200]
+
+
+@pytest.mark.parametrize("hi", [10, 100], ids=["11-points", "101-points"])
+def test_long_anchor_labels_and_long_scales_stay_inside_the_form(
+        quiet_server: str, page: Any, experimenter: dict[str, str], hi: int) -> None:
+    api = httpx.Client(base_url=quiet_server)
+    token = api.post("/api/auth/token", json=experimenter).json()["access_token"]
+    api.headers["Authorization"] = f"Bearer {token}"
+    sid = api.post("/api/studies", json={"name": "anchors"}).json()["id"]
+    r = api.post(f"/api/studies/{sid}/instruments", json={
+        "key": "strain", "version": "1", "title": "Strain",
+        "items": [{"id": "q1", "text": "How strenuous was it?"},
+                  {"id": "q2", "text": "How tiring was it?"}],
+        "scale": {"min": 0, "max": hi, "labels": [
+            {"value": 0, "label": "not at all " + "x" * 50},
+            {"value": hi, "label": LONG_ANCHOR}]},
+        "aggregation": {"method": "sum"}, "score_range": {"min": 0, "max": 2 * hi},
+        "provenance": {"wording": "study"}})
+    assert r.status_code == 201, r.text
+    pid = api.post(f"/api/studies/{sid}/participants", json={"code": "P1"}).json()["id"]
+    link = api.post(f"/api/participants/{pid}/links", json={
+        "forms": [{"instrument_key": "strain"}]}).json()
+
+    page.set_viewport_size({"width": 768, "height": 1024})
+    page.goto(link["url"])
+    page.wait_for_selector("form[data-form='0']")
+    # Every choice and anchor inside its item's box, no anchor wider than its choice.
+    outside = page.evaluate("""() => {
+        const bad = [];
+        for (const item of document.querySelectorAll("fieldset.item")) {
+            const box = item.getBoundingClientRect();
+            for (const el of item.querySelectorAll("label.choice, .anchor")) {
+                const r = el.getBoundingClientRect();
+                if (r.left < box.left - 1 || r.right > box.right + 1
+                        || el.scrollWidth > el.clientWidth + 1) {
+                    bad.push([el.className, Math.round(r.left), Math.round(r.right),
+                              Math.round(box.right), el.scrollWidth, el.clientWidth]);
+                }
+            }
+        }
+        return bad;
+    }""")
+    assert outside == []
+    assert page.evaluate("document.documentElement.scrollWidth") <= 768
+    assert page.locator("fieldset[data-item='q1'] label.choice").count() == hi + 1

@@ -1,7 +1,8 @@
 """Attacks on the device link, on the real processes (device-sim over UDP, the worker):
 forged SAMPLE packets, forged COMMAND packets from another local process, recorded
-samples and commands sent again. Before protocol version 2 every one of them got
-through (1,500 forged samples became 304 locked ticks; forged commands energised both
+samples and commands sent again (the attacks of protocol version 3's threat model are
+in test_link_attacks.py). Before protocol version 2 every one of them got through
+(1,500 forged samples became 304 locked ticks; forged commands energised both
 solenoids on every sample; a sample repeated 25 times was taken as a device restart)."""
 
 from __future__ import annotations
@@ -88,7 +89,8 @@ def test_forged_and_replayed_samples_and_forged_commands_change_nothing(
         # 301 of them at 100 Hz, addressed to the device's session (read off the wire).
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as attacker:
             for i in range(301):
-                lock = CommandPacket(host_seq=10**6 + i, lock_left=True, lock_right=True)
+                lock = CommandPacket(host_seq=10**6 + i, lock_left=True, lock_right=True,
+                                     echo_seq=_seq(genuine) + i)
                 attacker.sendto(encode_command(lock, wrong_key, 0xBAD, device_session),
                                 ("127.0.0.1", port))
                 time.sleep(0.01)
@@ -103,7 +105,9 @@ def test_forged_and_replayed_samples_and_forged_commands_change_nothing(
         ticks = worker.ticks()
 
     assert drops["auth"] == 1500 and drops["device_auth"] == 301
-    assert drops["replay"] == 30 and drops["device_restarts"] == 0
+    # A recorded sample of the live session is older than the ones used: stale (a
+    # duplicate if it was the latest), never a new session.
+    assert drops["replay"] + drops["stale"] == 30 and drops["device_restarts"] == 0
     assert drops["device_replay"] == 0
     # Nothing forged or replayed reached a controller: no lock, no mechanism engaged,
     # the device stream continued in order (the worker never jumped to forged numbers).
@@ -156,7 +160,9 @@ def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path,
         replayed_during = worker.ticks()[start:]
         drops = worker.link_drops()
 
-    assert drops["device_replay"] == sent and drops["device_auth"] == 0
+    # Every replay dropped and counted (plus at most one datagram of the worker's own
+    # that the device also refused as out of order: not a lock; see the report).
+    assert sent <= drops["device_replay"] <= sent + 1 and drops["device_auth"] == 0
     assert locked_ticks(replayed_during) == 0
     assert _max_deflection_deg(replayed_during[100:]) < 3.0
     # The wearer squatted while the replays went on: they had something to lock.

@@ -19,6 +19,7 @@ import json
 import os
 import re
 import signal
+import stat
 import subprocess
 import sys
 import sysconfig
@@ -51,9 +52,10 @@ class Installed:
 
     def run(self, *args: str, stdin: str | None = None, timeout: float = 300
             ) -> subprocess.CompletedProcess[str]:
+        # The usual umask (files 0644, folders 0755): the data must be private anyway.
         proc = subprocess.run([str(self.venv / "bin" / "exostudy"), *args], cwd=self.cwd,
                               env=self.env, input=stdin, capture_output=True, text=True,
-                              timeout=timeout, check=False)
+                              timeout=timeout, check=False, umask=0o022)
         assert proc.returncode == 0, (args, proc.stdout[-3000:], proc.stderr[-3000:])
         return proc
 
@@ -130,6 +132,10 @@ def test_db_upgrade_makes_the_database_in_the_data_folder(installed: Installed) 
     head = re.search(r"at revision (\w+)", out)
     assert head and head.group(1) != "None"
     assert installed.run("db", "current").stdout.strip() == head.group(1)
+    # Readable by its owner only, though the umask would have given 0644 and 0755.
+    assert oct(stat.S_IMODE(db.stat().st_mode)) == "0o600"
+    assert oct(stat.S_IMODE(db.parent.stat().st_mode)) == "0o700"
+    assert installed.run("doctor").stdout.startswith("ok: ")
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +150,8 @@ def served(installed: Installed) -> Iterator[str]:
     with open(log, "wb") as out:
         proc = subprocess.Popen([str(installed.venv / "bin" / "exostudy"), "serve", "--port",
                                  str(port), "--log-level", "warning"], cwd=installed.cwd,
-                                env=env, stdout=out, stderr=subprocess.STDOUT)
+                                env=env, stdout=out, stderr=subprocess.STDOUT,
+                                umask=0o022)
     base = f"http://127.0.0.1:{port}"
 
     def up() -> bool:
@@ -187,6 +194,12 @@ def test_serve_from_the_wheel(installed: Installed, served: str) -> None:
                              ("/guide/search/search_index.json", "getting-started")):
             r = c.get(path)
             assert r.status_code == 200 and marker in r.text, (path, r.status_code)
+        # While it serves, SQLite's write-ahead log and shared memory sit beside the
+        # database, private like it.
+        data = installed.data / "exostudy"
+        assert {p.name: oct(stat.S_IMODE(p.stat().st_mode)) for p in data.glob("exostudy.db*")
+                } == {"exostudy.db": "0o600", "exostudy.db-wal": "0o600",
+                      "exostudy.db-shm": "0o600"}
         health = c.get("/api/health").json()
         assert health["version"] == installed.run("--version").stdout.split()[1]
         # The worker runs from the wheel and the spawned UDP simulator sends samples.

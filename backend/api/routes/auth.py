@@ -50,13 +50,16 @@ def _address(request: Request) -> str:
 def _login(db: SessionDep, request: Request, creds: Credentials, kind: accounts.TokenKind
            ) -> tuple[str, datetime, UserOut]:
     address = _address(request)
-    wait = accounts.throttled_for(db, creds.username, address)
+    # Counted and committed before the (slow) password check: attempts sent together
+    # each take their own place under the limit (backend/study/accounts.py).
+    wait = accounts.take_attempt(db, creds.username, address)
     if wait is not None:
         audit.record(db, "login throttle", "login_throttled", "user", None,
                      {"username": creds.username[:64], "address": address})
         db.commit()
         raise HTTPException(429, f"username: too many failed logins; try again in {wait} s",
                             headers={"Retry-After": str(wait)})
+    db.commit()
     user = accounts.authenticate(db, creds.username, creds.password)
     if user is None:
         accounts.record_failure(db, creds.username, address)
@@ -65,6 +68,7 @@ def _login(db: SessionDep, request: Request, creds: Credentials, kind: accounts.
         db.commit()
         # One message for both cases: which accounts exist is not the caller's business.
         raise HTTPException(401, "username or password is wrong")
+    accounts.give_back_attempt(db, creds.username, address)
     token, row = accounts.issue_token(db, user, kind)
     audit.record(db, user, "login", "user", user.id, {"kind": kind, "address": address})
     db.commit()

@@ -208,20 +208,22 @@ async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser
                      ) -> XdfAttachment:
     """Attach a LabRecorder XDF file (at most `max_upload_bytes`): kept whole, its
     streams aligned with the session's ticks on the LSL clock, and for each the trials
-    it covers. A file that declares more samples or channels than it holds, or that
-    would take more than 1 GiB to decode, is refused (422) before it is parsed."""
+    it covers. ExoStudy's own reader decodes it in a child process within the
+    `xdf_max_*` settings and `xdf_parse_seconds`; a malformed file, one that declares
+    more than it holds or more than those limits, or an ExoStudy tick stream with
+    unusable fields is refused (422, saying what and where)."""
     one_or_404(db, StudySession, session_id, "session")
     limit = settings.max_upload_bytes
     data = await file.read(limit + 1)
     if len(data) > limit:  # the body limit stops it first; a file part cannot be larger
         raise HTTPException(413, f"file: larger than {limit} bytes")
     try:
-        streams = await asyncio.to_thread(xdf_import.read, data)
+        # Reads the session's ticks: off the event loop (the session is used by this
+        # request only, one step at a time).
+        summary = await asyncio.to_thread(xdf_import.import_file, engine, db, session_id,
+                                          data, settings)
     except ValueError as exc:
         invalid(["body", "file"], str(exc))
-    # Reads the session's ticks: off the event loop (the session is used by this
-    # request only, one step at a time).
-    summary = await asyncio.to_thread(xdf_import.align, engine, db, session_id, streams)
     att = XdfAttachment(session_id=session_id, filename=(file.filename or "recording.xdf")[:255],
                         size_bytes=len(data), sha256=hashlib.sha256(data).hexdigest(),
                         content=data, streams=[s.model_dump() for s in summary],

@@ -41,6 +41,7 @@ from backend.questionnaires.catalog import built_in_keys
 from backend.questionnaires.definition import (
     KEY_PATTERN,
     VERSION_PATTERN,
+    ImportedInstrument,
     InstrumentDefinition,
 )
 from backend.schemas.questionnaires import (
@@ -156,11 +157,13 @@ def list_study_instruments(study_id: StudyId, user: CurrentUser, db: SessionDep
 
 @router.post("/api/studies/{study_id}/instruments", response_model=InstrumentOut,
              status_code=201, responses={**NOT_FOUND, **BODY, **CONFLICT})
-def import_instrument(study_id: StudyId, definition: InstrumentDefinition, user: CurrentUser,
+def import_instrument(study_id: StudyId, definition: ImportedInstrument, user: CurrentUser,
                       db: SessionDep) -> InstrumentOut:
     """Import the study's own definition file (the JSON body); only this study's links
-    can use it. It is validated like the built-ins; the key of a built-in instrument is
-    refused (422), and 409 if the study has this key and version (add a new version)."""
+    can use it. It is validated like the built-ins, and its form must stay usable: at
+    most 101 scale points, one label per point with its own words, at most 5,000 answer
+    choices (items x points); the key of a built-in instrument is refused (422), and
+    409 if the study has this key and version (add a new version)."""
     one_or_404(db, Study, study_id, "study")
     if definition.key in built_in_keys():
         invalid(["body", "key"], f"{definition.key!r} is a built-in instrument; a study's "

@@ -16,7 +16,7 @@ from fastapi.responses import FileResponse, HTMLResponse
 
 from backend.analysis import replication_jobs
 from backend.api.deps import CurrentUser, JobsDep, SessionDep, SettingsDep, access
-from backend.api.errors import AUTH_RESPONSES, NOT_FOUND, ErrorMessage
+from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, ErrorMessage
 from backend.schemas.replication import (
     ReplicationIn,
     ReplicationJobOut,
@@ -32,13 +32,15 @@ FigureName = Annotated[str, PathParam(pattern=r"^[a-z_]{1,40}$",
 
 
 @router.post("/api/replication", status_code=202, response_model=ReplicationStarted,
-             openapi_extra=access("login"))
+             openapi_extra=access("login"), responses=CONFLICT)
 def start_replication(body: ReplicationIn, jobs: JobsDep, user: CurrentUser,
                       settings: SettingsDep) -> ReplicationStarted:
     """Run the replication report in the background (the `cohort` engine); poll
-    `GET /api/replication` for its progress, then its claims."""
+    `GET /api/replication` for its progress, then its claims. 409 while the account
+    already has `replication_jobs_per_account` reports queued or running."""
     job_id, folder = replication_jobs.start(jobs, user, settings.run_dir, body.seeds,
-                                            body.participants)
+                                            body.participants,
+                                            settings.replication_jobs_per_account)
     return ReplicationStarted(job_id=job_id, folder=folder.name)
 
 

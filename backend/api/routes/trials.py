@@ -56,7 +56,8 @@ def get_trial(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> Trial:
     return one_or_404(db, Trial, trial_id, "trial")
 
 
-@router.post("/api/trials/{trial_id}/start", response_model=TrialOut, responses=CONFLICT)
+@router.post("/api/trials/{trial_id}/start", response_model=TrialOut, responses=CONFLICT,
+             openapi_extra=access("device"))
 async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
                       db: SessionDep, runtime: RuntimeDep) -> Trial:
     """Run the trial's controller with its model and utility sets, at the session's

@@ -53,7 +53,7 @@ def _ensure_no_activity(db: SessionDep, what: str) -> None:
 
 
 @router.post("/controller", response_model=Health, responses={**BODY, **CONFLICT},
-             openapi_extra=access("worker"))
+             openapi_extra=access("device"))
 async def set_controller(choice: ControllerChoice, runtime: RuntimeDep,
                          db: SessionDep) -> Health:
     """Switch controller; a new run starts in the database. `config` overrides controller

@@ -3,10 +3,14 @@
  * (Raspberry Pi, BeagleBone, ...) wired to the exoskeleton: the four AS5048A encoders
  * on spidev, the two solenoid MOSFET gates on GPIO lines, the host over UDP.
  *
- * Start-up order puts safety first: the solenoid lines are claimed (low) before
- * anything else can fail, the core starts with both released, and every exit path
- * (error, signal, --duration) releases them again. The kernel watchdog, if present,
- * resets the board if this loop stops running. See docs/hardware-bringup-lab.md.
+ * Start-up order puts safety first: the solenoid lines (and the heartbeat line) are
+ * claimed low before anything else can fail, the core starts with both released, and
+ * every exit path (error, signal, --duration) releases them again. The core toggles
+ * the heartbeat line once per sample period; the external monostable it feeds drops
+ * the solenoid drivers' enable 30-40 ms after the loop stops, and the kernel watchdog,
+ * if present, resets the board a second or more later. See
+ * docs/hardware-bringup-lab.md. The key is wiped with exo_secure_zero (the core's,
+ * hmac.h), which the optimiser may not remove.
  */
 #include <errno.h>
 #include <poll.h>
@@ -21,13 +25,14 @@
 #include <unistd.h>
 
 #include "exo_device.h"
+#include "hmac.h"
 #include "sbc_gpio.h"
+#include "sbc_identity.h"
 #include "sbc_key.h"
 #include "sbc_options.h"
 #include "sbc_spi.h"
 #include "sbc_udp.h"
 #include "sbc_watchdog.h"
-#include "sha256.h"
 
 #ifndef EXO_FIRMWARE_VERSION
 #define EXO_FIRMWARE_VERSION "dev" /* the Makefile passes the source tree's git revision */
@@ -41,7 +46,7 @@ typedef struct {
     sbc_spi spi;
     sbc_gpio gpio;
     sbc_watchdog wd;
-    int sock;
+    sbc_udp udp;
 } sbc_board;
 
 static volatile sig_atomic_t stop_requested;
@@ -77,12 +82,22 @@ static void b_solenoids(void *ctx, int left, int right)
 
 static int b_send(void *ctx, const uint8_t *data, size_t len, exo_endpoint to)
 {
-    return sbc_udp_send(((sbc_board *)ctx)->sock, data, len, to);
+    return sbc_udp_send(&((sbc_board *)ctx)->udp, data, len, to);
 }
 
 static long b_receive(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *from)
 {
-    return sbc_udp_receive(((sbc_board *)ctx)->sock, buf, cap, from);
+    return sbc_udp_receive(&((sbc_board *)ctx)->udp, buf, cap, from);
+}
+
+static void b_heartbeat(void *ctx, int level)
+{
+    sbc_gpio_heartbeat(&((sbc_board *)ctx)->gpio, level);
+}
+
+static uint32_t b_sense(void *ctx)
+{
+    return sbc_gpio_drivers_status(&((sbc_board *)ctx)->gpio);
 }
 
 static int b_random(void *ctx, uint8_t *out, size_t n)
@@ -161,7 +176,7 @@ int main(int argc, char **argv)
 
     sbc_board hw;
     memset(&hw, 0, sizeof hw);
-    hw.sock = -1;
+    hw.udp.fd = -1;
     hw.wd.fd = -1;
     /* Solenoid lines first: from here on they are driven low until we decide. */
     if (sbc_gpio_open(&hw.gpio, &o, err, sizeof err) != 0) {
@@ -178,13 +193,20 @@ int main(int argc, char **argv)
     cfg.sample_period_us = EXO_SAMPLE_PERIOD_US;
     cfg.bus = o.bus == SBC_BUS_DAISY_CHAIN ? EXO_BUS_DAISY_CHAIN : EXO_BUS_CHIP_SELECTS;
     cfg.rate_factor = 1;
+    memcpy(cfg.firmware, SBC_FIRMWARE_NAME, sizeof SBC_FIRMWARE_NAME - 1u);
+    if (o.has_device_id) {
+        memcpy(cfg.unique_id, o.device_id, sizeof cfg.unique_id);
+    } else if (sbc_unique_id_load(SBC_MACHINE_ID_PATH, cfg.unique_id, err, sizeof err) != 0) {
+        exo_secure_zero(cfg.key, sizeof cfg.key);
+        sbc_gpio_close(&hw.gpio);
+        die(err);
+    }
 
     if (sbc_spi_open(&hw.spi, &o, err, sizeof err) != 0) {
         sbc_gpio_close(&hw.gpio);
         die(err);
     }
-    hw.sock = sbc_udp_open(o.bind_ip, o.port, err, sizeof err);
-    if (hw.sock < 0) {
+    if (sbc_udp_open(&hw.udp, o.bind_ip, o.port, err, sizeof err) != 0) {
         sbc_spi_close(&hw.spi);
         sbc_gpio_close(&hw.gpio);
         die(err);
@@ -211,6 +233,8 @@ int main(int argc, char **argv)
     board.receive = b_receive;
     board.random_bytes = b_random;
     board.kick_watchdog = b_kick;
+    board.heartbeat = b_heartbeat;
+    board.sense_status = b_sense;
 
     /* The watchdog last: everything that can take long or fail is done. */
     int wd = sbc_watchdog_open(&hw.wd, o.watchdog, o.watchdog_timeout_s, err, sizeof err);
@@ -218,6 +242,11 @@ int main(int argc, char **argv)
         sbc_spi_close(&hw.spi);
         sbc_gpio_close(&hw.gpio);
         die(err);
+    }
+    if (!o.has_heartbeat_line) {
+        fprintf(stderr, "exo-sbc: warning: no --heartbeat-line: nothing outside this program "
+                        "releases the solenoids if it hangs (the kernel watchdog takes 1 s "
+                        "or more); fit the heartbeat monostable before anyone wears it\n");
     }
     if (wd == 1) {
         fprintf(stderr, "exo-sbc: warning: no hardware watchdog (%s); a hung program will "
@@ -234,15 +263,22 @@ int main(int argc, char **argv)
     }
     /* The banner: what the bring-up profile records as the firmware version, and the
      * key id the console shows for the host's key file (equal ids, equal keys). */
-    uint8_t digest[EXO_SHA256_BYTES];
-    exo_sha256(cfg.key, sizeof cfg.key, digest);
-    memset(cfg.key, 0, sizeof cfg.key);
+    char key_id[SBC_KEY_ID_HEX + 1];
+    sbc_key_id(cfg.key, sizeof cfg.key, key_id);
+    exo_secure_zero(cfg.key, sizeof cfg.key);
+    char uid[2 * SBC_UNIQUE_ID_BYTES + 1];
+    for (unsigned i = 0; i < SBC_UNIQUE_ID_BYTES; i++) {
+        snprintf(uid + 2 * i, 3, "%02x", cfg.unique_id[i]);
+    }
     fprintf(stderr,
-            "exo-sbc " EXO_FIRMWARE_VERSION ", protocol 2: host %u.%u.%u.%u, port %u, key id "
-            "%02x%02x%02x%02x, %s, watchdog %s, %s\n",
-            o.host_ip >> 24, (o.host_ip >> 16) & 255u, (o.host_ip >> 8) & 255u,
-            o.host_ip & 255u, (unsigned)o.port, digest[0], digest[1], digest[2], digest[3],
+            "exo-sbc " EXO_FIRMWARE_VERSION " (%s), protocol 3: host %u.%u.%u.%u, port %u, "
+            "key id %s, unique id %s (%s), %s, heartbeat %s, drivers readback %s, "
+            "watchdog %s, %s\n",
+            SBC_FIRMWARE_NAME, o.host_ip >> 24, (o.host_ip >> 16) & 255u,
+            (o.host_ip >> 8) & 255u, o.host_ip & 255u, (unsigned)o.port, key_id, uid,
+            o.has_device_id ? "--device-id" : "from /etc/machine-id",
             o.bus == SBC_BUS_DAISY_CHAIN ? "encoders: daisy chain" : "encoders: chip selects",
+            o.has_heartbeat_line ? "on" : "NONE", o.has_drivers_line ? "on" : "none",
             hw.wd.fd >= 0 ? "armed" : "absent", o.realtime ? "SCHED_FIFO" : "not real-time");
 
     uint64_t t0 = mono_us();
@@ -255,7 +291,7 @@ int main(int argc, char **argv)
         }
         if (wait > 0) {
             uint64_t deadline = now + wait;
-            wait_until(hw.sock, deadline < stop_at ? deadline : stop_at);
+            wait_until(hw.udp.fd, deadline < stop_at ? deadline : stop_at);
         }
     }
 
@@ -263,19 +299,30 @@ int main(int argc, char **argv)
     sbc_gpio_close(&hw.gpio);
     sbc_watchdog_close(&hw.wd);
     sbc_spi_close(&hw.spi);
-    close(hw.sock);
+    sbc_udp_close(&hw.udp);
 
+    /* Every datagram the socket saw is in exactly one place: the kernel dropped it
+     * (buffer full, kernel_drops) or this program read it (datagrams, empty ones
+     * included), and the core counted each one it read under one of its reasons. */
     const exo_stats *s = &dev.stats;
     printf("{\"samples\": %llu, \"late\": %llu, \"lateness_max_us\": %u, \"commands\": %llu, "
-           "\"stale_commands\": %llu, \"hellos\": %llu, \"foreign\": %llu, "
-           "\"auth_failures\": %llu, \"replayed\": %llu, \"watchdog_releases\": %llu, "
-           "\"resyncs\": %llu, \"send_errors\": %llu, \"receive_errors\": %llu}\n",
+           "\"stale_echo\": %llu, \"hellos\": %llu, \"joins\": %llu, \"challenges\": %llu, "
+           "\"foreign\": %llu, \"flood\": %llu, \"short\": %llu, \"auth_failures\": %llu, "
+           "\"replayed\": %llu, \"watchdog_releases\": %llu, \"heartbeat_edges\": %llu, "
+           "\"resyncs\": %llu, \"send_errors\": %llu, \"receive_errors\": %llu, "
+           "\"datagrams\": %llu, \"empty_datagrams\": %llu, \"kernel_drops\": %u, "
+           "\"drivers_read_errors\": %llu}\n",
            (unsigned long long)s->samples_sent, (unsigned long long)s->late,
            (unsigned)s->lateness_max_us, (unsigned long long)s->commands,
-           (unsigned long long)s->stale_commands, (unsigned long long)s->hellos,
-           (unsigned long long)s->foreign, (unsigned long long)s->malformed[EXO_DROP_AUTH],
-           (unsigned long long)s->replayed, (unsigned long long)s->watchdog_releases,
+           (unsigned long long)s->stale_echo, (unsigned long long)s->hellos,
+           (unsigned long long)s->joins, (unsigned long long)s->challenges,
+           (unsigned long long)s->foreign, (unsigned long long)s->flood,
+           (unsigned long long)s->malformed[EXO_DROP_SHORT],
+           (unsigned long long)s->malformed[EXO_DROP_AUTH], (unsigned long long)s->replayed,
+           (unsigned long long)s->watchdog_releases, (unsigned long long)s->heartbeat_edges,
            (unsigned long long)s->resyncs, (unsigned long long)s->send_errors,
-           (unsigned long long)s->receive_errors);
+           (unsigned long long)s->receive_errors, (unsigned long long)hw.udp.received,
+           (unsigned long long)hw.udp.empty, (unsigned)hw.udp.kernel_drops,
+           (unsigned long long)hw.gpio.drivers_read_errors);
     return 0;
 }

@@ -1,4 +1,4 @@
-/* sbc_gpio.c - solenoid lines with libgpiod v1. */
+/* sbc_gpio.c - solenoid, heartbeat and drivers-enable lines with libgpiod v1. */
 #include "sbc_gpio.h"
 
 #include <errno.h>
@@ -6,20 +6,24 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "wire.h"
+
 #define CONSUMER "exo-sbc"
 
-static struct gpiod_line *request(struct gpiod_chip *chip, unsigned offset, const char *side,
-                                  char *err, size_t errlen)
+/* Request line `offset` as an output at 0 (`output` != 0) or as an input. */
+static struct gpiod_line *request(struct gpiod_chip *chip, unsigned offset, const char *what,
+                                  int output, char *err, size_t errlen)
 {
     struct gpiod_line *line = gpiod_chip_get_line(chip, offset);
     if (line == NULL) {
-        snprintf(err, errlen, "%s solenoid: no line %u on this chip: %s", side, offset,
-                 strerror(errno));
+        snprintf(err, errlen, "%s: no line %u on this chip: %s", what, offset, strerror(errno));
         return NULL;
     }
-    if (gpiod_line_request_output(line, CONSUMER, 0) < 0) {
-        snprintf(err, errlen, "%s solenoid: line %u cannot be requested as an output: %s",
-                 side, offset, strerror(errno));
+    int rc = output ? gpiod_line_request_output(line, CONSUMER, 0)
+                    : gpiod_line_request_input(line, CONSUMER);
+    if (rc < 0) {
+        snprintf(err, errlen, "%s: line %u cannot be requested as an %s: %s", what, offset,
+                 output ? "output" : "input", strerror(errno));
         return NULL;
     }
     return line;
@@ -33,11 +37,17 @@ int sbc_gpio_open(sbc_gpio *g, const sbc_options *o, char *err, size_t errlen)
         snprintf(err, errlen, "%s: no such gpiochip: %s", o->gpiochip, strerror(errno));
         return -1;
     }
-    g->left = request(g->chip, o->line_left, "left", err, errlen);
-    if (g->left != NULL) {
-        g->right = request(g->chip, o->line_right, "right", err, errlen);
+    int ok = (g->left = request(g->chip, o->line_left, "left solenoid", 1, err, errlen)) &&
+             (g->right = request(g->chip, o->line_right, "right solenoid", 1, err, errlen));
+    if (ok && o->has_heartbeat_line) {
+        ok = (g->heartbeat = request(g->chip, o->line_heartbeat, "heartbeat", 1, err,
+                                     errlen)) != NULL;
     }
-    if (g->left == NULL || g->right == NULL) {
+    if (ok && o->has_drivers_line) {
+        ok = (g->drivers = request(g->chip, o->line_drivers, "drivers enable readback", 0,
+                                   err, errlen)) != NULL;
+    }
+    if (!ok) {
         sbc_gpio_close(g);
         return -1;
     }
@@ -50,18 +60,43 @@ void sbc_gpio_set(sbc_gpio *g, int left, int right)
     gpiod_line_set_value(g->right, right ? 1 : 0);
 }
 
+void sbc_gpio_heartbeat(sbc_gpio *g, int level)
+{
+    if (g->heartbeat != NULL) {
+        gpiod_line_set_value(g->heartbeat, level ? 1 : 0);
+    }
+}
+
+uint32_t sbc_gpio_drivers_status(sbc_gpio *g)
+{
+    if (g->drivers == NULL) {
+        return 0u;
+    }
+    int v = gpiod_line_get_value(g->drivers);
+    if (v < 0) {
+        g->drivers_read_errors++;
+        return 0u;
+    }
+    return v == 0 ? EXO_STATUS_DRIVERS_OFF : 0u;
+}
+
+static void release(struct gpiod_line **line, int drive_low)
+{
+    if (*line != NULL) {
+        if (drive_low) {
+            gpiod_line_set_value(*line, 0);
+        }
+        gpiod_line_release(*line);
+        *line = NULL;
+    }
+}
+
 void sbc_gpio_close(sbc_gpio *g)
 {
-    if (g->left != NULL) {
-        gpiod_line_set_value(g->left, 0);
-        gpiod_line_release(g->left);
-        g->left = NULL;
-    }
-    if (g->right != NULL) {
-        gpiod_line_set_value(g->right, 0);
-        gpiod_line_release(g->right);
-        g->right = NULL;
-    }
+    release(&g->left, 1);
+    release(&g->right, 1);
+    release(&g->heartbeat, 1);
+    release(&g->drivers, 0);
     if (g->chip != NULL) {
         gpiod_chip_close(g->chip);
         g->chip = NULL;

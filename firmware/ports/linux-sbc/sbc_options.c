@@ -1,6 +1,8 @@
 /* sbc_options.c - command-line parsing for exo-sbc. */
 #include "sbc_options.h"
 
+#include "sbc_identity.h"
+
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,7 +11,8 @@
 const char *sbc_usage(void)
 {
     return "usage: exo-sbc --key-file FILE --host IP --spidev PATH[,PATH,PATH,PATH]\n"
-           "               --solenoid-lines LEFT,RIGHT [--gpiochip NAME] [--port N]\n"
+           "               --solenoid-lines LEFT,RIGHT [--heartbeat-line N]\n"
+           "               [--drivers-line N] [--device-id HEX] [--gpiochip NAME] [--port N]\n"
            "               [--bind IP] [--bus chip-selects|daisy-chain] [--spi-hz N]\n"
            "               [--spi-word 8|16] [--watchdog PATH|none] [--watchdog-timeout S]\n"
            "               [--priority N] [--no-realtime] [--duration S]\n"
@@ -29,6 +32,13 @@ const char *sbc_usage(void)
            "  --gpiochip NAME       gpiochip name, number or path (default gpiochip0)\n"
            "  --solenoid-lines L,R  line offsets driving the left and right solenoid\n"
            "                        MOSFET gates (requested as outputs, initially low)\n"
+           "  --heartbeat-line N    output toggled once per sample period: the trigger of\n"
+           "                        the monostable that holds the drivers' enable (the\n"
+           "                        hardware release); without it, a warning\n"
+           "  --drivers-line N      input: the drivers' enable read back; low is reported\n"
+           "                        as DRIVERS_OFF\n"
+           "  --device-id HEX       the board's serial number, 1..32 hex digits, sent as\n"
+           "                        its unique id (default: derived from /etc/machine-id)\n"
            "  --watchdog PATH|none  kernel watchdog device (default /dev/watchdog; skipped\n"
            "                        with a warning if absent)\n"
            "  --watchdog-timeout S  seconds without a kick before the board resets\n"
@@ -85,6 +95,16 @@ static int parse_uint(const char *text, unsigned long max, unsigned long *out)
         return -1;
     }
     *out = v;
+    return 0;
+}
+
+int sbc_parse_line(const char *text, unsigned *line)
+{
+    unsigned long v;
+    if (parse_uint(text, 4095, &v) != 0) {
+        return -1;
+    }
+    *line = (unsigned)v;
     return 0;
 }
 
@@ -248,6 +268,21 @@ int sbc_options_parse(int argc, char **argv, sbc_options *o, char *err, size_t e
                      value);
             }
             have_lines = 1;
+        } else if (strcmp(name, "--heartbeat-line") == 0) {
+            if (sbc_parse_line(value, &o->line_heartbeat) != 0) {
+                FAIL("--heartbeat-line: '%s' is not a line offset 0..4095", value);
+            }
+            o->has_heartbeat_line = 1;
+        } else if (strcmp(name, "--drivers-line") == 0) {
+            if (sbc_parse_line(value, &o->line_drivers) != 0) {
+                FAIL("--drivers-line: '%s' is not a line offset 0..4095", value);
+            }
+            o->has_drivers_line = 1;
+        } else if (strcmp(name, "--device-id") == 0) {
+            if (sbc_parse_device_id(value, o->device_id) != 0) {
+                FAIL("--device-id: '%s' is not 1 to 32 hexadecimal digits", value);
+            }
+            o->has_device_id = 1;
         } else if (strcmp(name, "--watchdog") == 0) {
             if (strcmp(value, "none") == 0) {
                 o->watchdog[0] = '\0';
@@ -294,6 +329,21 @@ int sbc_options_parse(int argc, char **argv, sbc_options *o, char *err, size_t e
     }
     if (!have_lines) {
         FAIL("--solenoid-lines is required (the two gate lines, LEFT,RIGHT)");
+    }
+    /* Every line once: two roles on one line would drive an output we read, or pulse
+     * a solenoid with the heartbeat. */
+    unsigned used[4] = {o->line_left, o->line_right, o->line_heartbeat, o->line_drivers};
+    int given[4] = {1, 1, o->has_heartbeat_line, o->has_drivers_line};
+    static const char *const role[4] = {"left solenoid", "right solenoid", "heartbeat",
+                                        "drivers readback"};
+    for (int i = 2; i < 4; i++) {
+        for (int j = 0; j < i; j++) {
+            if (given[i] && given[j] && used[i] == used[j]) {
+                FAIL("line %u is both the %s and the %s line (--solenoid-lines, "
+                     "--heartbeat-line and --drivers-line must all differ)",
+                     used[i], role[j], role[i]);
+            }
+        }
     }
     return 0;
 }

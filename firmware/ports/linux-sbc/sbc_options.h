@@ -32,6 +32,12 @@ typedef struct {
     char gpiochip[SBC_PATH_MAX];
     unsigned line_left;        /* solenoid line offsets on gpiochip */
     unsigned line_right;
+    int has_heartbeat_line;    /* --heartbeat-line given */
+    unsigned line_heartbeat;   /* output to the heartbeat monostable */
+    int has_drivers_line;      /* --drivers-line given */
+    unsigned line_drivers;     /* input: the solenoid drivers' enable, read back */
+    int has_device_id;         /* --device-id given (else /etc/machine-id) */
+    uint8_t device_id[16];
     char watchdog[SBC_PATH_MAX]; /* "" when disabled with --watchdog none */
     unsigned watchdog_timeout_s;
     int realtime;
@@ -46,6 +52,9 @@ const char *sbc_usage(void);
 
 /* Dotted-quad IPv4 text to host byte order. 0 on success, -1 if malformed. */
 int sbc_parse_ipv4(const char *text, uint32_t *out);
+
+/* One line offset (0..4095). 0 on success, -1 if malformed. */
+int sbc_parse_line(const char *text, unsigned *line);
 
 /* "L,R" to two distinct line offsets. 0 on success, -1 if malformed or equal. */
 int sbc_parse_lines(const char *text, unsigned *left, unsigned *right);

@@ -5,6 +5,14 @@
  * A clean exit writes the magic 'V' first so the close disarms it (drivers built
  * with nowayout ignore this and reset anyway: then stopping the program resets the
  * board, which is still safe).
+ *
+ * It is not what releases a lock in time: the kernel's interface sets the timeout in
+ * whole seconds (WDIOC_SETTIMEOUT), 1 s at the least, and many SoC watchdogs round
+ * it up further, while the protocol wants a hung device's solenoids off within about
+ * 100 ms. That is the job of the heartbeat line and the external monostable on the
+ * drivers' enable (sbc_gpio.h; docs/hardware-bringup-lab.md, "Hardware release
+ * (heartbeat)"), which drops the drivers 30-40 ms after the loop stops; the kernel
+ * watchdog then restarts the board.
  */
 #ifndef SBC_WATCHDOG_H
 #define SBC_WATCHDOG_H

@@ -6,8 +6,16 @@
  * take the new magnet angles, so the counts the core reads next show what the
  * command did (as on the exoskeleton, where the solenoid acts on the ratchet and the
  * encoders see the result).
+ *
+ * Between the firmware's solenoid outputs and the mechanism sits the model of the
+ * hardware heartbeat monitor: a retriggerable monostable that holds the drivers'
+ * enable for 30 ms after each edge of the heartbeat output. A solenoid is energised
+ * only if the firmware drives it AND the drivers are enabled; at boot they are off
+ * until the first edge. The board reads the enable back as DRIVERS_OFF.
  */
 #include "board.h"
+
+#include "wire.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -41,18 +49,39 @@ static int spi_transfer(void *ctx, unsigned chip, const uint16_t *tx, uint16_t *
     return 0;
 }
 
+static void heartbeat(void *ctx, int level) {
+    linux_sim_board *b = ctx;
+    level = level != 0;
+    if (level == b->heartbeat_level)
+        return; /* no edge: the monostable is not retriggered */
+    b->heartbeat_level = level;
+    b->have_edge = 1;
+    b->last_edge_us = linux_sim_now_us();
+}
+
+/* The monostable's output now (the enable the board reads back). */
+static int drivers_enabled(linux_sim_board *b) {
+    int on = b->have_edge && linux_sim_now_us() - b->last_edge_us < LINUX_SIM_HEARTBEAT_HOLD_US;
+    if (b->drivers_on && !on)
+        b->driver_cutoffs++;
+    b->drivers_on = on;
+    return on;
+}
+
 static void set_solenoids(void *ctx, int left, int right) {
     linux_sim_board *b = ctx;
     b->solenoids[0] = left != 0;
     b->solenoids[1] = right != 0;
     if (b->hold || b->plant_failed || b->plant == NULL)
         return;
+    int enabled = drivers_enabled(b);
     /* --rate-factor N: each period of the wearer is sent as N samples (the last
      * reading repeated), as the Python device does. */
     if (b->drive_calls++ % (b->rate_factor ? b->rate_factor : 1u) != 0)
         return;
     uint64_t t0 = linux_sim_now_us();
-    if (plant_step(b->plant, b->solenoids[0], b->solenoids[1], &b->reading) != 0) {
+    if (plant_step(b->plant, b->solenoids[0] && enabled, b->solenoids[1] && enabled,
+                   &b->reading) != 0) {
         b->plant_failed = 1;
         return;
     }
@@ -94,14 +123,14 @@ static long receive_datagram(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *
                              (struct sockaddr *)&addr, &alen);
         if (r < 0) {
             if (errno == EAGAIN || errno == EWOULDBLOCK)
-                return 0;
+                return EXO_RX_NONE;
             if (errno == EINTR || errno == ECONNREFUSED)
                 continue; /* a signal, or an ICMP report about an earlier send */
             b->receive_errors++;
             return -1;
         }
-        if (r == 0)
-            continue; /* an empty datagram carries nothing; the protocol's minimum is 56 */
+        /* r == 0 is an empty datagram: handed over like any other, so the core counts
+         * it (as `short`, or foreign by its source), floods of them included. */
         from->ip = ntohl(addr.sin_addr.s_addr);
         from->port = ntohs(addr.sin_port);
         return (long)r; /* the core checks the source address and counts foreign ones */
@@ -125,7 +154,10 @@ static int random_bytes(void *ctx, uint8_t *out, size_t n) {
 
 static uint32_t sense_status(void *ctx) {
     linux_sim_board *b = ctx;
-    return b->have_reading ? b->reading.status : 0u;
+    uint32_t status = b->have_reading ? b->reading.status : 0u;
+    if (!b->drivers_on)
+        status |= EXO_STATUS_DRIVERS_OFF;
+    return status;
 }
 
 static int truth(void *ctx, exo_truth *out) {
@@ -155,4 +187,5 @@ void linux_sim_board_init(linux_sim_board *ctx, exo_board *board, int sock, plan
     board->kick_watchdog = NULL;
     board->sense_status = sense_status;
     board->truth = truth;
+    board->heartbeat = heartbeat;
 }

@@ -16,13 +16,23 @@
  * be late: counted, to tell the wearer's cost from the core's. */
 #define LINUX_SIM_SLOW_STEP_US 1000u
 
+/* The external retriggerable monostable on the solenoid drivers' enable: it holds the
+ * drivers on for this long after each heartbeat edge (docs/hardware-bringup-lab.md);
+ * the same 30 ms as the Python simulator's HEARTBEAT_HOLD_S. */
+#define LINUX_SIM_HEARTBEAT_HOLD_US 30000u
+
 typedef struct {
     int sock;
     plant *plant;
     as5048a chips[4];
     plant_reading reading; /* what the mechanism and encoders show this period */
     int have_reading;
-    int solenoids[2];      /* as last driven */
+    int solenoids[2];      /* as last driven by the firmware */
+    int heartbeat_level;   /* the heartbeat output as last driven */
+    int have_edge;         /* an edge has happened since boot (drivers off before) */
+    uint64_t last_edge_us; /* when the latest heartbeat edge happened */
+    int drivers_on;        /* the monostable's output at the latest sample period */
+    uint64_t driver_cutoffs; /* drivers' enable went from on to off */
     int hold;              /* drive the solenoids but do not advance the wearer (the
                               core's release at init and at stop) */
     unsigned rate_factor;  /* fault probe: the plant steps once every this many samples */

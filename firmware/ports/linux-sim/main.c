@@ -30,6 +30,8 @@
 #include "stats.h"
 
 #define PROG "exostudy-device"
+/* The firmware name in this simulator's CHALLENGEs (at most 16 printable characters). */
+#define LINUX_SIM_FIRMWARE "exo-linux-sim 3"
 #define DEFAULT_PORT 47300
 /* The interpreter start and imports of the simulated wearer: about 1 s idle; a loaded
  * two-core machine needs far more (the server waits 20 s for the port). */
@@ -56,6 +58,7 @@ typedef struct {
     int rate_factor;
     const char *counts;
     const char *python;
+    const char *device_id; /* NULL: derived from the key */
 } options;
 
 static void usage(FILE *out) {
@@ -63,11 +66,13 @@ static void usage(FILE *out) {
             "usage: " PROG " --key-file FILE [--port P] [--seed S] [--script NAME]\n"
             "       [--host IP] [--bind ADDR] [--precompression PCT] [--no-loop]\n"
             "       [--duration S] [--realtime] [--rate-factor N] [--counts FILE.csv]\n"
-            "       [--python PATH]\n\n"
+            "       [--python PATH] [--device-id HEX]\n\n"
             "The ExoStudy device firmware core on Linux against the simulated wearer; the\n"
             "arguments of `exostudy device-sim`. --counts replays a counts CSV instead of\n"
             "the simulated wearer; --python is the interpreter that runs the wearer\n"
-            "(default: $EXOSTUDY_PYTHON, else the checkout's .venv, else python3).\n");
+            "(default: $EXOSTUDY_PYTHON, else the checkout's .venv, else python3).\n"
+            "--device-id is the unique id its CHALLENGEs report, 1..32 hex digits\n"
+            "(default: derived from the key, as the Python simulator does).\n");
 }
 
 static void die_usage(const char *fmt, const char *arg) {
@@ -98,7 +103,7 @@ static double parse_double(const char *s, const char *what) {
 
 static void parse_args(int argc, char **argv, options *o) {
     enum { O_PORT = 1, O_SEED, O_SCRIPT, O_HOST, O_BIND, O_PRE, O_NOLOOP, O_DURATION,
-           O_REALTIME, O_KEY, O_RATE, O_COUNTS, O_PYTHON, O_HELP };
+           O_REALTIME, O_KEY, O_RATE, O_COUNTS, O_PYTHON, O_DEVICE_ID, O_HELP };
     static const struct option longopts[] = {
         {"port", required_argument, NULL, O_PORT},
         {"seed", required_argument, NULL, O_SEED},
@@ -113,12 +118,13 @@ static void parse_args(int argc, char **argv, options *o) {
         {"rate-factor", required_argument, NULL, O_RATE},
         {"counts", required_argument, NULL, O_COUNTS},
         {"python", required_argument, NULL, O_PYTHON},
+        {"device-id", required_argument, NULL, O_DEVICE_ID},
         {"help", no_argument, NULL, O_HELP},
         {NULL, 0, NULL, 0}};
     *o = (options){.port = DEFAULT_PORT, .seed = 0, .script = "paper-evaluation",
                    .host = "127.0.0.1", .bind = NULL, .precompression = 25.0, .loop = 1,
                    .duration = -1.0, .realtime = 0, .key_file = NULL, .rate_factor = 1,
-                   .counts = NULL, .python = NULL};
+                   .counts = NULL, .python = NULL, .device_id = NULL};
     opterr = 0;
     int c;
     while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
@@ -148,6 +154,7 @@ static void parse_args(int argc, char **argv, options *o) {
         }
         case O_COUNTS: o->counts = optarg; break;
         case O_PYTHON: o->python = optarg; break;
+        case O_DEVICE_ID: o->device_id = optarg; break;
         case O_HELP: usage(stdout); exit(0);
         default:
             die_usage("unrecognized arguments: %s", argv[optind - 1]);
@@ -200,6 +207,37 @@ static void load_key(const char *path, uint8_t key[EXO_KEY_BYTES]) {
             die_usage("%s", msg);
         }
         key[i] = (uint8_t)v;
+    }
+    exo_secure_zero(text, sizeof text); /* the key in hex */
+}
+
+/* The unique id a simulator reports: --device-id (1..32 hex digits, zero-padded to 16
+ * bytes, an odd count completed with a 0 digit, as controller.device.auth
+ * parse_unique_id), else the first 16 bytes of HMAC-SHA256(key, "exostudy simulated
+ * device") (simulated_unique_id), so a hardware profile follows the simulated device
+ * whichever implementation runs it. */
+static void unique_id_for(const options *o, const uint8_t key[EXO_KEY_BYTES],
+                          uint8_t out[EXO_UNIQUE_ID_BYTES]) {
+    memset(out, 0, EXO_UNIQUE_ID_BYTES);
+    if (o->device_id == NULL) {
+        static const char label[] = "exostudy simulated device";
+        exo_hmac_key k;
+        uint8_t tag[EXO_TAG_BYTES];
+        exo_hmac_set_key(&k, key, EXO_KEY_BYTES);
+        exo_hmac_sha256(&k, (const uint8_t *)label, sizeof label - 1, NULL, 0, tag);
+        memcpy(out, tag, EXO_UNIQUE_ID_BYTES);
+        exo_secure_zero(&k, sizeof k);
+        return;
+    }
+    size_t n = strlen(o->device_id);
+    if (n < 1 || n > 2 * EXO_UNIQUE_ID_BYTES
+        || strspn(o->device_id, "0123456789abcdefABCDEF") != n)
+        die_usage("argument --device-id: device id '%s': expected 1..32 hex digits",
+                  o->device_id);
+    for (size_t i = 0; i < n; i++) {
+        char c = o->device_id[i];
+        unsigned v = (unsigned)(c <= '9' ? c - '0' : (c | 0x20) - 'a' + 10);
+        out[i / 2] = (uint8_t)(out[i / 2] | (i % 2 ? v : v << 4));
     }
 }
 
@@ -291,6 +329,8 @@ int main(int argc, char **argv) {
     cfg.sample_period_us = EXO_SAMPLE_PERIOD_US;
     cfg.rate_factor = (uint32_t)o.rate_factor;
     cfg.bus = EXO_BUS_CHIP_SELECTS;
+    unique_id_for(&o, cfg.key, cfg.unique_id);
+    memcpy(cfg.firmware, LINUX_SIM_FIRMWARE, sizeof LINUX_SIM_FIRMWARE - 1);
 
     signal(SIGPIPE, SIG_IGN); /* a dead wearer shows as a failed write, not a kill */
 
@@ -352,6 +392,7 @@ int main(int argc, char **argv) {
     linux_sim_stats_init(&stats, &ctx);
     ctx.hold = 1; /* init releases the solenoids: that is no sample period */
     int init_failed = exo_device_init(&device, &board, &cfg) != 0;
+    exo_secure_zero(cfg.key, sizeof cfg.key); /* the core keeps only its absorbed state */
     ctx.hold = 0;
     if (init_failed) {
         fprintf(stderr, PROG ": error: no entropy for the session number (getrandom)\n");

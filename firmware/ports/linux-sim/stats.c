@@ -96,17 +96,43 @@ void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out)
     put_float(out, "rtt_p99_ms", percentile_ms(&s->rtt, 99));
     fputs(", ", out);
     put_float(out, "rtt_max_ms", st->rtt_n ? st->rtt_max_us / 1000.0 : NAN);
+#define U(x) ((unsigned long long)(x))
     fprintf(out, ", \"commands\": %llu, \"stale_commands\": %llu, \"hellos\": %llu, "
-                 "\"foreign\": %llu, \"unexpected\": %llu, \"malformed\": {",
-            (unsigned long long)st->commands, (unsigned long long)st->stale_commands,
-            (unsigned long long)st->hellos, (unsigned long long)st->foreign,
-            (unsigned long long)st->unexpected);
+                 "\"challenges\": %llu, \"challenge_limited\": %llu, \"joins\": %llu, "
+                 "\"versions_sent\": %llu, \"foreign\": %llu, \"flood\": %llu, "
+                 "\"unexpected\": %llu, \"malformed\": {",
+            U(st->commands), U(st->stale_echo), U(st->hellos), U(st->challenges),
+            U(st->challenge_limited), U(st->joins), U(st->versions_sent), U(st->foreign),
+            U(st->flood), U(st->unexpected));
     int first = 1;
     for (int r = 1; r < EXO_DROP_REASONS; r++) {
         if (st->malformed[r] == 0)
             continue;
         fprintf(out, "%s\"%s\": %llu", first ? "" : ", ",
-                exo_drop_reason_name((exo_drop_reason)r), (unsigned long long)st->malformed[r]);
+                exo_drop_reason_name((exo_drop_reason)r), U(st->malformed[r]));
+        first = 0;
+    }
+    /* Every drop by reason, the state drops included, under the names the protocol
+     * document and the Python device share (non-zero ones only, as a Counter). */
+    fputs("}, \"drops\": {", out);
+    first = 1;
+    for (int r = 1; r < EXO_DROP_REASONS; r++) {
+        if (st->malformed[r] == 0)
+            continue;
+        fprintf(out, "%s\"%s\": %llu", first ? "" : ", ",
+                exo_drop_reason_name((exo_drop_reason)r), U(st->malformed[r]));
+        first = 0;
+    }
+    const struct {
+        const char *name;
+        uint64_t n;
+    } state[6] = {{"foreign", st->foreign},     {"flood", st->flood},
+                  {"replay", st->replayed},     {"stale_echo", st->stale_echo},
+                  {"unexpected", st->unexpected}, {"challenge_limited", st->challenge_limited}};
+    for (int i = 0; i < 6; i++) {
+        if (state[i].n == 0)
+            continue;
+        fprintf(out, "%s\"%s\": %llu", first ? "" : ", ", state[i].name, U(state[i].n));
         first = 0;
     }
     char host[32] = "";
@@ -115,12 +141,13 @@ void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out)
                  (unsigned)(st->host.ip >> 16) & 255u, (unsigned)(st->host.ip >> 8) & 255u,
                  (unsigned)st->host.ip & 255u, (unsigned)st->host.port);
     fprintf(out, "}, \"auth_failures\": %llu, \"replayed\": %llu, \"unknown_version\": %llu, "
-                 "\"watchdog_releases\": %llu, \"host_changes\": %llu, \"resyncs\": %llu, "
-                 "\"send_errors\": %llu, \"host\": \"%s\", ",
-            (unsigned long long)st->malformed[EXO_DROP_AUTH], (unsigned long long)st->replayed,
-            (unsigned long long)st->malformed[EXO_DROP_VERSION],
-            (unsigned long long)st->watchdog_releases, (unsigned long long)st->host_changes,
-            (unsigned long long)st->resyncs, (unsigned long long)st->send_errors, host);
+                 "\"watchdog_releases\": %llu, \"driver_cutoffs\": %llu, "
+                 "\"host_changes\": %llu, \"resyncs\": %llu, \"send_errors\": %llu, "
+                 "\"host\": \"%s\", ",
+            U(st->malformed[EXO_DROP_AUTH]), U(st->replayed), U(st->malformed[EXO_DROP_VERSION]),
+            U(st->watchdog_releases), U(s->board->driver_cutoffs), U(st->host_changes),
+            U(st->resyncs), U(st->send_errors), host);
+#undef U
     put_float(out, "streaming_s", st->host_known ? (double)st->streaming_us / 1e6 : 0.0);
     fprintf(out, ", \"implementation\": \"c\", \"wearer_periods\": %llu, ",
             (unsigned long long)s->board->periods);

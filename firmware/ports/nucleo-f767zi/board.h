@@ -4,6 +4,8 @@
 #ifndef BOARD_H
 #define BOARD_H
 
+#include <stdint.h>
+
 #include "exo_board.h"
 #include "net/net_stack.h"
 
@@ -12,5 +14,11 @@ void board_fill(exo_board *b, net_stack *net);
 
 /* Drive both solenoid gates low now (also used by the fault paths). */
 void board_solenoids_off(void);
+
+/* First thing at start-up: gates low, heartbeat low, the enable readback as an input. */
+void board_pins_init(void);
+
+/* The CHALLENGE identity: the chip's 96-bit unique ID, zero-padded to 16 bytes. */
+void board_unique_id(uint8_t out[16]);
 
 #endif /* BOARD_H */

@@ -42,3 +42,15 @@ void gpio_alternate(pin_t p, uint32_t af, int pull_up)
                          ((pull_up ? 1u : 0u) << (2u * p.pin));
     set_mode(p, 2u);
 }
+
+void gpio_input_pull_down(pin_t p)
+{
+    gpio_enable_port(p.port);
+    GPIO_PUPDR(p.port) = (GPIO_PUPDR(p.port) & ~(3u << (2u * p.pin))) | (2u << (2u * p.pin));
+    set_mode(p, 0u);
+}
+
+int gpio_read(pin_t p)
+{
+    return (GPIO_IDR(p.port) >> p.pin) & 1u ? 1 : 0;
+}

@@ -1,11 +1,11 @@
 /*
- * iwdg.h - the independent watchdog: clocked by the internal 32 kHz LSI, it resets the
- * microcontroller if the main loop stops kicking it. A reset puts every GPIO back in
- * input mode and the gate pull-downs switch the solenoids off.
+ * iwdg.h - the independent watchdog: clocked by the internal LSI oscillator, it resets
+ * the microcontroller if the main loop stops kicking it. A reset puts every GPIO back
+ * in input mode and the gate pull-downs switch the solenoids off.
  *
- * Timeout: prescaler 8 (4 kHz nominal), reload 400, so 100 ms at the LSI's nominal
- * 32 kHz; the LSI may run anywhere from 17 to 47 kHz (datasheet), giving 68..188 ms.
- * The core kicks every 10 ms, so even the shortest is seven periods of margin.
+ * Timeout: prescaler 4, reload 445, chosen at the LSI's slowest (17 kHz, datasheet):
+ * 104.9 ms at 17 kHz, 55.8 ms at 32 kHz, 37.9 ms at 47 kHz (iwdg_timing.h has the
+ * numbers and their sources). The core kicks every 10 ms.
  */
 #ifndef IWDG_H
 #define IWDG_H

@@ -1,7 +1,8 @@
 /*
  * main.c - the ExoStudy device firmware on an STM32 Nucleo-F767ZI.
  *
- * Start-up puts the solenoid gates low before anything else, then brings up the clock,
+ * Start-up puts the solenoid gates and the heartbeat low before anything else (the
+ * solenoid drivers stay disabled until the core's first heartbeat edge), then the clock,
  * the microsecond timer, the provisioning block (key and addresses), the encoder bus,
  * the RNG and Ethernet, starts the device core and, last, the independent watchdog.
  * Any failure on the way stops with both solenoids off and the red LED blinking a
@@ -9,7 +10,9 @@
  *
  * The loop is polled, with no interrupts: receive frames into the network stack, let
  * the core handle datagrams and send the sample when due, check the PHY four times a
- * second. The core kicks the watchdog once per sample period.
+ * second. The core kicks the watchdog and toggles the heartbeat once per sample period.
+ * The key is wiped from every buffer of this file with exo_secure_zero (the core's,
+ * hmac.h), which the optimiser may not remove as it may a memset of a dead buffer.
  */
 #include <stdint.h>
 
@@ -19,11 +22,11 @@
 #include "eth_mac.h"
 #include "exo_device.h"
 #include "gpio.h"
+#include "hmac.h"
 #include "iwdg.h"
 #include "net/net_stack.h"
 #include "prov.h"
 #include "rng.h"
-#include "sha256.h"
 #include "spi.h"
 #include "timebase.h"
 
@@ -36,7 +39,10 @@
 #endif
 
 #define LINK_CHECK_US 250000u
-#define HEARTBEAT_US 500000u
+#define LED_BLINK_US 500000u
+#define FIRMWARE_NAME "exo-nucleo 3" /* the CHALLENGE's firmware field (<= 16 chars) */
+#define KEY_ID_BYTES 8u
+typedef char firmware_name_fits[sizeof FIRMWARE_NAME - 1u <= 16u ? 1 : -1];
 
 /* Blink counts of the red LED for each start-up failure. */
 enum {
@@ -64,6 +70,7 @@ static void busy_wait_ms(uint32_t ms)
 static void halt(int count, const char *why)
 {
     board_solenoids_off();
+    gpio_write(PIN_HEARTBEAT, 0); /* no more edges: the monostable lets go */
     console_puts("STOPPED, solenoids off: ");
     console_puts(why);
     console_puts(count == FAULT_PROVISION ? "\n" : " (resetting in 5 s)\n");
@@ -83,8 +90,7 @@ static void halt(int count, const char *why)
 
 int main(void)
 {
-    gpio_output(PIN_SOL_LEFT, 0);
-    gpio_output(PIN_SOL_RIGHT, 0);
+    board_pins_init();
     gpio_output(PIN_LED_GREEN, 0);
     gpio_output(PIN_LED_BLUE, 0);
     gpio_output(PIN_LED_RED, 0);
@@ -93,7 +99,7 @@ int main(void)
     /* If the PLL failed the chip runs on its 16 MHz internal oscillator, APB1 undivided. */
     console_init(clock == CLOCK_FAILED ? 16000000u : CLOCK_PCLK1_HZ);
     console_puts("\nExoStudy device firmware " EXO_FIRMWARE_VERSION
-                 ", nucleo-f767zi, protocol 2\n");
+                 ", nucleo-f767zi, protocol 3\n");
     if (clock == CLOCK_FAILED) {
         halt(FAULT_CLOCK, "the PLL did not lock");
     }
@@ -110,8 +116,16 @@ int main(void)
     if (perr != PROV_OK) {
         halt(FAULT_PROVISION, prov_error_name(perr));
     }
-    uint8_t digest[EXO_SHA256_BYTES];
-    exo_sha256(prov.key, sizeof prov.key, digest);
+    /* Key id: the first 8 bytes of HMAC-SHA256(key, "exostudy key id"), as the host's
+     * console shows it (docs/device-protocol.md). Not secret; the keyed state is. */
+    static const uint8_t key_id_label[] = "exostudy key id";
+    exo_hmac_key id_key;
+    uint8_t key_id[EXO_SHA256_BYTES];
+    exo_hmac_set_key(&id_key, prov.key, sizeof prov.key);
+    exo_hmac_sha256(&id_key, key_id_label, sizeof key_id_label - 1u, 0, 0u, key_id);
+    exo_secure_zero(&id_key, sizeof id_key);
+    uint8_t unique_id[16];
+    board_unique_id(unique_id);
     console_puts("device ");
     console_ipv4(prov.device_ip);
     console_puts(" port ");
@@ -124,7 +138,9 @@ int main(void)
         console_puts(i < 5u ? ":" : "");
     }
     console_puts(", key id ");
-    console_hex(digest, 4);
+    console_hex(key_id, KEY_ID_BYTES);
+    console_puts(", unique id ");
+    console_hex(unique_id, 12);
     console_puts(NUCLEO_BUS_DAISY_CHAIN ? ", encoders: daisy chain\n"
                                         : ", encoders: four chip selects\n");
 
@@ -152,11 +168,16 @@ int main(void)
     cfg.sample_period_us = EXO_SAMPLE_PERIOD_US;
     cfg.bus = NUCLEO_BUS_DAISY_CHAIN ? EXO_BUS_DAISY_CHAIN : EXO_BUS_CHIP_SELECTS;
     cfg.rate_factor = 1;
-    int rc = exo_device_init(&dev, &board, &cfg);
-    for (unsigned i = 0; i < EXO_KEY_BYTES; i++) {
-        cfg.key[i] = 0u;
-        prov.key[i] = 0u;
+    for (unsigned i = 0; i < sizeof cfg.unique_id; i++) {
+        cfg.unique_id[i] = unique_id[i];
     }
+    for (unsigned i = 0; i < sizeof FIRMWARE_NAME - 1u; i++) {
+        cfg.firmware[i] = FIRMWARE_NAME[i]; /* the rest stays NUL (cfg = {0}) */
+    }
+    int rc = exo_device_init(&dev, &board, &cfg);
+    /* The core keeps only its absorbed HMAC state: wipe both copies of the key here. */
+    exo_secure_zero(cfg.key, sizeof cfg.key);
+    exo_secure_zero(&prov, sizeof prov);
     if (rc != 0) {
         halt(FAULT_CORE, "the device core refused to start (no entropy from the RNG)");
     }
@@ -167,9 +188,10 @@ int main(void)
     uint64_t now = timebase_now_us();
     uint64_t due = now;
     uint64_t next_link = now;
-    uint64_t next_beat = now;
+    uint64_t next_blink = now;
     uint64_t red_until = watchdog_reset ? now + 2000000u : 0u; /* "the watchdog fired" */
     int green = 0;
+    uint32_t lost_wraps_told = 0u;
     gpio_write(PIN_LED_RED, watchdog_reset);
     for (;;) {
         now = timebase_now_us();
@@ -189,10 +211,17 @@ int main(void)
             uint32_t wait = exo_device_poll(&dev);
             due = timebase_now_us() + wait;
         }
-        if (now >= next_beat) {
+        if (timebase_state()->lost_wraps != lost_wraps_told) {
+            /* The loop stood still for more than 71.6 minutes, which the watchdog
+             * should have prevented; the time base measured it right anyway, so the
+             * core saw the whole stall (watchdog released, old commands stale). */
+            lost_wraps_told = timebase_state()->lost_wraps;
+            console_puts("timebase: a stall longer than the 32-bit timer's wrap, measured\n");
+        }
+        if (now >= next_blink) {
             green = !green;
             gpio_write(PIN_LED_GREEN, green);
-            next_beat = now + HEARTBEAT_US;
+            next_blink = now + LED_BLINK_US;
             if (red_until != 0u && now >= red_until) {
                 gpio_write(PIN_LED_RED, 0);
                 red_until = 0u;

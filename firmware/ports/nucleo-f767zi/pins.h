@@ -32,6 +32,14 @@ typedef struct {
 #define PIN_SOL_LEFT ((pin_t){PORT_E, 13u})
 #define PIN_SOL_RIGHT ((pin_t){PORT_E, 11u})
 
+/* The hardware release (docs/hardware-bringup-lab.md, "Hardware release (heartbeat)"):
+ * the heartbeat output (D6) triggers the external retriggerable monostable that holds
+ * the solenoid drivers' enable; the core toggles it once per sample period. The
+ * enable line is read back on D2 (input with pull-down: high = drivers enabled), so a
+ * broken readback wire reads as "drivers off", which the bring-up step catches. */
+#define PIN_HEARTBEAT ((pin_t){PORT_E, 9u})
+#define PIN_DRIVERS_SENSE ((pin_t){PORT_F, 15u})
+
 /* On-board LEDs: LD1 green, LD2 blue, LD3 red. */
 #define PIN_LED_GREEN ((pin_t){PORT_B, 0u})
 #define PIN_LED_BLUE ((pin_t){PORT_B, 7u})

@@ -11,12 +11,26 @@
 #define FRAME_TIMEOUT_CYCLES (CLOCK_HCLK_HZ / 10000u) /* 100 us; a frame takes 5.3 us */
 #define SPI_BR_DIV32 4u                               /* 96 MHz / 32 = 3 MHz */
 
-static const pin_t CS[SPI_CHIPS] = {PIN_CS0, PIN_CS1, PIN_CS2, PIN_CS3};
+/* Chip select `chip` (0..3, the core's order). A function, not a table: the pin
+ * macros are compound literals, which ISO C does not allow in a static initialiser. */
+static pin_t cs_pin(unsigned chip)
+{
+    switch (chip) {
+    case 0u:
+        return PIN_CS0;
+    case 1u:
+        return PIN_CS1;
+    case 2u:
+        return PIN_CS2;
+    default:
+        return PIN_CS3;
+    }
+}
 
 void spi_init(void)
 {
     for (unsigned i = 0; i < SPI_CHIPS; i++) {
-        gpio_output(CS[i], 1); /* deselected */
+        gpio_output(cs_pin(i), 1); /* deselected */
     }
     gpio_alternate(PIN_SPI_SCK, AF_SPI1, 0);
     gpio_alternate(PIN_SPI_MISO, AF_SPI1, 1);
@@ -55,7 +69,7 @@ int spi_transfer(unsigned chip, const uint16_t *tx, uint16_t *rx, size_t n)
         return -1;
     }
     drain();
-    gpio_write(CS[chip], 0);
+    gpio_write(cs_pin(chip), 0);
     clock_delay_cycles(CS_SETUP_CYCLES);
     int rc = 0;
     for (size_t i = 0; i < n && rc == 0; i++) {
@@ -73,7 +87,7 @@ int spi_transfer(unsigned chip, const uint16_t *tx, uint16_t *rx, size_t n)
     if (wait_flag(SPI_SR_BSY, 0) != 0) {
         rc = -1;
     }
-    gpio_write(CS[chip], 1);
+    gpio_write(cs_pin(chip), 1);
     clock_delay_cycles(CS_HIGH_CYCLES);
     if (rc != 0) {
         drain();

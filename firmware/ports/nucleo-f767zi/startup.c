@@ -7,12 +7,16 @@
  * switches both solenoid gates off and resets the chip: a fault never leaves a
  * solenoid energised, and the board comes back up in its safe state.
  */
+#include <stddef.h>
 #include <stdint.h>
 
 #include "pins.h"
 #include "stm32f7_regs.h"
 
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _estack;
+/* Linker-script symbols (stm32f767zi.ld). Only their addresses mean anything, and they
+ * name different objects, so they are never compared as pointers (undefined in C);
+ * the lengths below are computed from the addresses as integers. */
+extern uint32_t _sidata[], _sdata[], _edata[], _sbss[], _ebss[], _estack[];
 typedef void (*vector_t)(void);
 
 int main(void);
@@ -41,12 +45,13 @@ __attribute__((noreturn)) void Reset_Handler(void)
     SCB_CPACR |= 0xFu << 20; /* CP10 and CP11: full access to the FPU */
     __asm__ volatile("dsb\n isb" ::: "memory");
 
-    uint32_t *src = &_sidata;
-    for (uint32_t *dst = &_sdata; dst < &_edata;) {
-        *dst++ = *src++;
+    size_t data_words = ((uintptr_t)_edata - (uintptr_t)_sdata) / sizeof(uint32_t);
+    for (size_t i = 0; i < data_words; i++) {
+        _sdata[i] = _sidata[i];
     }
-    for (uint32_t *dst = &_sbss; dst < &_ebss;) {
-        *dst++ = 0u;
+    size_t bss_words = ((uintptr_t)_ebss - (uintptr_t)_sbss) / sizeof(uint32_t);
+    for (size_t i = 0; i < bss_words; i++) {
+        _sbss[i] = 0u;
     }
     (void)main();
     fault_handler(); /* main never returns; if it did, reset */
@@ -54,8 +59,17 @@ __attribute__((noreturn)) void Reset_Handler(void)
     }
 }
 
+/* IRQ_COUNT times fault_handler, spelled out: ISO C has no range initialiser. The
+ * typedef fails the build if the count is not IRQ_COUNT. */
+#define FH2 fault_handler, fault_handler
+#define FH10 FH2, FH2, FH2, FH2, FH2
+#define FH110 FH10, FH10, FH10, FH10, FH10, FH10, FH10, FH10, FH10, FH10, FH10
+typedef char fh110_is_irq_count[sizeof((vector_t[]){FH110}) / sizeof(vector_t) == IRQ_COUNT
+                                    ? 1
+                                    : -1];
+
 __attribute__((section(".isr_vector"), used)) const vector_t vector_table[16u + IRQ_COUNT] = {
-    [0] = (vector_t)(uintptr_t)&_estack,
+    [0] = (vector_t)(uintptr_t)_estack,
     [1] = Reset_Handler,
     [2] = fault_handler, /* NMI */
     [3] = fault_handler, /* HardFault */
@@ -66,5 +80,5 @@ __attribute__((section(".isr_vector"), used)) const vector_t vector_table[16u + 
     [12] = fault_handler, /* DebugMonitor */
     [14] = fault_handler, /* PendSV */
     [15] = fault_handler, /* SysTick */
-    [16 ... 16u + IRQ_COUNT - 1u] = fault_handler,
+    [16] = FH110,
 };

@@ -33,7 +33,7 @@
 #define PERIPH_APB2 0x40010000u
 #define PERIPH_AHB1 0x40020000u
 #define PERIPH_AHB2 0x50000000u
-#define UID_BASE 0x1FF0F420u           /* 96-bit unique device ID */
+#define UID_BASE 0x1FF0F420u           /* 96-bit unique device ID (RM0410 "Unique device ID register") */
 
 /* ---- RCC (0x40023800) ---- */
 #define RCC_BASE 0x40023800u
@@ -59,6 +59,7 @@
 #define RCC_AHB2ENR_RNGEN (1u << 6)
 #define RCC_APB1ENR REG32(RCC_BASE + 0x40u)
 #define RCC_APB1ENR_TIM2EN (1u << 0)
+#define RCC_APB1ENR_TIM5EN (1u << 3)
 #define RCC_APB1ENR_PWREN (1u << 28)
 #define RCC_APB2ENR REG32(RCC_BASE + 0x44u)
 #define RCC_APB2ENR_SPI1EN (1u << 12)
@@ -102,6 +103,13 @@
 #define TIM2_CNT REG32(0x40000024u)
 #define TIM2_PSC REG32(0x40000028u)
 #define TIM2_ARR REG32(0x4000002Cu)
+
+/* ---- TIM5: the other 32-bit general-purpose timer (APB1, 0x40000C00) ---- */
+#define TIM5_CR1 REG32(0x40000C00u)
+#define TIM5_EGR REG32(0x40000C14u)
+#define TIM5_CNT REG32(0x40000C24u)
+#define TIM5_PSC REG32(0x40000C28u)
+#define TIM5_ARR REG32(0x40000C2Cu)
 
 /* ---- IWDG (0x40003000) ---- */
 #define IWDG_KR REG32(0x40003000u)

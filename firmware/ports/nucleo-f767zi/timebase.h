@@ -1,17 +1,22 @@
 /*
  * timebase.h - monotonic microseconds: TIM2 (32-bit) counting at 1 MHz, extended to
- * 64 bits in software.
+ * 64 bits in software with TIM5 (32-bit, 500 us ticks) as a cross-check, so that even
+ * a stall longer than TIM2's 71.6-minute wrap is measured right (timebase_ext.h).
  *
- * The extension notices the 32-bit counter wrapping (every 71.6 minutes) when a read
- * is lower than the previous one, so it must be read at least once per wrap; the main
- * loop reads it every iteration. Single-threaded use only (no interrupts read it).
+ * A stall that long cannot happen while the independent watchdog runs (it resets the
+ * board within 105 ms, iwdg.h); the extension does not rely on that. Single-threaded
+ * use only (no interrupts read it).
  */
 #ifndef TIMEBASE_H
 #define TIMEBASE_H
 
 #include <stdint.h>
 
+#include "timebase_ext.h"
+
 void timebase_init(void);
 uint64_t timebase_now_us(void);
+/* The extension's state (lost wraps recovered, disagreements), for the console. */
+const tb_ext *timebase_state(void);
 
 #endif /* TIMEBASE_H */

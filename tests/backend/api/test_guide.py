@@ -72,3 +72,15 @@ def test_nothing_outside_the_guide_is_served(client: TestClient, site: Path, pat
                                              ) -> None:
     r = client.get(path, follow_redirects=False)
     assert r.status_code in (303, 404) and "outside the guide" not in r.text, path
+
+
+@pytest.mark.parametrize("path", [
+    "/guide/%00", "/guide/index.html%00.js", "/guide/assets/%00/app.js",
+    "/guide/" + "a" * 300, "/guide/assets/" + "b" * 300 + ".js",
+    "/guide/" + "/".join(["c" * 200] * 30), "/guide/%0aindex.html"],
+    ids=["nul", "nul-in-name", "nul-folder", "300-characters", "300-in-folder",
+         "6000-characters", "newline"])
+def test_bad_names_are_a_404_not_a_500(client: TestClient, site: Path, path: str) -> None:
+    r = TestClient(client.app, raise_server_exceptions=False).get(
+        path, cookies=client.cookies, follow_redirects=False)
+    assert r.status_code == 404, (r.status_code, r.text[:200])

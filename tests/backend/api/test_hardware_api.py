@@ -87,7 +87,16 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
             res = p.json()["result"]
             assert res["passed"], res["message"]
             assert res["values"]["solenoid_seen"] and res["values"]["released_seen"]
+        # A second pulse at once: the coil is cooling down (duty cycle), and says until when.
+        hot = client.post("/api/hardware/pulse", json={
+            "side": "right", "duration_ms": 300, "nobody_wearing": True})
+        assert hot.status_code == 409, hot.text
+        assert "right solenoid is cooling down" in hot.text and "again in" in hot.text
 
+        def cooled() -> bool:
+            return not any(client.get("/api/hardware").json()["cooldown_s"].values())
+
+        wait_for(cooled, 10, "the solenoids to cool down")
         w = client.post("/api/hardware/watchdog", json={"side": "left", "nobody_wearing": True})
         assert w.status_code == 200, w.text
         res = w.json()["result"]
@@ -99,6 +108,14 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
         assert res["values"]["device_release_ms"] <= res["values"]["release_ms"]
         assert res["passed"] == (res["values"]["device_release_ms"] <= 110.0)
 
+        wait_for(cooled, 10, "the solenoids to cool down")
+        rel = client.post("/api/hardware/release", json={"side": "right",
+                                                         "nobody_wearing": True})
+        assert rel.status_code == 200, rel.text
+        res = rel.json()["result"]
+        assert res["passed"], res["message"]
+        assert 0 <= res["values"]["release_ms"] <= res["values"]["limit_ms"] == 50.0
+
         link = client.post("/api/hardware/link").json()
         assert link["result"]["values"]["link_drops"]["auth"] == 0
 
@@ -107,9 +124,11 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
         profile = done.json()
         passed = all(profile["steps"][s]["passed"] for s in STEP_NAMES)
         assert profile["status"] == ("complete" if passed else "failed")
-        assert len(profile["key_id"]) == 8 and profile["key_id"] in {
-            s for s in [profile["key_id"]] if all(c in "0123456789abcdef" for c in s)}
-        assert "device simulator" in profile["firmware_version"]
+        assert len(profile["key_id"]) == 16
+        assert set(profile["key_id"]) <= set("0123456789abcdef")
+        assert len(profile["unique_id"]) == 32
+        assert profile["firmware_version"] == "exostudy-sim 3"
+        assert profile["unique_id"] in state_identity(client)
         # A simulator keeps its own mounting: the measured zeros are stored, not applied.
         after = client.get("/api/hardware").json()
         assert after["applied_offsets"] == list(DEFAULT_LAYOUT.offsets)
@@ -136,6 +155,19 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
         assert "hardware_profile_id" in trials_header
         assert "trials.csv,hardware_profile_id" in dictionary
 
+        # Nothing about the profile changes while a recording runs (409, like the steps).
+        assert client.post("/api/hardware/zero", json={"seconds": 0.5}).status_code == 200
+        rec = client.post(f"/api/sessions/{sess['id']}/recordings", json={})
+        assert rec.status_code == 201, rec.text
+        busy = client.post("/api/hardware/profile", json={})
+        assert busy.status_code == 409 and "is running" in busy.text
+        assert client.get("/api/hardware").json()["draft"]["status"] == "draft"
+        client.post(f"/api/recordings/{rec.json()['id']}/stop", json={})
+
+
+def state_identity(client: TestClient) -> str:
+    return str(client.get("/api/hardware").json()["identity"])
+
 
 def test_steps_are_refused_while_a_controller_runs(
         settings: Settings, experimenter: dict[str, str]) -> None:
@@ -149,8 +181,9 @@ def test_steps_are_refused_while_a_controller_runs(
             assert r.status_code == 409, (path, r.text)
             assert "controller 'pec' is active" in r.text
         assert client.get("/api/hardware").json()["draft"] is None  # nothing stored
-        no_draft = client.post("/api/hardware/profile", json={})
-        assert no_draft.status_code == 409 and "no bring-up in progress" in no_draft.text
+        # Storing a profile is refused like the steps (the same check, first).
+        busy = client.post("/api/hardware/profile", json={})
+        assert busy.status_code == 409 and "controller 'pec' is active" in busy.text
 
 
 def test_steps_need_a_login(settings: Settings) -> None:

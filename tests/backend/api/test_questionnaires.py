@@ -13,12 +13,12 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 from pydantic import ValidationError
-from sqlalchemy import update
+from sqlalchemy import insert, update
 
 from backend.db.engine import make_engine
-from backend.db.models import ParticipantLink
+from backend.db.models import ParticipantLink, QuestionnaireInstrument
 from backend.questionnaires.catalog import INSTRUMENTS_DIR, built_in_definitions
-from backend.questionnaires.definition import InstrumentDefinition
+from backend.questionnaires.definition import ImportedInstrument, InstrumentDefinition
 from backend.questionnaires.scoring import AnswerError, score
 
 
@@ -369,3 +369,62 @@ def test_answers_must_be_integers_not_booleans(client: TestClient, value: Any) -
                                     json={"form": 0, "answers": answers})
     assert r.status_code == 422
     assert r.json()["detail"][0]["loc"][:3] == ["body", "answers", "q1"]
+
+
+def _sized(items: int, lo: int, hi: int, labels: list[dict[str, Any]] | None = None
+           ) -> dict[str, Any]:
+    """A study's own definition with `items` items on a `lo`..`hi` scale (summed)."""
+    own = _own_definition()
+    own["items"] = [{"id": f"q{i}", "text": f"Item {i}"} for i in range(items)]
+    own["scale"] = {"min": lo, "max": hi, "labels": labels or []}
+    own["score_range"] = {"min": lo * items, "max": hi * items}
+    return own
+
+
+@pytest.mark.parametrize(("definition", "where", "problem"), [
+    (_sized(200, -1000, 1000), ["body", "scale"],
+     "-1000..1000 has 2001 points; at most 101 are allowed (for example 0..100)"),
+    (_sized(50, 0, 100), ["body"], "the form would show 5050 answer choices (50 items x "
+     "101 points); at most 5000: fewer items or a shorter scale"),
+    (_sized(5, 1, 7, [{"value": 1, "label": "never"}] * 4000), ["body", "scale", "labels"],
+     "List should have at most 101 items after validation, not 4000"),
+    (_sized(5, 1, 7, [{"value": 1, "label": "never"}, {"value": 1, "label": "rarely"}]),
+     ["body", "scale"], "labels: more than one label for value(s) [1]"),
+    (_sized(5, 1, 7, [{"value": 1, "label": "Never"}, {"value": 7, "label": "never "}]),
+     ["body", "scale"], "labels: the same words at several values: ['never']"),
+    (_sized(5, 1, 7, [{"value": 1, "label": "x" * 201}]), ["body", "scale", "labels", 0,
+                                                           "label"],
+     "String should have at most 200 characters"),
+], ids=["2001-points", "5050-choices", "4000-labels", "two-labels-one-value",
+        "same-words-twice", "201-characters"])
+def test_an_imported_scale_keeps_its_form_usable(client: TestClient, definition: dict[str, Any],
+                                                 where: list[str | int], problem: str) -> None:
+    url = f"/api/studies/{_study(client)}/instruments"
+    r = client.post(url, json=definition)
+    assert r.status_code == 422, r.text[:300]
+    found = [(d["loc"], d["msg"].removeprefix("Value error, ")) for d in r.json()["detail"]]
+    assert (where, problem) in found, found
+    assert client.get(url).json() == [i for i in client.get(url).json() if i["built_in"]]
+
+
+def test_the_widest_scale_and_largest_form_allowed_are_imported(client: TestClient) -> None:
+    url = f"/api/studies/{_study(client)}/instruments"
+    labels = [{"value": 0, "label": "not at all"}, {"value": 100, "label": "extremely"}]
+    r = client.post(url, json=_sized(49, 0, 100, labels))
+    assert r.status_code == 201, r.text[:300]
+    assert [d.key for d in built_in_definitions()] and all(
+        ImportedInstrument.model_validate(d.model_dump()) for d in built_in_definitions())
+
+
+def test_an_instrument_stored_before_the_limits_is_still_served(client: TestClient,
+                                                                db_url: str) -> None:
+    sid = _study(client)
+    wide = _sized(200, -1000, 1000)
+    engine = make_engine(db_url)
+    with engine.begin() as conn:
+        conn.execute(insert(QuestionnaireInstrument).values(
+            key=wide["key"], version=wide["version"], title=wide["title"], definition=wide,
+            built_in=False, study_id=sid, created_at=datetime.now(UTC)))
+    engine.dispose()
+    r = client.get(f"/api/studies/{sid}/instruments/{wide['key']}/{wide['version']}")
+    assert r.status_code == 200 and r.json()["definition"]["scale"]["min"] == -1000

@@ -1,6 +1,7 @@
 """The role matrix, route by route: every operation in the OpenAPI schema is called by
-an outsider, a viewer, an experimenter, an owner and an admin, and answers 403 exactly
-when its rule (`x-exostudy-access`) does not allow the role. The table in docs/access.md is
+an outsider, a viewer, an experimenter, an owner, an operator (an experimenter holding
+the lab's device grant) and an admin, and answers 403 exactly when its rule
+(`x-exostudy-access`) does not allow the role. The table in docs/access.md is
 checked against the same schema."""
 
 from __future__ import annotations
@@ -29,14 +30,17 @@ from backend.db.models import Participant, StudySession
 from tests.login import PASSWORD as ADMIN_PASSWORD
 from tests.login import USERNAME, bearer, create_experimenter
 
-ROLES = ("outsider", "viewer", "experimenter", "owner", "admin")
-#: Which callers each rule lets through (the outsider has an account, no membership).
+ROLES = ("outsider", "viewer", "experimenter", "owner", "operator", "admin")
+#: Which callers each rule lets through (the outsider has an account, no membership;
+#: the operator is an experimenter of study 1 to whom an admin gave the device grant;
+#: the owner created study 1, which gives no device rights).
 ALLOWED: dict[str, set[str]] = {
     "login": set(ROLES),
     "admin": {"admin"},
-    "worker": {"experimenter", "owner", "admin"},
-    "viewer": {"viewer", "experimenter", "owner", "admin"},
-    "experimenter": {"experimenter", "owner", "admin"},
+    "worker": {"experimenter", "owner", "operator", "admin"},
+    "device": {"operator", "admin"},
+    "viewer": {"viewer", "experimenter", "owner", "operator", "admin"},
+    "experimenter": {"experimenter", "owner", "operator", "admin"},
     "owner": {"owner", "admin"},
 }
 #: Operations whose success would end the caller's login or erase the seeded rows:
@@ -46,11 +50,14 @@ DESTRUCTIVE = {("post", "/api/auth/logout"), ("post", "/api/auth/revoke-all"),
                ("post", "/api/participants/{participant_id}/withdraw"),
                ("delete", "/api/studies/{study_id}/members/{username}"),
                ("delete", "/api/segments/{segment_id}"),
-               ("patch", "/api/users/{user_id}")}
+               ("patch", "/api/users/{user_id}"),
+               # Granting would change what the next calls of the viewer may do.
+               ("put", "/api/device-grants/{username}")}
 PATH_VALUES = {"key": "sus", "version": "1.0", "table": "table1", "fmt": "csv",
                "name": "figure1", "username": "vera", "user_id": "2"}
 #: The accounts playing each role (the admin is the `client` fixture's).
-NAMES = {"outsider": "oscar", "viewer": "vera", "experimenter": "eric", "owner": "olga"}
+NAMES = {"outsider": "oscar", "viewer": "vera", "experimenter": "eric", "owner": "olga",
+         "operator": "otto"}
 PASSWORD = "a long enough passphrase"
 
 
@@ -96,25 +103,29 @@ def callers(client: TestClient, db_url: str) -> dict[str, dict[str, str]]:
     """Bearer headers of one account per role; study 1 belongs to `owner`."""
     app = client.app
     headers: dict[str, dict[str, str]] = {}
-    for role in ("outsider", "viewer", "experimenter", "owner"):
+    for role in ("outsider", "viewer", "experimenter", "owner", "operator"):
         create_experimenter(db_url, NAMES[role], PASSWORD)
     creds = {r: {"username": NAMES[r], "password": PASSWORD} for r in NAMES}
     owner = TestClient(app)
     headers["owner"] = bearer(owner, creds["owner"])
     r = owner.post("/api/studies", json={"name": "matrix"}, headers=headers["owner"])
     assert r.status_code == 201, r.text
-    for role in ("viewer", "experimenter"):
-        r = owner.put("/api/studies/1/members", json={"username": NAMES[role], "role": role},
+    for role, study_role in (("viewer", "viewer"), ("experimenter", "experimenter"),
+                             ("operator", "experimenter")):
+        r = owner.put("/api/studies/1/members",
+                      json={"username": NAMES[role], "role": study_role},
                       headers=headers["owner"])
         assert r.status_code == 200, r.text
     r = owner.post("/api/studies/1/participants", json={"code": "P01"},
                    headers=headers["owner"])
     assert r.status_code == 201, r.text
     _seed_rows(db_url)
-    for role in ("viewer", "experimenter", "outsider"):
+    for role in ("viewer", "experimenter", "outsider", "operator"):
         headers[role] = bearer(owner, creds[role])
     # The `client` fixture's account is the database's first, hence its admin.
     headers["admin"] = bearer(owner, {"username": USERNAME, "password": ADMIN_PASSWORD})
+    r = owner.put(f"/api/device-grants/{NAMES['operator']}", headers=headers["admin"])
+    assert r.status_code == 200, r.text
     return headers
 
 
@@ -139,7 +150,7 @@ def test_every_operation_refuses_exactly_the_roles_its_rule_excludes(
             else:
                 assert r.status_code == 403, where
             checked += 1
-    assert checked >= 5 * 60
+    assert checked >= 6 * 60
 
 
 def test_a_site_limited_member_sees_and_reaches_only_their_site(

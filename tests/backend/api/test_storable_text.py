@@ -121,3 +121,41 @@ def test_every_json_string_refuses_unstorable_text(
             assert ["body", *where] in [d["loc"] for d in r.json()["detail"]], r.text[:300]
 
     run()
+
+
+JSON = {"content-type": "application/json"}
+
+
+def test_a_body_nested_50000_deep_around_nul_is_a_422_before_login(client: TestClient
+                                                                    ) -> None:
+    """The parser's recursion once escaped the door as a 500 with a long traceback."""
+    anonymous = TestClient(client.app)
+    body = b"[" * 50_000 + b'"\\u0000"' + b"]" * 50_000
+    r = anonymous.post("/api/auth/login", content=body, headers=JSON)
+    assert r.status_code == 422, r.text[:300]
+    assert r.json()["detail"] == [{
+        "loc": ["body"], "type": "too_deep",
+        "msg": "arrays and objects nested 50000 deep; at most 32 levels are accepted"}]
+    # Exactly the limit passes the door (the route then refuses the shape).
+    r = anonymous.post("/api/auth/login", content=b"[" * 32 + b"]" * 32, headers=JSON)
+    assert r.status_code == 422 and r.json()["detail"][0]["type"] != "too_deep"
+
+
+@pytest.mark.parametrize(("literal", "problem"), [
+    ("NaN", "NaN is not a JSON number; numbers must be finite"),
+    ("-Infinity", "-Infinity is not a JSON number; numbers must be finite"),
+    ("1e999", "1e999 is beyond the largest float; numbers must be finite"),
+    ("18446744073709551616", "18446744073709551616 is an integer beyond 64 bits")])
+def test_numbers_json_or_the_database_cannot_hold_are_refused_where_they_are(
+        client: TestClient, literal: str, problem: str) -> None:
+    assert client.post("/api/studies", json={"name": "s"}).status_code == 201
+    body = f'{{"code": "P01", "age": 30, "mass_kg": {literal}}}'.encode()
+    r = client.post("/api/studies/1/participants", content=body, headers=JSON)
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"] == [{"loc": ["body", "mass_kg"], "msg": problem,
+                                   "type": "value_error"}]
+    assert client.get("/api/studies/1/participants").json() == []  # nothing stored
+    # Inside a string they are only text.
+    r = client.post("/api/studies/1/participants", headers=JSON,
+                    content=f'{{"code": "P01", "notes": "{literal} [[[["}}'.encode())
+    assert r.status_code == 201, r.text

@@ -1,11 +1,16 @@
 """XDF import: a file written here (pyxdf's reader as the oracle of the writer) is
 attached to a session, its streams are put on ExoStudy's clock and matched to trials;
-bad files are refused with a 422 naming the file; the CLI's BIDS export carries it."""
+bad and hostile files (issues 23 and 28) are refused with a 422 naming the file and
+what is wrong, within the limits the settings give; the CLI's BIDS export carries it."""
 
 from __future__ import annotations
 
 import math
+import resource
+import struct
 import tempfile
+import uuid
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -16,13 +21,15 @@ from fastapi.testclient import TestClient
 from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
+from backend.core.config import Settings
 from backend.db.engine import make_engine
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, Run, Study, StudySession, ticks_table
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES
 from controller.tick_record import TickRecord
-from tests.backend.lab.xdf_writer import XdfStream, write_xdf
+from tests.backend.lab import xdf_hostile
+from tests.backend.lab.xdf_writer import XdfStream, chunk, header_xml, write_xdf
 
 #: ExoStudy's LSL clock minus Unix time in the made-up session (a machine up ~10 min).
 LSL_MINUS_UNIX = 600.0 - 1.7e9
@@ -194,3 +201,200 @@ def test_cli_bids_export_carries_trials_markers_and_the_xdf(
                  "--db", db_url]) == 2
     with tempfile.TemporaryDirectory() as empty:
         assert main(["export", "--study", "999", "--bids", empty, "--db", db_url]) == 2
+
+
+# Hostile and damaged files (issues 23 and 28) ---------------------------------------------
+def _session(client: TestClient) -> int:
+    r = client.post("/api/studies", json={"name": f"X-{uuid.uuid4().hex[:8]}"})
+    assert r.status_code == 201, r.text
+    sid = r.json()["id"]
+    pid = client.post(f"/api/studies/{sid}/participants", json={"code": "P1"}).json()["id"]
+    r = client.post(f"/api/participants/{pid}/sessions",
+                    json={"kind": "evaluation", "precompression_pct": 25})
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def _post(client: TestClient, session_id: int, data: bytes) -> Any:
+    return client.post(f"/api/sessions/{session_id}/xdf",
+                       files={"file": ("crafted.xdf", data, "application/octet-stream")})
+
+
+def _refused(r: Any, *words: str) -> str:
+    """The 422's message, checked to name the file and to contain `words`."""
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"][0]
+    assert detail["loc"] == ["body", "file"]
+    for w in words:
+        assert w in detail["msg"], detail["msg"]
+    return str(detail["msg"])
+
+
+@pytest.fixture
+def client_with(settings: Settings, experimenter: dict[str, str]
+                ) -> Iterator[Callable[..., TestClient]]:
+    """Logged-in TestClients whose settings differ from the defaults by the given
+    fields (closed at the end of the test)."""
+    from backend.main import create_app
+    from tests.login import log_in
+
+    opened: list[TestClient] = []
+
+    def make(**update: Any) -> TestClient:
+        app = create_app(settings.model_copy(update={"device_spawn_simulator": False,
+                                                     **update}))
+        c = TestClient(app)
+        c.__enter__()
+        opened.append(c)
+        log_in(c, experimenter)
+        return c
+
+    yield make
+    for c in opened:
+        c.__exit__(None, None, None)
+
+
+def test_a_chunk_that_declares_more_than_it_holds_is_refused(client: TestClient) -> None:
+    # Issue 28: the sample of a Samples chunk declaring 1 string sample in its last 3
+    # bytes ran on into the next chunk, where hidden chunks declared 50 million samples:
+    # 201 after 17.5 s with the parser at 2 GB. Issue 23: a count, or a channel count,
+    # far beyond the file's bytes.
+    sid = _session(client)
+    _refused(_post(client, sid, xdf_hostile.past_its_end()), "Samples, stream 1",
+             "runs past the chunk's end")
+    _refused(_post(client, sid, xdf_hostile.declaring(30_000_000)), "30000000 samples")
+    _refused(_post(client, sid, xdf_hostile.declaring(5_000_000, 100, "double64")),
+             "5000000 samples")
+    _refused(_post(client, sid, b"XDF:" + chunk(2, struct.pack("<I", 1) + header_xml(
+        "x", "EEG", 250_000_000, 100, "float32"))), "channel_count")
+    assert client.get(f"/api/sessions/{sid}/xdf").json() == []
+
+
+def test_a_large_string_stream_stays_out_of_the_server(client: TestClient) -> None:
+    # Issue 28: the parsed streams came back into the server; an 18 MB string stream
+    # took it from 409 to 1,112 MB. Now a summary comes back and the server grows by
+    # little more than the upload's own copies.
+    data = xdf_hostile.string_stream(1_400_000)
+    sid = _session(client)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    r = _post(client, sid, data)
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    assert r.status_code == 201, r.text
+    stream = r.json()["streams"][0]
+    assert stream["samples"] == 1_400_000 and stream["first_time"] == 100.0
+    assert stream["last_time"] == pytest.approx(100.0 + 1_399_999 / 1e3)
+    assert grown_mb < 150, grown_mb
+
+
+def test_a_flood_of_chunks_is_refused_at_the_chunk_limit(client: TestClient) -> None:
+    # Issue 28: 2 million boundary chunks in 8 MB took 11.6 s and were accepted.
+    data = write_xdf([xdf_hostile.small_stream()]) + b"\x01\x02\x05\x00" * 2_000_000
+    sid = _session(client)
+    _refused(_post(client, sid, data), "more than 1000000 chunks", "xdf_max_chunks")
+
+
+def test_twenty_thousand_random_clock_offsets_are_read_at_once(
+        client: TestClient, client_with: Callable[..., TestClient]) -> None:
+    # Issue 28: 20,000 ClockOffset chunks of random values (481 kB) took 465 s of a core
+    # (a robust fit per clock reset); the fit is now one pass over the offsets per round.
+    data = xdf_hostile.clock_offsets(20_000)
+    assert len(data) < 500_000
+    sid = _session(client)
+    r = _post(client, sid, data)
+    assert r.status_code == 201, r.text
+    stream = r.json()["streams"][0]
+    assert stream["samples"] == 50 and math.isfinite(stream["first_time"])
+    # The count itself is bounded by a setting.
+    tight = client_with(xdf_max_clock_offsets=10_000)
+    _refused(_post(tight, _session(tight), data), "more than 10000 clock offsets",
+             "xdf_max_clock_offsets")
+
+
+def test_the_limits_come_from_the_settings(client_with: Callable[..., TestClient]) -> None:
+    tight = client_with(xdf_max_streams=2, xdf_max_samples=1000, xdf_max_decoded_bytes=500_000)
+    sid = _session(tight)
+    three = write_xdf([xdf_hostile.small_stream(f"s{i}") for i in range(3)])
+    _refused(_post(tight, sid, three), "more than 2 streams", "xdf_max_streams")
+    _refused(_post(tight, sid, write_xdf([xdf_hostile.small_stream(n=1001)])),
+             "more than 1000 samples", "xdf_max_samples")
+    wide = XdfStream("wide", "EEG", [f"c{i}" for i in range(100)], 100.0, "double64",
+                     [float(i) for i in range(900)], [[0.0] * 100] * 900)
+    _refused(_post(tight, sid, write_xdf([wide])), "more than 500000 bytes",
+             "xdf_max_decoded_bytes")
+    assert _post(tight, sid, write_xdf([xdf_hostile.small_stream(n=1000)])).status_code == 201
+    # A reader that runs past its time is stopped and the file refused.
+    slow = client_with(xdf_parse_seconds=0.001)
+    _refused(_post(slow, _session(slow), write_xdf([xdf_hostile.small_stream()])),
+             "longer than 0.001 s", "xdf_parse_seconds")
+
+
+_TICKS_SEQ_LAST = [*TICK_CHANNEL_NAMES[1:], "seq"]
+
+
+#: Spoiled fields of an ExoskeletonTicks stream (`xdf_hostile.tick_stream`) and what the
+#: refusal says.
+_SPOILED: list[tuple[dict[str, Any], str]] = [
+    ({"fmt": "string", "seq": ["x"] * 20}, "seq channel holds strings"),
+    ({"seq": [1000.0] * 19 + [math.nan]}, "sample 19 has seq nan"),
+    ({"seq": [1000.5] * 20}, "sample 0 has seq 1000.5"),
+    ({"labels": _TICKS_SEQ_LAST, "channels": 3}, "declares 3 channels but labels 15"),
+    ({"labels": ["a", "b"]}, "exactly one channel labelled 'seq'"),
+    ({"srate": "NaN"}, "nominal_srate 'NaN'"),
+    ({"srate": "-100"}, "nominal_srate '-100'"),
+    ({"stamps": [50.0] * 19 + [math.inf]}, "sample 19 has the time stamp inf"),
+    ({"stamps": [math.nan] * 20}, "sample 0 has the time stamp nan"),
+]
+
+
+def test_every_field_of_a_tick_stream_is_checked(client: TestClient, db_url: str) -> None:
+    # Issue 28: an ExoskeletonTicks stream with text or NaN in seq, or fewer channels
+    # than its labels, answered 500 in alignment; a NaN rate or time stamp was stored as
+    # NaN in SQLite's JSON and answered 500 on PostgreSQL. The session has trials with
+    # ticks, so alignment would run.
+    made = _session_with_two_trials(db_url)
+    for spoiled, words in _SPOILED:
+        _refused(_post(client, made["session"], xdf_hostile.tick_stream(**spoiled)), words)
+    assert client.get(f"/api/sessions/{made['session']}/xdf").json() == []
+    # Unspoiled: seq 1000-1019 are the first trial's ticks, stored at LSL 605 s on, and
+    # stamped 50 s on in the file: its clock is 555 s behind ours.
+    r = _post(client, made["session"], xdf_hostile.tick_stream())
+    assert r.status_code == 201, r.text
+    assert r.json()["streams"][0]["offset_ms"] == pytest.approx(-555_000.0, abs=1e-3)
+
+
+@pytest.mark.parametrize("db_url", ["sqlite", "postgresql"], indirect=True)
+def test_non_finite_numbers_never_reach_the_database(client: TestClient, db_url: str) -> None:
+    sid = _session(client)
+    for data in (xdf_hostile.tick_stream(srate="nan"),
+                 write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64",
+                                      [1.0, math.inf], [[0.0], [1.0]])]),
+                 write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1.0, 2.0],
+                                      [[0.0], [1.0]], clock_offsets=[(1.0, math.nan)])])):
+        _refused(_post(client, sid, data), "finite")
+    # Finite values beyond what a fit can add: refused, not stored as infinity.
+    huge = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1e308, 1.7e308],
+                                [[0.0], [1.0]], clock_offsets=[(1.0, 1.7e308)])])
+    _refused(_post(client, sid, huge), "out of the range of numbers")
+    # Values themselves may be NaN (a dropped EMG sample): they are not summarised.
+    ok = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1.0, 2.0],
+                              [[math.nan], [1.0]])])
+    assert _post(client, sid, ok).status_code == 201
+    assert len(client.get(f"/api/sessions/{sid}/xdf").json()) == 1
+
+
+def test_a_valid_2_mb_recording_is_accepted(client: TestClient) -> None:
+    # Issue 23: 413, because the larger upload limit applied to one route only.
+    n = int(2.0e6 / (9 + 8 * 8))
+    rows = np.random.default_rng(1).normal(size=(n, 8)).tolist()
+    data = write_xdf([XdfStream("EMG", "EMG", [f"ch{i}" for i in range(8)], 200.0,
+                                "double64", [100.0 + i / 200 for i in range(n)], rows)])
+    assert len(data) > client.app.state.settings.max_body_bytes  # type: ignore[attr-defined]
+    sid = _session(client)
+    r = _post(client, sid, data)
+    assert r.status_code == 201, r.text
+    assert r.json()["size_bytes"] == len(data)
+    assert r.json()["streams"][0]["samples"] == n
+    # A JSON body of the same size is still refused: the upload limit is for files.
+    r = client.post("/api/studies", content=b'{"name": "' + b"x" * len(data) + b'"}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 413

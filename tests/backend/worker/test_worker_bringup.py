@@ -13,6 +13,7 @@ from backend.worker.messages import (
     BringupCapture,
     BringupCommand,
     BringupPulse,
+    BringupRelease,
     BringupResult,
     BringupWatchdog,
     SetController,
@@ -20,7 +21,7 @@ from backend.worker.messages import (
 )
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.controllers.spec import ControllerSpec
-from controller.device.auth import load_or_create_key
+from controller.device.auth import key_id, load_or_create_key, simulated_unique_id
 from controller.device.base import Status
 from controller.lowlevel import bringup as calc
 from controller.lowlevel.encoders import DEFAULT_LAYOUT
@@ -124,3 +125,29 @@ def test_refused_unless_the_controller_is_none(worker: BringupWorker) -> None:
              60, "pec to run")
     r = worker.run(BringupPulse("left", 0.3, LAY.offsets, LAY.directions, 2.0))
     assert r.refused and "'pec'" in r.message and r.samples == ()
+
+
+def test_hardware_release_times_the_monitor_on_the_device_clock(
+        worker: BringupWorker, tmp_path: Path) -> None:
+    """The simulator models the 30 ms monostable: with the heartbeat stopped and the lock
+    still asked for, DRIVERS_OFF follows HEARTBEAT_STOPPED within 30 ms + 2 periods, and
+    the drivers come back once the heartbeat resumes. The result names the device."""
+    r = worker.run(BringupRelease("left", LAY.offsets, LAY.directions, 2.0))
+    assert r.ok, r.message
+    delay = r.drivers_off_t - r.heartbeat_stopped_t
+    assert 0.0 <= delay <= 0.030 + 2 * 0.010
+    assert r.solenoid_seen and r.drivers_back
+    sts = statuses(r)
+    first_stopped = next(i for i, st in enumerate(sts) if st & Status.HEARTBEAT_STOPPED)
+    assert any(st & Status.SOLENOID_LEFT for st in sts[:first_stopped])
+    assert not any(st & Status.DRIVERS_OFF for st in sts[:first_stopped])
+    assert not sts[-1] & (Status.DRIVERS_OFF | Status.HEARTBEAT_STOPPED | Status.SOLENOID_LEFT)
+    # Commanded on from the first lock to the release: 0.3 s at most, then up to 0.5 s.
+    assert 0.0 < r.energised_s <= 0.8
+    key = (tmp_path / "device.key").read_text().strip()
+    assert r.identity is not None
+    assert r.identity.key_id == key_id(bytes.fromhex(key))
+    assert r.identity.unique_id == simulated_unique_id(bytes.fromhex(key)).hex()
+    assert r.identity.firmware == "exostudy-sim 3"
+    status = worker.sup.state.status
+    assert status is not None and status.identity == r.identity

@@ -1,24 +1,24 @@
-"""Link authentication helpers: the key file, the replay window, peer sessions."""
+"""Link authentication helpers: the key file, the key's public id, device ids."""
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import os
 import stat
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from controller.device.auth import (
     KEY_BYTES,
-    WINDOW,
     KeyFileError,
-    PeerSessions,
-    ReplayWindow,
+    key_id,
     load_key,
     load_or_create_key,
     new_session,
+    parse_unique_id,
+    simulated_unique_id,
 )
 
 
@@ -51,29 +51,35 @@ def test_malformed_key_files_are_refused(tmp_path: Path, text: str, problem: str
         load_key(tmp_path / "missing.key")
 
 
-@settings(max_examples=300)
-@given(st.integers(0, 2**32 - 1), st.lists(st.integers(-100, 100), max_size=200))
-def test_window_accepts_exactly_the_new_numbers_inside_it(start: int, steps: list[int]) -> None:
-    """Oracle: the set of numbers seen and the highest one, in unbounded integers."""
-    w = ReplayWindow()
-    seen: set[int] = set()
-    top: int | None = None
-    n = 0
-    for step in [0, *steps]:
-        n += step
-        expected = n not in seen and (top is None or n > top - WINDOW)
-        assert w.accept((start + n) % 2**32) is expected
-        if expected:
-            seen.add(n)
-            top = n if top is None else max(top, n)
+def test_key_id_names_the_key_without_revealing_it() -> None:
+    key = bytes(range(32))
+    expected = hmac.new(key, b"exostudy key id", hashlib.sha256).hexdigest()[:16]
+    assert key_id(key) == expected and len(expected) == 16
+    assert key_id(bytes(32)) != key_id(key)
+    assert key.hex()[:16] not in key_id(key)
 
 
-def test_sessions_start_once_and_retired_ones_never_return() -> None:
-    peer = PeerSessions()
-    a, b = new_session(), new_session()
-    assert (peer.check(a, 5), peer.check(a, 6), peer.check(a, 6)) == ("new", "ok", "replay")
-    assert peer.check(b, 0) == "new"  # the peer restarted
-    assert peer.check(a, 7) == "replay"  # its earlier session, even with a new number
-    assert peer.check(0, 1) == "replay"  # 0 is never a session
-    assert peer.check(new_session(), 1, may_start=False) == "replay"
-    assert peer.current == b
+def test_simulated_unique_id_follows_the_key() -> None:
+    key = bytes(range(32))
+    expected = hmac.new(key, b"exostudy simulated device", hashlib.sha256).digest()[:16]
+    assert simulated_unique_id(key) == expected
+    assert simulated_unique_id(bytes(32)) != expected
+
+
+@pytest.mark.parametrize(("text", "raw"), [
+    ("1", "10" + "00" * 15), ("abc", "abc0" + "00" * 14), ("0011", "0011" + "00" * 14),
+    ("ff" * 16, "ff" * 16), ("ABCDEF", "abcdef" + "00" * 13)])
+def test_device_ids_are_hex_zero_padded_to_16_bytes(text: str, raw: str) -> None:
+    assert parse_unique_id(text).hex() == raw
+
+
+@pytest.mark.parametrize("text", ["", "0" * 33, "xyz", "12 34", "-1"])
+def test_bad_device_ids_are_refused(text: str) -> None:
+    with pytest.raises(ValueError, match="hex digits"):
+        parse_unique_id(text)
+
+
+def test_sessions_are_random_and_never_0() -> None:
+    drawn = {new_session() for _ in range(1000)}
+    assert len(drawn) == 1000 and 0 not in drawn
+    assert all(0 < s < 2**64 for s in drawn)

@@ -1,6 +1,7 @@
 """UdpDevice against a hand-driven fake device socket on loopback: exact packets in, exact
-behaviour out (ordering, wrap, foreign, forged, replayed and malformed datagrams, device
-restarts as new sessions, commands, release)."""
+behaviour out (the join, ordering, wrap, foreign, forged, replayed and malformed
+datagrams, challenges and samples of stale sessions, device restarts as new sessions,
+versions, commands, release)."""
 
 from __future__ import annotations
 
@@ -13,17 +14,27 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from controller.device import udp
+from controller.device.auth import key_id
 from controller.device.base import NO_LOCK, DeviceError, LockCommand, Sample, Status
 from controller.device.protocol import (
+    ChallengePacket,
     CommandPacket,
     HelloPacket,
+    JoinPacket,
+    Packet,
+    VersionPacket,
     decode_frame,
+    encode_challenge,
     encode_sample,
+    encode_version,
     seq_diff,
 )
 from controller.device.udp import UdpDevice
+from tests.polling import wait_for
 
 KEY = bytes(range(32))
+UNIQUE = bytes(range(16))
 
 
 class FakeDevice:
@@ -38,14 +49,25 @@ class FakeDevice:
         self.session = 0x5EED
         self.host_session = 0
         self.last_receiver = -1
+        self.challenge = bytes(range(100, 116))
 
-    def receive(self) -> CommandPacket | HelloPacket:
+    def receive(self) -> Packet:
         data, addr = self.sock.recvfrom(2048)
         self.host = (str(addr[0]), int(addr[1]))
         frame = decode_frame(data, KEY)
         self.host_session, self.last_receiver = frame.sender, frame.receiver
-        assert isinstance(frame.packet, CommandPacket | HelloPacket)
         return frame.packet
+
+    def receive_not_hello(self) -> Packet:
+        """The next packet that is not a HELLO (the host repeats those while joining)."""
+        while isinstance(packet := self.receive(), HelloPacket):
+            pass
+        return packet
+
+    def challenge_bytes(self, hello_seq: int, receiver: int | None = None) -> bytes:
+        answer = ChallengePacket(hello_seq, self.challenge, UNIQUE, "fake 3")
+        return encode_challenge(answer, KEY, self.session,
+                                self.host_session if receiver is None else receiver)
 
     def sample_bytes(self, seq: int, status: Status = Status.NONE, key: bytes = KEY) -> bytes:
         sample = Sample(seq=seq, t=seq * 0.01, counts=(seq % 16384, 1, 2, 3), status=status)
@@ -59,14 +81,40 @@ class FakeDevice:
         assert self.host is not None
         self.sock.sendto(data, self.host)
 
+    def join(self, dev: UdpDevice) -> JoinPacket:
+        """Answer the host's latest HELLO with a CHALLENGE (the host reading until it
+        says HELLO); return its JOIN."""
+        hellos: list[Packet] = []
+
+        def said_hello() -> bool:
+            self.sock.settimeout(0.0)
+            try:
+                while True:
+                    hellos.append(self.receive())
+            except BlockingIOError:
+                pass
+            finally:
+                self.sock.settimeout(1.0)
+            if not hellos:
+                dev.read(0.01)
+            return bool(hellos)
+
+        wait_for(said_hello, 5, "a HELLO from the host")
+        hello = hellos[-1]
+        assert isinstance(hello, HelloPacket)
+        self.send_raw(self.challenge_bytes(hello.host_seq))
+        dev.read(0.02)
+        join = self.receive_not_hello()
+        assert isinstance(join, JoinPacket)
+        return join
+
 
 @pytest.fixture
 def link() -> Iterator[tuple[UdpDevice, FakeDevice]]:
     fake = FakeDevice()
     dev = UdpDevice(device_host="127.0.0.1", device_port=fake.port, key=KEY)
     dev.open()
-    hello = fake.receive()
-    assert isinstance(hello, HelloPacket)
+    fake.join(dev)
     yield dev, fake
     dev.close()
     fake.sock.close()
@@ -136,16 +184,21 @@ def test_device_restart_is_a_new_session_and_old_sessions_stay_dead(
     old = fake.sample_bytes(5001)
     assert _seqs(dev, 1) == [5000]
     fake.session = 0xB007  # the device rebooted: a new session, counting from 0
+    fake.send_sample(0)  # not joined to this boot yet: dropped
+    assert dev.read(0.05) is None and dev.stats.replayed == 1
+    join = fake.join(dev)  # the host joins again after 250 ms without a sample
+    assert fake.last_receiver == 0xB007 and fake.host_session == dev.session
+    assert join.challenge == fake.challenge
     for seq in range(3):
         fake.send_sample(seq)
     assert _seqs(dev, 3) == [5001, 5002, 5003]
     assert dev.stats.restarts == 1
     assert any("restarted" in f for f in dev.faults())
     fake.send_raw(old)  # authentic, but from the session the device left behind
-    fake.send_raw(fake.sample_bytes(1))  # and one already seen
+    fake.send_raw(fake.sample_bytes(2))  # and the last one again
     assert dev.read(0.05) is None
-    assert (dev.stats.replayed, dev.stats.duplicates) == (1, 1)
-    assert dev.link_counters()["replay"] == 2
+    assert (dev.stats.replayed, dev.stats.duplicates) == (2, 1)
+    assert dev.link_counters()["replay"] == 3
 
 
 def test_forged_and_misaddressed_samples_are_dropped(link: tuple[UdpDevice, FakeDevice]) -> None:
@@ -166,7 +219,7 @@ def test_commands_name_the_device_session_once_known(
     link: tuple[UdpDevice, FakeDevice],
 ) -> None:
     dev, fake = link
-    assert fake.last_receiver == 0  # the HELLO: device unknown
+    assert fake.last_receiver == fake.session  # the JOIN names the device's session
     fake.send_sample(1)
     _seqs(dev, 1)
     dev.send(NO_LOCK)
@@ -287,11 +340,125 @@ def test_read_timeout_is_respected(link: tuple[UdpDevice, FakeDevice]) -> None:
     assert dev.read(0.0) is None
 
 
-def test_hello_repeats_while_no_command_is_sent(link: tuple[UdpDevice, FakeDevice]) -> None:
+def test_hello_every_100_ms_until_a_challenge_arrives() -> None:
+    fake = FakeDevice()
+    with UdpDevice(device_port=fake.port, key=KEY) as dev:
+        assert dev.read(0.35) is None
+        hellos = [fake.receive() for _ in range(dev.stats.hellos_sent)]
+        assert all(isinstance(h, HelloPacket) for h in hellos)
+        assert 3 <= len(hellos) <= 5 and fake.last_receiver == 0
+        seqs = [h.host_seq for h in hellos if isinstance(h, HelloPacket)]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # +1 per packet
+        assert dev.identity is None and dev.problem == ""
+    fake.sock.close()
+
+
+def test_join_answers_the_challenge_and_identity_follows_the_first_sample(
+        link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
-    dev.read(0.6)
-    assert isinstance(fake.receive(), HelloPacket)
-    assert dev.stats.hellos_sent == 2
+    assert dev.stats.joins == 1 and dev.identity is None
+    fake.send_sample(0)
+    _seqs(dev, 1)
+    assert dev.identity is not None
+    assert (dev.identity.unique_id, dev.identity.firmware) == (UNIQUE.hex(), "fake 3")
+    assert (dev.identity.key_id, dev.identity.device_session) == (key_id(KEY), fake.session)
+    assert dev.joined
+
+
+def test_challenges_that_answer_no_recent_hello_of_this_session_are_replays(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    fake = FakeDevice()
+    monkeypatch.setattr(udp, "HELLO_MEMORY_S", 0.15)
+    with UdpDevice(device_port=fake.port, key=KEY) as dev:
+        first = fake.receive()
+        assert isinstance(first, HelloPacket)
+        old_session = fake.host_session
+        # To an earlier session of this host (recorded before it restarted).
+        fake.send_raw(fake.challenge_bytes(first.host_seq, receiver=old_session ^ 1))
+        # Answering a HELLO this host never sent.
+        fake.send_raw(fake.challenge_bytes(first.host_seq + 1000))
+        assert dev.read(0.1) is None
+        assert dev.stats.replayed == 2 and dev.stats.joins == 0
+        # Answering a HELLO older than the host's memory (delayed or replayed late).
+        wait_for(lambda: dev.read(0.01) is None and dev.stats.hellos_sent >= 3, 5,
+                 "two more HELLOs")
+        fake.send_raw(fake.challenge_bytes(first.host_seq))
+        dev.read(0.02)
+        assert dev.stats.replayed == 3 and dev.stats.joins == 0
+        # A good one: one JOIN; the same CHALLENGE again (a copy) changes nothing.
+        latest = dev._host_seq
+        fake.send_raw(fake.challenge_bytes(latest))
+        fake.send_raw(fake.challenge_bytes(latest))
+        dev.read(0.02)
+        assert dev.stats.joins == 1 and dev.stats.replayed == 3
+        assert dev.stats.late_challenges == 1
+    fake.sock.close()
+
+
+def test_samples_of_a_stale_session_are_replays(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(1)
+    _seqs(dev, 1)
+    device, host = fake.session, fake.host_session
+    fake.session = device ^ 1  # an earlier boot of the device (never joined)
+    fake.send_sample(2)
+    fake.session, fake.host_session = device, host ^ 1  # to an earlier host session
+    fake.send_sample(3)
+    fake.host_session = host
+    fake.send_sample(4)
+    assert _seqs(dev, 1) == [4]
+    assert dev.stats.replayed == 2 and dev.stats.gaps == 1
+
+
+def test_rejoin_after_250_ms_without_a_sample_keeps_the_host_session(
+        link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(1)
+    _seqs(dev, 1)
+    session = dev.session
+    t0 = time.monotonic()
+    join = fake.join(dev)
+    assert time.monotonic() - t0 >= 0.2  # no HELLO while the session worked
+    assert fake.host_session == session and join.host_seq > 0
+    assert dev.stats.joins == 2 and dev.stats.restarts == 0
+    fake.send_sample(2)
+    assert _seqs(dev, 1) == [2]  # the same device session goes on
+
+
+def test_a_version_answer_is_reported_and_a_silent_device_is_named(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    fake = FakeDevice()
+    monkeypatch.setattr(udp, "HELLO_INTERVAL_S", 0.002)
+    with UdpDevice(device_port=fake.port, key=KEY) as dev:
+        wait_for(lambda: dev.read(0.01) is None and dev.stats.hellos_sent >= 20, 10,
+                 "20 HELLOs")
+        assert "no version 3 device answers at 127.0.0.1" in dev.problem
+        assert "older than protocol version 3" in dev.problem and key_id(KEY) in dev.problem
+        assert dev.problem in dev.faults() and dev.problem in dev.faults()  # standing
+        fake.receive()
+        fake.send_raw(encode_version(VersionPacket(1, 2), KEY))
+        dev.read(0.02)
+        assert dev.problem.startswith("the device speaks protocol versions 1..2; this host "
+                                      "speaks 3..3")
+        assert dev.link_counters()["version"] == 1
+        forged = bytearray(encode_version(VersionPacket(4, 4), KEY))
+        forged[-1] ^= 1
+        fake.send_raw(bytes(forged))
+        dev.read(0.02)
+        assert "1..2" in dev.problem and dev.stats.malformed["auth"] == 1
+        dev.send(NO_LOCK)
+        assert dev.stats.commands_sent == 0  # nothing to answer: nothing runs
+    fake.sock.close()
+
+
+def test_stop_heartbeat_travels_in_the_command_flag(link: tuple[UdpDevice, FakeDevice]) -> None:
+    dev, fake = link
+    fake.send_sample(7)
+    _seqs(dev, 1)
+    dev.send(LockCommand(seq=0, lock_left=True, lock_right=False, stop_heartbeat=True))
+    packet = fake.receive()
+    assert isinstance(packet, CommandPacket)
+    assert (packet.stop_heartbeat, packet.lock_left, packet.echo_seq) == (True, True, 7)
 
 
 def test_unopened_device_refuses() -> None:
@@ -310,6 +477,7 @@ def test_host_sequence_never_goes_backwards(start: int, steps: list[int]) -> Non
     """Any mix of jumps, repeats and reordering, across the wrap: the worker only ever
     sees increasing sequence numbers, spaced exactly as the wire's serial distance."""
     dev = UdpDevice(device_host="127.0.0.1", device_port=9, key=KEY)  # never opened
+    dev.device_session = 7  # as if joined
     wire = start
     seen: list[tuple[int, int]] = []
     for step in [0, *steps]:

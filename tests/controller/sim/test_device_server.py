@@ -23,15 +23,17 @@ import pytest
 from controller.device.auth import create_key, tag
 from controller.device.base import Device, LockCommand, Sample, Status
 from controller.device.protocol import (
+    ChallengePacket,
     CommandPacket,
     HelloPacket,
+    JoinPacket,
     decode_frame,
-    decode_sample,
     encode_command,
     encode_hello,
+    encode_join,
 )
 from controller.device.udp import UdpDevice
-from controller.sim.device_server import ServerStats, serve
+from controller.sim.device_server import FIRMWARE, ServerStats, serve
 from tests.controller.sim.stub_model import KEY, StubExoskeleton, serve_stub
 from tests.polling import free_udp_port, wait_for
 
@@ -137,7 +139,7 @@ def test_lock_command_is_reflected(server: Running, host: UdpDevice) -> None:
     wait_for(lambda: any(c is not None and c.seq == last for c in server.model.commands),
              5.0, f"a tick that applied the host's last command (seq {last})", poll=0.005)
     stats = server.finish()
-    assert stats.commands == 30 and stats.stale_commands == 0
+    assert stats.commands == 30 and stats.drops["stale_echo"] == 0
     assert len(stats.rtt_s) >= 28  # round trips were measured (their size: bench/bench_udp.py)
 
 
@@ -172,17 +174,18 @@ def test_foreign_forged_and_malformed_commands_are_ignored(
     with intruder:
         statuses = []
         for i in range(20):
-            statuses.append(_read(host).status)
-            device = host.device_sessions.current
+            sample = _read(host)
+            statuses.append(sample.status)
+            device = host.device_session
             assert device is not None
-            lock = encode_command(CommandPacket(10**6 + i, True, True), KEY, host.session,
-                                  device)
+            lock = encode_command(CommandPacket(10**6 + i, True, True, sample.seq), KEY,
+                                  host.session, device)
             intruder.sendto(lock, ("127.0.0.1", server.port))  # right key, wrong address
-            forged = encode_command(CommandPacket(10**6 + i, True, True), bytes(32),
-                                    host.session, device)
+            forged = encode_command(CommandPacket(10**6 + i, True, True, sample.seq),
+                                    bytes(32), host.session, device)
             host._sendto(forged)  # from the host's own address, without the key
             old = bytearray(lock[:-32])
-            old[2] = 1
+            old[2] = 2
             host._sendto(bytes(old) + tag(KEY, bytes(old)))  # authentic, another version
     assert all(st & Status.WATCHDOG_RELEASED for st in statuses)
     assert not any(st & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for st in statuses)
@@ -192,38 +195,153 @@ def test_foreign_forged_and_malformed_commands_are_ignored(
         _read(host)
     assert host.link_counters()["device_auth"] == 20
     stats = server.finish()
-    assert stats.foreign == 20
+    assert stats.drops["foreign"] == 20
     assert stats.malformed["auth"] == 20 and stats.summary()["unknown_version"] == 20
     assert stats.summary()["auth_failures"] == 20
     assert stats.commands == 0 and stats.host_changes == 0
+    # Answered with VERSION at most once per second; the host reads it (3..3: no problem).
+    assert 1 <= stats.versions_sent <= 2 and host.stats.versions == stats.versions_sent
+    assert host.problem == ""
 
 
-def test_host_port_is_learned_and_stale_commands_dropped(server: Running) -> None:
+def _join(sock: socket.socket, port: int, session: int, hello_seq: int) -> tuple[int, bytes]:
+    """HELLO (again, while the device rate-limits its answers) and JOIN from a raw
+    socket; returns the device session and the JOIN sent."""
+    dev = ("127.0.0.1", port)
+    seqs = iter(range(hello_seq, hello_seq + 1000))
+    answer = wait_for(lambda: _challenge_for(sock, dev, next(seqs), session), 5,
+                      "a CHALLENGE")
+    assert answer is not None
+    packet, sender = answer
+    assert packet.firmware == FIRMWARE
+    join = encode_join(JoinPacket(packet.hello_seq + 1, packet.challenge), KEY, session,
+                       sender)
+    sock.sendto(join, dev)
+    return sender, join
+
+
+def _next_sample(sock: socket.socket) -> Sample:
+    while not isinstance(packet := decode_frame(sock.recv(2048), KEY).packet, Sample):
+        pass
+    return packet
+
+
+def test_the_device_rules_join_sequence_freshness_and_the_host_address(
+        server: Running) -> None:
     a, b = _raw_host(), _raw_host()
     b_port = b.getsockname()[1]
     dev = ("127.0.0.1", server.port)
     with a, b:
-        a.sendto(encode_hello(HelloPacket(100), KEY, 0xA), dev)
+        d, join_a = _join(a, server.port, 0xA, 100)
         first = decode_frame(a.recv(2048), KEY)
-        assert isinstance(first.packet, Sample) and first.packet.seq == 0
-        assert first.receiver == 0xA
-        d = first.sender
-        a.sendto(encode_command(CommandPacket(101, True, False), KEY, 0xA, d), dev)
-        a.sendto(encode_command(CommandPacket(99, False, False), KEY, 0xA, d), dev)
-        a.sendto(encode_command(CommandPacket(101, True, True), KEY, 0xA, d), dev)  # replay
-        a.sendto(encode_command(CommandPacket(102, True, True), KEY, 0xA, d ^ 1), dev)
-        time.sleep(0.05)
-        b.sendto(encode_hello(HelloPacket(1), KEY, 0xB), dev)  # a restarted host
-        time.sleep(0.03)
-        b_sample = decode_sample(b.recv(2048), KEY)
-        assert b_sample.seq > 0  # the stream moved to the new port, same device clock
-        a.sendto(encode_command(CommandPacket(103, True, True), KEY, 0xA, d), dev)  # retired
-    time.sleep(0.03)
+        while not isinstance(first.packet, Sample):  # a CHALLENGE to a repeated HELLO
+            first = decode_frame(a.recv(2048), KEY)
+        assert first.packet.seq == 0
+        assert (first.sender, first.receiver) == (d, 0xA)
+
+        def command(seq: int, echo: int, receiver: int = d, sender: int = 0xA) -> bytes:
+            return encode_command(CommandPacket(seq, True, False, echo), KEY, sender, receiver)
+
+        a.sendto(command(102, 0), dev)  # applied
+        a.sendto(command(101, 0), dev)  # not later than 102: replay
+        a.sendto(command(102, 0), dev)  # a copy: replay
+        a.sendto(command(103, 0, receiver=d ^ 1), dev)  # to another boot: replay
+        a.sendto(command(104, 999), dev)  # echoes no sample sent: stale_echo
+        a.sendto(join_a, dev)  # its challenge is spent: replay
+        wait_for(lambda: server.result or (server.model.commands[-1] is not None
+                 and server.model.commands[-1].lock_left), 5, "the lock applied")
+        hello = bytearray(encode_hello(HelloPacket(7), KEY, 0xA)[:-32])
+        hello[-8:] = d.to_bytes(8, "little")  # a HELLO naming a receiver session
+        a.sendto(bytes(hello) + tag(KEY, bytes(hello)), dev)
+        d_b, _ = _join(b, server.port, 0xB, 1)  # another host joins: the stream moves
+        assert d_b == d
+        b_sample = _next_sample(b)
+        assert b_sample.seq > 0  # same device clock
+        assert b_sample.status & Status.WATCHDOG_RELEASED  # a new session inherits no lock
+        assert not b_sample.status & Status.SOLENOID_LEFT
+        a.sendto(command(105, b_sample.seq), dev)  # not the joined session: replay
+        _next_sample(b)
+        _next_sample(b)
     stats = server.finish()
-    assert stats.commands == 1 and stats.stale_commands == 1
-    assert stats.replayed == 3  # seen, addressed to another boot, from a retired host
-    assert stats.hellos == 2 and stats.host_changes == 1
+    assert stats.commands == 1 and stats.drops["stale_echo"] == 1
+    assert stats.drops["replay"] == 5 and stats.malformed["reserved"] == 1
+    assert stats.hellos >= 2 and stats.joins == 2 and stats.host_changes == 1
     assert stats.host == f"127.0.0.1:{b_port}"
+
+
+def _challenge_for(sock: socket.socket, dev: tuple[str, int], seq: int, session: int = 0xA
+                   ) -> tuple[ChallengePacket, int] | None:
+    """Say HELLO `seq`; the CHALLENGE answering it (and its sender), or None if none
+    came within 0.1 s (rate-limited)."""
+    sock.sendto(encode_hello(HelloPacket(seq), KEY, session), dev)
+    deadline = time.monotonic() + 0.1
+    while (left := deadline - time.monotonic()) > 0:
+        sock.settimeout(left)
+        try:
+            frame = decode_frame(sock.recv(2048), KEY)
+        except TimeoutError:
+            break
+        if isinstance(frame.packet, ChallengePacket) and frame.packet.hello_seq == seq:
+            sock.settimeout(0.5)
+            return frame.packet, frame.sender
+    sock.settimeout(0.5)
+    return None
+
+
+def test_challenges_are_rate_limited_redrawn_and_single_use(server: Running) -> None:
+    a = _raw_host()
+    dev = ("127.0.0.1", server.port)
+    with a:
+        a.sendto(encode_hello(HelloPacket(1), KEY, 0xA), dev)
+        a.sendto(encode_hello(HelloPacket(2), KEY, 0xA), dev)  # within 50 ms: no answer
+        first = decode_frame(a.recv(2048), KEY).packet
+        assert isinstance(first, ChallengePacket) and first.hello_seq == 1
+        seqs = iter(range(3, 1000))
+        again = wait_for(lambda: _challenge_for(a, dev, next(seqs)), 5, "a CHALLENGE")
+        assert again is not None
+        assert again[0].challenge == first.challenge  # not spent, younger than 500 ms
+        join = encode_join(JoinPacket(1000, first.challenge), KEY, 0xA, again[1])
+        a.sendto(join, dev)
+        assert isinstance(_next_sample(a), Sample)
+        # Spent: the next HELLO draws a new challenge, and the old JOIN is a replay.
+        fresh = wait_for(lambda: _challenge_for(a, dev, next(seqs)), 5, "a new CHALLENGE")
+        assert fresh is not None
+        assert fresh[0].challenge != first.challenge
+        a.sendto(join, dev)
+        _next_sample(a)
+        _next_sample(a)
+    stats = server.finish()
+    assert stats.drops["challenge_limited"] >= 1 and stats.drops["replay"] == 1
+    assert stats.joins == 1 and stats.challenges >= 3
+
+
+def test_stopped_heartbeat_cuts_the_drivers_in_the_plant(server: Running,
+                                                          host: UdpDevice) -> None:
+    """The monostable model: with STOP_HEARTBEAT the drivers go off 30 ms after the last
+    edge, the mechanism stops getting the lock although the firmware still drives it,
+    and the heartbeat resumes with the first command without the flag."""
+    for _ in range(5):
+        _read(host)
+        host.send(LOCK_LEFT)
+    stop = LockCommand(seq=0, lock_left=True, lock_right=False, stop_heartbeat=True)
+    seen = []
+    for _ in range(8):
+        sample = _read(host)
+        seen.append(sample.status)
+        host.send(stop)
+    assert seen[0] & Status.SOLENOID_LEFT and not seen[0] & Status.DRIVERS_OFF
+    stopped = [i for i, st in enumerate(seen) if st & Status.HEARTBEAT_STOPPED]
+    off = [i for i, st in enumerate(seen) if st & Status.DRIVERS_OFF]
+    assert stopped and off and off[0] - stopped[0] <= 3  # 30 ms + one period at most
+    assert all(seen[i] & Status.SOLENOID_LEFT for i in off)  # the firmware still drives
+    applied = server.model.commands
+    assert any(c is not None and c.lock_left for c in applied)
+    assert applied[-1] is not None and not applied[-1].lock_left  # the plant got no lock
+    for _ in range(4):
+        sample = _read(host)
+        host.send(LOCK_LEFT)
+    assert not sample.status & (Status.DRIVERS_OFF | Status.HEARTBEAT_STOPPED)
+    assert server.finish().driver_cutoffs == 1
 
 
 def test_duration_and_script_end_stop_the_server() -> None:

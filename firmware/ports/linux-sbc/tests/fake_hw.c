@@ -6,7 +6,10 @@
  *     are answered by four pipelined AS5048A encoders (chip N, or all four along a
  *     daisy chain), with 8- or 16-bit words as exo-sbc configured;
  *   - libgpiod's chip and line calls are replaced; line values are printed to stdout
- *     as "solenoids left=L right=R" when they change.
+ *     as "solenoids left=L right=R" when they change. Lines are known by the order
+ *     exo-sbc asks for them: left, right, then the heartbeat and the drivers readback,
+ *     which reads as the monostable of the lab wiring would: high while the heartbeat
+ *     changed less than 30 ms ago.
  *
  * Test equipment only (loopback-check in the Makefile); never part of the port.
  */
@@ -76,7 +79,8 @@ int open(const char *path, int flags, ...)
     va_start(ap, flags);
     mode_t mode = (mode_t)va_arg(ap, int);
     va_end(ap);
-    int (*real)(const char *, int, ...) = (int (*)(const char *, int, ...))dlsym(RTLD_NEXT, "open");
+    int (*real)(const char *, int, ...);
+    *(void **)&real = dlsym(RTLD_NEXT, "open"); /* POSIX's way round ISO C's rule */
     return real(path, flags, mode);
 }
 
@@ -90,7 +94,8 @@ int open64(const char *path, int flags, ...)
     va_start(ap, flags);
     mode_t mode = (mode_t)va_arg(ap, int);
     va_end(ap);
-    int (*real)(const char *, int, ...) = (int (*)(const char *, int, ...))dlsym(RTLD_NEXT, "open64");
+    int (*real)(const char *, int, ...);
+    *(void **)&real = dlsym(RTLD_NEXT, "open64");
     return real(path, flags, mode);
 }
 
@@ -101,7 +106,8 @@ int ioctl(int fd, unsigned long req, ...)
     void *arg = va_arg(ap, void *);
     va_end(ap);
     if (fd < 0 || fd >= MAX_FD || fake_chip[fd] == 0) {
-        int (*real)(int, unsigned long, ...) = (int (*)(int, unsigned long, ...))dlsym(RTLD_NEXT, "ioctl");
+        int (*real)(int, unsigned long, ...);
+        *(void **)&real = dlsym(RTLD_NEXT, "ioctl");
         return real(fd, req, arg);
     }
     if (req == SPI_IOC_WR_BITS_PER_WORD) {
@@ -131,10 +137,26 @@ int ioctl(int fd, unsigned long req, ...)
     return (int)t->len;
 }
 
-/* libgpiod v1 replacements. */
-static int chip_token, line_tokens[2], values[2] = {-1, -1}, requested[2];
-static unsigned line_offsets[2];
+/* libgpiod v1 replacements. Line i is the i-th offset asked for: 0 left, 1 right,
+ * 2 heartbeat, 3 drivers readback. */
+#define LINES 4
+#define HOLD_NS 30000000LL /* the lab monostable's hold, 30 ms */
+static int chip_token, line_tokens[LINES], values[LINES] = {-1, -1, -1, -1}, requested[LINES];
+static unsigned line_offsets[LINES];
 static int lines_known;
+static long long last_edge_ns = -1;
+
+static long long mono_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+
+static int line_index(void *line)
+{
+    return (int)((int *)line - line_tokens);
+}
 
 void *gpiod_chip_open_lookup(const char *descr)
 {
@@ -142,7 +164,6 @@ void *gpiod_chip_open_lookup(const char *descr)
     return &chip_token;
 }
 
-/* exo-sbc asks for the left line first: the first offset seen is "left". */
 void *gpiod_chip_get_line(void *chip, unsigned offset)
 {
     (void)chip;
@@ -151,7 +172,7 @@ void *gpiod_chip_get_line(void *chip, unsigned offset)
             return &line_tokens[i];
         }
     }
-    if (lines_known == 2) {
+    if (lines_known == LINES) {
         return NULL;
     }
     line_offsets[lines_known] = offset;
@@ -161,30 +182,52 @@ void *gpiod_chip_get_line(void *chip, unsigned offset)
 int gpiod_line_request_output(void *line, const char *consumer, int value)
 {
     (void)consumer;
-    int i = (int *)line == &line_tokens[0] ? 0 : 1;
+    int i = line_index(line);
     requested[i] = 1;
     values[i] = value;
     return 0;
 }
 
+int gpiod_line_request_input(void *line, const char *consumer)
+{
+    (void)consumer;
+    requested[line_index(line)] = 1;
+    return 0;
+}
+
 int gpiod_line_set_value(void *line, int value)
 {
-    int i = (int *)line == &line_tokens[0] ? 0 : 1;
+    int i = line_index(line);
     if (!requested[i]) {
         return -1;
     }
     if (values[i] != value) {
         values[i] = value;
-        printf("solenoids left=%d right=%d\n", values[0], values[1]);
-        fflush(stdout);
+        if (i == 2) {
+            last_edge_ns = mono_ns(); /* retriggers the monostable */
+        } else {
+            printf("solenoids left=%d right=%d\n", values[0], values[1]);
+            fflush(stdout);
+        }
     }
     return 0;
 }
 
+int gpiod_line_get_value(void *line)
+{
+    int i = line_index(line);
+    if (!requested[i]) {
+        return -1;
+    }
+    if (i == 3) {
+        return last_edge_ns >= 0 && mono_ns() - last_edge_ns < HOLD_NS;
+    }
+    return values[i];
+}
+
 void gpiod_line_release(void *line)
 {
-    int i = (int *)line == &line_tokens[0] ? 0 : 1;
-    requested[i] = 0;
+    requested[line_index(line)] = 0;
 }
 
 void gpiod_chip_close(void *chip)

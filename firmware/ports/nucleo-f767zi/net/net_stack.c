@@ -113,7 +113,8 @@ static void input_icmp(net_stack *s, const uint8_t *frame, const net_ipv4 *ip)
     if (n == 0u) {
         return;
     }
-    /* Answer the frame's sender directly: ping must work before the host is known. */
+    /* Answer the frame's sender directly: ping must work before the host's MAC is
+     * known from an ARP exchange. Only the host gets here (input_ipv4). */
     net_eth_header(s->tx, frame + NET_MAC_LEN, s->cfg.mac, NET_ETHERTYPE_IPV4);
     net_ipv4_header(s->tx + NET_ETH_HDR, s->cfg.ip, ip->src, NET_IPPROTO_ICMP, s->ip_id++, n);
     if (transmit(s, NET_ETH_HDR + NET_IPV4_HDR + n) == 0) {
@@ -130,6 +131,13 @@ static void input_ipv4(net_stack *s, const uint8_t *frame, size_t len)
     }
     if (ip.dst != s->cfg.ip) {
         s->stats.not_for_us++;
+        return;
+    }
+    if (ip.src != s->cfg.peer_ip &&
+        (ip.proto == NET_IPPROTO_UDP || ip.proto == NET_IPPROTO_ICMP)) {
+        /* Only the host's datagrams are acted on: drop the rest before any checksum,
+         * before they could occupy a place the host's commands need, and unanswered. */
+        s->stats.not_host++;
         return;
     }
     learn_peer(s, ip.src, frame + NET_MAC_LEN);

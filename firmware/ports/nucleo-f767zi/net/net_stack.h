@@ -8,6 +8,14 @@
  * them. No routing: the host must be on the same Ethernet segment (the protocol runs on
  * a dedicated network). Nothing here touches hardware, so it is tested on a desktop.
  *
+ * Floods: a UDP datagram or a ping whose source address is not the host's is dropped
+ * before its checksum is computed, before it could take a place in the queue and
+ * without an answer (counted in `not_host`), so a flood from any other machine on the
+ * segment can neither crowd the host's commands out of the queue, nor make the device
+ * transmit, nor cost the device core any work. A full queue drops the newcomer, never
+ * a queued datagram. (Datagrams that spoof the host's address do reach the queue; the
+ * core caps how many of those it authenticates per sample period.)
+ *
  * Trusting the source MAC of the host's frames lets another machine on the segment
  * divert the samples (a denial of service, which the host sees as a link outage), but
  * not forge or replay anything: every protocol packet carries an HMAC tag.
@@ -45,6 +53,7 @@ typedef struct {
     uint32_t ipv4_errors;        /* failed net_ipv4_parse */
     uint32_t udp_errors;         /* failed net_udp_parse */
     uint32_t udp_wrong_port;
+    uint32_t not_host;           /* UDP datagram or ping from another source: dropped */
     uint32_t icmp_echo_replies;
     uint32_t rx_queue_full;      /* datagram dropped: the core was not taking them */
     uint32_t tx_no_peer_mac;     /* datagram not sent: the host's MAC is not known yet */

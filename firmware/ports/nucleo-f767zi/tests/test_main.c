@@ -12,6 +12,8 @@ int main(void)
     test_arp();
     test_stack();
     test_prov();
+    test_timing();
+    test_flood();
     printf("%d passed, %d failed\n", harness_passed, harness_failed);
     return harness_failed == 0 ? 0 : 1;
 }

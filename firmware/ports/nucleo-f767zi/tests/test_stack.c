@@ -245,7 +245,7 @@ static void ping(void)
     setup(&link);
     uint8_t f[14 + 20 + 12];
     memcpy(f, DEV_MAC, 6);
-    memcpy(f + 6, O_MAC, 6);
+    memcpy(f + 6, H_MAC, 6);
     f[12] = 0x08;
     f[13] = 0x00;
     const uint8_t icmp[] = {8, 0, 0, 0, 0x12, 0x34, 0x00, 0x01, 'p', 'i', 'n', 'g'};
@@ -254,15 +254,22 @@ static void ping(void)
     uint16_t c = net_checksum(ic, sizeof icmp);
     ic[2] = (uint8_t)(c >> 8);
     ic[3] = (uint8_t)c;
+    /* From another machine: no answer (a flood of pings makes the device send nothing). */
     net_ipv4_header(f + 14, IP_OTHER, IP_DEVICE, NET_IPPROTO_ICMP, 7, sizeof icmp);
+    net_stack_input(&stack, f, sizeof f, 0);
+    CHECK_EQ(link.count, 0u);
+    CHECK_EQ(stack.stats.not_host, 1u);
+
+    /* From the host, answered to the frame's sender. */
+    net_ipv4_header(f + 14, IP_HOST, IP_DEVICE, NET_IPPROTO_ICMP, 7, sizeof icmp);
     net_stack_input(&stack, f, sizeof f, 0);
     CHECK_EQ(link.count, 1u);
     CHECK_EQ(stack.stats.icmp_echo_replies, 1u);
     const uint8_t *o = link.frames[0];
-    CHECK_BYTES(o, O_MAC, 6);
+    CHECK_BYTES(o, H_MAC, 6);
     net_ipv4 ip;
     CHECK_EQ(net_ipv4_parse(o + 14, link.lens[0] - 14, &ip), NET_IPV4_OK);
-    CHECK_EQ(ip.dst, IP_OTHER);
+    CHECK_EQ(ip.dst, IP_HOST);
     CHECK_EQ(ip.proto, NET_IPPROTO_ICMP);
     CHECK_EQ(ip.payload_len, sizeof icmp);
     CHECK_EQ(ip.payload[0], 0u); /* echo reply */

@@ -9,5 +9,7 @@ void test_ipv4_udp(void);
 void test_arp(void);
 void test_stack(void);
 void test_prov(void);
+void test_timing(void);
+void test_flood(void);
 
 #endif /* TESTS_H */

@@ -25,7 +25,7 @@
 #include "../prov.h"
 #include "sbc_key.h"
 #include "sbc_options.h"
-#include "sha256.h"
+#include "sbc_identity.h"
 
 #define PROV_OFFSET 0x1C0000u /* 0x081C0000 - 0x08000000 */
 
@@ -76,12 +76,12 @@ static void describe(const prov_block *b)
     printf("%-12s %02x:%02x:%02x:%02x:%02x:%02x\n", "device MAC", b->mac[0], b->mac[1],
            b->mac[2], b->mac[3], b->mac[4], b->mac[5]);
     printf("%-12s %u\n", "UDP port", (unsigned)b->udp_port);
-    /* The same key id the ExoStudy console shows for the host's key file (first 8 hex
-     * digits of SHA-256 of the key): equal ids, equal keys; it reveals nothing usable. */
-    uint8_t digest[EXO_SHA256_BYTES];
-    exo_sha256(b->key, sizeof b->key, digest);
-    printf("%-12s %02x%02x%02x%02x (key id; the key itself is not shown)\n", "key", digest[0],
-           digest[1], digest[2], digest[3]);
+    /* The same key id the ExoStudy console shows for the host's key file (the first 8
+     * bytes of HMAC-SHA256(key, "exostudy key id")): equal ids, equal keys; it reveals
+     * nothing usable. */
+    char key_id[SBC_KEY_ID_HEX + 1];
+    sbc_key_id(b->key, sizeof b->key, key_id);
+    printf("%-12s %s (key id; the key itself is not shown)\n", "key", key_id);
 }
 
 static int check(const char *path)

@@ -1,6 +1,7 @@
 """Check a device end to end with ExoStudy's real host link, `UdpDevice`: start the
 device command given after `--`, then see samples arrive, a lock command show up as
-SOLENOID_LEFT, and the device's command watchdog release it once commands stop.
+SOLENOID_LEFT, and the device's command watchdog release it once commands stop; with
+--hardware-release also the bring-up probe of the heartbeat release.
 
 Used with tap-bench (the Nucleo port's network stack and the core on a Linux TAP
 interface, through the kernel's ARP/IPv4/UDP) and with exo-sbc under a fake-hardware
@@ -76,6 +77,43 @@ def _exercise(dev: UdpDevice, failures: list[str]) -> None:
     print(f"      {len(samples)} samples, link counters {dev.link_counters()}")
 
 
+def _hardware_release(dev: UdpDevice, failures: list[str]) -> None:
+    """The bring-up step "hardware release" against a device whose drivers' enable is
+    modelled (exo-sbc's GPIO shim holds it 30 ms after each heartbeat edge): hold the
+    left lock, stop the heartbeat, time HEARTBEAT_STOPPED -> DRIVERS_OFF in device time."""
+    seen: list[Sample] = []
+
+    def run(seconds: float, stop: bool, lock: bool) -> None:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            s = dev.read(0.1)
+            if s is None:
+                continue
+            seen.append(s)
+            dev.send(LockCommand(seq=s.seq, lock_left=lock, lock_right=False,
+                                 stop_heartbeat=stop))
+
+    run(0.3, stop=False, lock=True)
+    running = list(seen)
+    _expect(bool(running) and not any(s.status & Status.DRIVERS_OFF for s in running[5:]),
+            "drivers enabled while the heartbeat runs", failures)
+    seen.clear()
+    run(0.3, stop=True, lock=True)
+    stopped = next((s for s in seen if s.status & Status.HEARTBEAT_STOPPED), None)
+    off = next((s for s in seen if s.status & Status.DRIVERS_OFF), None)
+    _expect(stopped is not None, "HEARTBEAT_STOPPED after a STOP_HEARTBEAT command", failures)
+    _expect(off is not None, "DRIVERS_OFF once the heartbeat stopped", failures)
+    if stopped is not None and off is not None:
+        release_ms = (off.t - stopped.t) * 1000
+        print(f"      hardware release {release_ms:.0f} ms after HEARTBEAT_STOPPED")
+        _expect(10 <= release_ms <= 40, "release within 10-40 ms (the bring-up threshold)",
+                failures)
+    seen.clear()
+    run(0.3, stop=False, lock=False)
+    _expect(bool(seen) and not seen[-1].status & (Status.DRIVERS_OFF | Status.HEARTBEAT_STOPPED),
+            "heartbeat and drivers back after the probe", failures)
+
+
 def main(argv: list[str]) -> int:
     """Run the device command and check it; 0 if every check passed."""
     if "--" not in argv:
@@ -89,6 +127,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--local-host", default=None)
     p.add_argument("--wait-ready", action="store_true",
                    help="wait for a line starting with 'ready' on the command's stdout")
+    p.add_argument("--hardware-release", action="store_true",
+                   help="also run the hardware-release probe (a device with a modelled "
+                        "heartbeat monostable and readback)")
     args = p.parse_args(argv[:split])
     key = load_key(Path(args.key_file))
     proc = subprocess.Popen(argv[split + 1:], stdout=subprocess.PIPE, text=True)
@@ -103,6 +144,8 @@ def main(argv: list[str]) -> int:
     try:
         dev.open()
         _exercise(dev, failures)
+        if args.hardware_release:
+            _hardware_release(dev, failures)
     finally:
         dev.close()
         proc.terminate()

@@ -29,6 +29,7 @@
 
 #include "../net/net_stack.h"
 #include "exo_device.h"
+#include "hmac.h"
 #include "sbc_key.h"
 
 #define HOST_IP 0xC0A8FA01u   /* 192.168.250.1 */
@@ -104,6 +105,9 @@ static int send_udp(void *ctx, const uint8_t *data, size_t len, exo_endpoint to)
 static long receive(void *ctx, uint8_t *buf, size_t cap, exo_endpoint *from)
 {
     (void)ctx;
+    if (net.rx_count == 0u) {
+        return EXO_RX_NONE; /* as board.c: an empty datagram is length 0, not "none" */
+    }
     return net_stack_receive(&net, buf, cap, &from->ip, &from->port);
 }
 
@@ -203,7 +207,11 @@ int main(int argc, char **argv)
     cfg.host_ip = HOST_IP;
     cfg.bus = EXO_BUS_CHIP_SELECTS;
     cfg.rate_factor = 1;
-    if (exo_device_init(&dev, &b, &cfg) != 0) {
+    memcpy(cfg.firmware, "exo-nucleo 3", 12); /* what the board sends */
+    memcpy(cfg.unique_id, "tap-bench", 9);
+    int rc = exo_device_init(&dev, &b, &cfg);
+    exo_secure_zero(cfg.key, sizeof cfg.key);
+    if (rc != 0) {
         fprintf(stderr, "tap-bench: the core refused to start\n");
         return 2;
     }
