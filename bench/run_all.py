@@ -38,6 +38,7 @@ BENCHES = [
     ("LSL outlets on and off, marker latency", ["bench_lab.py", "--seconds", "30"]),
     ("virtual cohort: 10, 50, 100 participants x 3 controllers", ["bench_cohort.py"]),
     ("100 Hz loop with and without a CPU hog", ["bench_loop_load.py", "--seconds", "20"]),
+    ("EMG chain: one hour of 16 channels at 2 kHz", ["bench_emg_processing.py"]),
 ]
 
 

@@ -116,6 +116,9 @@ class Settings(BaseSettings):
     #: Where an upload is written for the reading process (folders 0700, files 0600,
     #: removed after each import).
     xdf_work_dir: Path = DATA_DIR / "xdf-work"
+    #: Folder of the EMG recording files (None: `emg/` beside a SQLite database file, or
+    #: in the data folder for PostgreSQL); `backend.emg.store`.
+    emg_dir: Path | None = None
 
     #: Start the control worker with the server (tests switch it off).
     start_worker: bool = True

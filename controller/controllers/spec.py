@@ -9,19 +9,30 @@ snapshots and JSON requests use the plain mapping `to_config()` gives:
 
     {"settings": {...ControllerConfig fields...},
      "models": {...ModelSet JSON...} or "models_path": "models.json",      # UMC, E-UMC
-     "utilities": {...UtilitySet JSON...} or "utilities_path": "utilities.json"}
+     "utilities": {...UtilitySet JSON...} or "utilities_path": "utilities.json",
+     "priors": {...LearnedPriors JSON...}}                                  # optional
+
+Priors are one typed definition, `LearnedPriors` (values, estimate, provenance). Without
+one the settings' `priors` apply (equal by default, the paper's controller bit for bit);
+with one, its values become the settings' priors, and a settings mapping that asks for
+other priors at the same time is refused. Whatever the source, the UMC refuses priors
+outside the safe set of its utility table (`controller.decision.prior_safety`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 from controller.config import ControllerConfig, SettingError
 from controller.controllers import registry
+from controller.intent.learned_priors import LearnedPriors
+from controller.intent.posteriors import EQUAL_PRIORS
 
-_KEYS = frozenset({"settings", "models", "models_path", "utilities", "utilities_path"})
+_KEYS = frozenset({"settings", "models", "models_path", "utilities", "utilities_path",
+                   "priors"})
 
 
 @dataclass(frozen=True)
@@ -39,6 +50,7 @@ class ControllerSpec:
     models_path: str | None = None
     utilities: Mapping[str, Any] | None = None
     utilities_path: str | None = None
+    priors: LearnedPriors | None = None
 
     def __post_init__(self) -> None:
         reg = registry.lookup(self.name)
@@ -56,6 +68,18 @@ class ControllerSpec:
             if reg.needs_models and inline is None and not path:
                 raise SettingError(key, f"controller {self.name} needs '{key}' or "
                                    f"'{key}_path'")
+        if self.priors is not None:
+            if not isinstance(self.priors, LearnedPriors):
+                raise SettingError("priors", "must be a LearnedPriors record")
+            values = tuple(self.priors.values)
+            asked = tuple(self.settings.priors)
+            if asked != values and asked != tuple(EQUAL_PRIORS):
+                raise SettingError("priors", f"settings ask for priors {list(asked)} but the "
+                                   f"priors record {self.priors.version!r} holds "
+                                   f"{list(values)}; give one or the other")
+            if asked != values:
+                object.__setattr__(self, "settings",
+                                   dataclasses.replace(self.settings, priors=values))
 
     @classmethod
     def from_config(cls, name: str, config: Mapping[str, Any] | None = None) -> ControllerSpec:
@@ -75,10 +99,20 @@ class ControllerSpec:
         else:
             raise SettingError("settings", "must be a mapping of controller parameters")
         paths = {k: cfg.get(k) for k in ("models_path", "utilities_path")}
+        raw_priors = cfg.get("priors")
+        priors = None
+        if isinstance(raw_priors, LearnedPriors):
+            priors = raw_priors
+        elif raw_priors is not None:
+            try:
+                priors = LearnedPriors.from_json(raw_priors)
+            except ValueError as exc:
+                raise SettingError("priors", str(exc)) from None
         return cls(name, settings, cfg.get("models"),
                    None if paths["models_path"] is None else str(paths["models_path"]),
                    cfg.get("utilities"),
-                   None if paths["utilities_path"] is None else str(paths["utilities_path"]))
+                   None if paths["utilities_path"] is None else str(paths["utilities_path"]),
+                   priors)
 
     def to_config(self) -> dict[str, Any]:
         """The wire mapping: JSON-able, and `from_config` gives this spec back."""
@@ -87,4 +121,6 @@ class ControllerSpec:
             v = getattr(self, key)
             if v is not None:
                 out[key] = dict(v) if isinstance(v, Mapping) else v
+        if self.priors is not None:
+            out["priors"] = self.priors.to_json()
         return out

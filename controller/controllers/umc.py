@@ -14,12 +14,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from controller.config import ControllerConfig, ticks_per_run
+from controller.config import ControllerConfig, SettingError, ticks_per_run
 from controller.controllers.factory import load_models, load_utilities
 from controller.controllers.registry import PlanPlace, register
 from controller.controllers.spec import ControllerSpec
 from controller.decision import expected_utility as decision
 from controller.decision.expected_utility import decide_fast
+from controller.decision.prior_safety import PriorBounds
 from controller.decision.utility_function import UtilitySet
 from controller.intent.motion_model import ModelSet
 from controller.intent.onset import ModelBank, OnsetCriteria, _bank_kernel, window_start
@@ -133,8 +134,13 @@ class UMC(KernelController):
         )
         if self.bank.max_window < c.window:
             raise ValueError(f"model bank window {self.bank.max_window} < window {c.window}")
-        self.intent = IntentEstimator(np.asarray(c.priors))
         self.table = np.ascontiguousarray(utilities.table.values, dtype=np.float64)
+        unsafe = PriorBounds.for_table(self.table).violation(c.priors, floors=False)
+        if unsafe is not None:
+            raise SettingError("priors", f"{list(c.priors)} could make the controller lock "
+                               f"where equal priors would not ({unsafe}); see "
+                               "docs/personalisation.md")
+        self.intent = IntentEstimator(np.asarray(c.priors))
         self.eu = np.zeros(4)
         i = self.intent
         data = UMCData(*self.bank.kernel_arrays(), i.priors, i.p_obs, i.post, self.table,

@@ -263,7 +263,8 @@ class EnvelopeStream:
     blocks (`sosfilt` with `zi`), always in float64.
 
     Causal means: each output sample depends only on samples up to it, so the envelope
-    lags (about a quarter of a 6 Hz period) and has the single-pass (not squared)
+    lags (the 4th-order 6 Hz low-pass delays slow changes by about 70 ms, 2.61 / (2 pi
+    6 Hz), its group delay at low frequencies) and has the single-pass (not squared)
     magnitude response. It is not the offline envelope and is never used for results.
     DC is removed by the band-pass's high-pass (the filter starts in the steady state
     of the first sample, so an offset does not ring at the start).

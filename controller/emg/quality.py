@@ -33,10 +33,12 @@ TIMESTAMPS_BACKWARDS = "timestamps_backwards"
 # An ADC that saturates repeats its extreme code, so the tolerance only has to absorb
 # the amplifier's own noise at the rail; 0.1 % of the span is far below the signal.
 CLIPPING_TOLERANCE = 0.001
-# ... and it counts only in runs of this many consecutive samples at the same rail. A
-# natural EMG peak at 1-4 kHz touches its extreme for one or two samples; a saturated
-# amplifier stays there. With no known input range, the rails are the channel's own
-# minimum and maximum, so the run length is what tells clipping from an ordinary peak.
+# With a known input range every sample at a rail is clipped. With none, the rails are
+# the channel's own minimum and maximum, and a sample counts only in a run of this many
+# consecutive samples at the same rail: a natural EMG peak at 1-4 kHz touches its
+# extreme for one or two samples, a saturated amplifier stays there. (So without the
+# range the count misses clipped excursions shorter than the run: it flags, it does not
+# measure exactly.)
 CLIPPING_MIN_RUN = 4
 # Flat line (electrode off or channel dead): the RMS after DC removal below 0.1 uV.
 # Surface EMG amplifiers' baseline noise is of the order of 1 uV RMS, so a channel
@@ -136,7 +138,8 @@ def _runs_at(mask: NDArray[np.bool_], min_run: int) -> int:
 
 
 def clipped_samples(x: NDArray[Any], input_range: tuple[float, float] | None = None) -> int:
-    """Samples of one channel in runs of CLIPPING_MIN_RUN at a rail (NaN ignored)."""
+    """Samples of one channel at a rail of `input_range`, or in runs of CLIPPING_MIN_RUN
+    at its own extremes when the range is not known (NaN ignored)."""
     finite = x[np.isfinite(x)]
     if finite.size == 0:
         return 0
@@ -148,7 +151,8 @@ def clipped_samples(x: NDArray[Any], input_range: tuple[float, float] | None = N
     with np.errstate(invalid="ignore"):
         at_high = x >= high - tol
         at_low = x <= low + tol
-    return _runs_at(at_high, CLIPPING_MIN_RUN) + _runs_at(at_low, CLIPPING_MIN_RUN)
+    run = 1 if input_range is not None else CLIPPING_MIN_RUN
+    return _runs_at(at_high, run) + _runs_at(at_low, run)
 
 
 def _spectrum(x: NDArray[np.float64], fs: float) -> tuple[NDArray[Any], NDArray[Any]]:

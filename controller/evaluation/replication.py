@@ -11,7 +11,14 @@ whole study); this module holds what is compared:
 - `seed_measures`: every per-seed number (a mean over that seed's participants).
 - `CLAIMS`: the claims, each with the paper's sentence, its number where it gives one,
   the measure compared and the kind of verdict (`controller.evaluation.verdicts`).
-- `judge`: the verdict of every claim from the measures of all seeds.
+- `judge`: the verdict of every claim from the measures of all seeds; `judge_all`
+  also judges the two halves of the seeds apart and marks a claim *unstable* when the
+  halves disagree.
+
+The cells of the paper's tables are judged on the difference between the virtual
+study and the paper's participants, both with their sampling error
+(`controller.evaluation.equivalence`), against an equivalence margin per kind of cell
+(`MARGIN_PER_10_LIFTS`, `MARGIN_PER_TRIAL`, `MARGIN_SHARE`).
 
 Counts are reported per 10 lifts of a kind (the paper's tables have 10 squats and 10
 asymmetric stoops per participant), so a trial that lost a lift at its edges does not
@@ -29,12 +36,14 @@ import numpy as np
 
 from controller.controllers import registry
 from controller.evaluation.columns import TickData
+from controller.evaluation.equivalence import Difference, welch
 from controller.evaluation.metrics import DecisionOutcome, LiftOutcome
 from controller.evaluation.study import RecordingEvaluation
 from controller.evaluation.verdicts import (
     Interval,
     Verdict,
     check_verdict,
+    difference_verdict,
     ordinal_verdict,
     t_interval,
     value_verdict,
@@ -79,6 +88,21 @@ PAPER_FALSE_POSITIVES: dict[tuple[str, str], dict[str, int]] = {
 GROUP_KINDS: dict[str, tuple[str, ...]] = {"SQ": ("squat",),
                                            "AS": ("stoop_left", "stoop_right")}
 TRIAL_GROUPS: dict[str, str] = {"walking": "W", "stair_walking": "SW"}
+
+# Equivalence margins, one per kind of table cell. The rule is the same for every kind:
+# the smallest difference one participant's cell in the paper's tables can show, i.e.
+# the tables' own unit. Chosen from the tables' design before any verdict was computed,
+# and never adjusted to the verdicts. A fraction of the paper's between-participant SD
+# was not used: a third of the paper's rows have no spread at all (every E-UMC cell 10
+# of 10, every PEC and E-UMC false-positive cell 0), which would give a margin of 0
+# and make equivalence impossible however close the virtual study comes.
+#: Lifts recognised, decided correctly or supported per 10 lifts: one lift in ten (the
+#: paper counts 10 squats and 10 stoops per participant and controller).
+MARGIN_PER_10_LIFTS = 1.0
+#: False-positive lock signals per trial: one signal, the smallest count a trial shows.
+MARGIN_PER_TRIAL = 1.0
+#: Share of participants: one participant of the paper's eight.
+MARGIN_SHARE = 1.0 / 8.0
 
 
 def paper_mean(table: Mapping[str, int]) -> float:
@@ -280,7 +304,7 @@ def seed_measures(trials: Sequence[TrialData]) -> dict[str, float]:
 # --------------------------------------------------------------------------- claims
 
 
-ClaimKind = Literal["value", "ordinal", "check", "not_simulated"]
+ClaimKind = Literal["difference", "value", "ordinal", "check", "not_simulated"]
 
 
 @dataclass(frozen=True)
@@ -293,8 +317,12 @@ class Claim:
         statement: the paper's sentence (short quote) or what its table/figure shows.
         measure: the key of the per-seed measure compared (`seed_measures`, or one of
             the method checks given to `judge`).
-        kind: value, ordinal, check or not_simulated (`controller.evaluation.verdicts`).
-        paper: the paper's number (value claims; the expected value of checks).
+        kind: difference, value, ordinal, check or not_simulated
+            (`controller.evaluation.verdicts`).
+        paper: the paper's number (difference and value claims: the mean of its
+            participants; the expected value of checks).
+        paper_values: difference claims: the paper's per-participant values.
+        margin: difference claims: the equivalence margin, in `unit`.
         direction, threshold: ordinal claims: the measure lies above (+1) or below (-1)
             the threshold.
         tolerance: check claims.
@@ -313,6 +341,14 @@ class Claim:
     tolerance: float = 0.0
     unit: str = ""
     figure: str = ""
+    paper_values: tuple[float, ...] = ()
+    margin: float = math.nan
+
+    def __post_init__(self) -> None:
+        if self.kind == "difference" and (len(self.paper_values) < 2
+                                          or not self.margin >= 0):
+            raise ValueError(f"claim {self.key}: a difference claim needs the paper's "
+                             "per-participant values (two or more) and a margin >= 0")
 
 
 def _table_claims() -> list[Claim]:
@@ -327,18 +363,24 @@ def _table_claims() -> list[Claim]:
         out.append(Claim(f"{ctl}.{metric}.{g}", src,
                          f"{names[metric].capitalize()} {labels[g]} per 10 ({who}): "
                          + ", ".join(f"{v}" for v in row.values()),
-                         f"{ctl}.{metric}.{g}", "value", paper_mean(row), unit="per 10 lifts"))
+                         f"{ctl}.{metric}.{g}", "difference", paper_mean(row),
+                         unit="per 10 lifts", paper_values=_values(row),
+                         margin=MARGIN_PER_10_LIFTS))
     out.append(Claim("pec.correct.SQ", "Section \"Intent estimation and decision performance\"",
                      "\"The PEC ... engaged both support mechanisms during all demonstrations "
                      "for all participants except for participant 7\" (3 squats not supported)",
-                     "pec.correct.SQ", "value", paper_mean(PAPER_PERFORMANCE[("pec", "correct",
-                                                                             "SQ")]),
-                     unit="per 10 lifts"))
+                     "pec.correct.SQ", "difference",
+                     paper_mean(PAPER_PERFORMANCE[("pec", "correct", "SQ")]),
+                     unit="per 10 lifts",
+                     paper_values=_values(PAPER_PERFORMANCE[("pec", "correct", "SQ")]),
+                     margin=MARGIN_PER_10_LIFTS))
     out.append(Claim("pec.engaged.AS", "Section \"Intent estimation and decision performance\"",
                      "The PEC engaged both sides in every asymmetric stoop but one of "
-                     "participant 7", "pec.engaged.AS", "value",
+                     "participant 7", "pec.engaged.AS", "difference",
                      paper_mean(PAPER_PERFORMANCE[("pec", "engaged", "AS")]),
-                     unit="per 10 lifts"))
+                     unit="per 10 lifts",
+                     paper_values=_values(PAPER_PERFORMANCE[("pec", "engaged", "AS")]),
+                     margin=MARGIN_PER_10_LIFTS))
     src = "Table \"Number of false positive lock signals\""
     for (ctl, g), row in PAPER_FALSE_POSITIVES.items():
         trial = "walking" if g == "W" else "stair walking"
@@ -346,19 +388,31 @@ def _table_claims() -> list[Claim]:
                          f"False positive lock signals, {trial}, "
                          f"{ctl.upper().replace('EUMC', 'E-UMC')}: "
                          + ", ".join(str(v) for v in row.values()),
-                         f"fp.{ctl}.{g}", "value", paper_mean(row), unit="per trial"))
+                         f"fp.{ctl}.{g}", "difference", paper_mean(row), unit="per trial",
+                         paper_values=_values(row), margin=MARGIN_PER_TRIAL))
     return out
+
+
+def _values(row: Mapping[str, int]) -> tuple[float, ...]:
+    return tuple(float(v) for v in row.values())
+
+
+def _any_fp(ctl: str, g: str) -> tuple[float, ...]:
+    """Per participant of the paper: 1 if they had a false positive in that trial."""
+    return tuple(float(v > 0) for v in PAPER_FALSE_POSITIVES[(ctl, g)].values())
 
 
 CLAIMS: tuple[Claim, ...] = (
     *_table_claims(),
     Claim("umc_fp_walk_some", "Section \"False positives\"",
           "\"During walking trials, the UMC generated false positive signals for "
-          "participants 3, 5 and 7\" (3 of 8)", "fp_any.umc.W", "value", 3 / 8,
-          unit="share of participants"),
+          "participants 3, 5 and 7\" (3 of 8)", "fp_any.umc.W", "difference", 3 / 8,
+          unit="share of participants", paper_values=_any_fp("umc", "W"),
+          margin=MARGIN_SHARE),
     Claim("umc_fp_stairs_all", "Section \"False positives\"",
           "\"During all stair walking trials, the UMC generated false positives signals\"",
-          "fp_any.umc.SW", "value", 1.0, unit="share of participants"),
+          "fp_any.umc.SW", "difference", 1.0, unit="share of participants",
+          paper_values=_any_fp("umc", "SW"), margin=MARGIN_SHARE),
     Claim("pec_eumc_no_fp", "Sections \"False positives\", discussion",
           "\"the PEC did not generate any false positive lock signal\"; \"the E-UMC did not "
           "generate any false positive lock signals\"", "fp.pec_eumc.total", "value", 0.0,
@@ -441,19 +495,52 @@ CLAIMS: tuple[Claim, ...] = (
 
 @dataclass(frozen=True)
 class ClaimResult:
-    """A claim with its virtual number and verdict."""
+    """A claim with its virtual number and verdict.
+
+    Attributes:
+        difference: difference claims: virtual minus paper with both errors.
+        halves: the verdicts of the first and the second half of the seeds judged apart
+            (`judge_all`, with at least two seeds per half); None otherwise.
+    """
 
     claim: Claim
     interval: Interval
     verdict: Verdict
     reason: str
     seeds: tuple[float, ...] = ()
+    difference: Difference | None = None
+    halves: tuple[Verdict, Verdict] | None = None
+
+    @property
+    def unstable(self) -> bool | None:
+        """True when the two disjoint halves of the seeds give different verdicts (the
+        verdict still depends on which seeds were run); None when not measured."""
+        return None if self.halves is None else self.halves[0] is not self.halves[1]
+
+    def verdict_text(self) -> str:
+        """The verdict, with ", unstable" when the halves disagree."""
+        return self.verdict.value + (", unstable" if self.unstable else "")
 
 
 def _fmt(x: float) -> str:
     if not math.isfinite(x):
         return "n/a"
     return f"{x:.4g}"
+
+
+def _difference_reason(d: Difference, v: Verdict) -> str:
+    lo90, hi90 = d.interval(0.90)
+    head = (f"Virtual minus paper {d.text()} (95 % Welch interval, df {d.df:.3g}; paper "
+            f"{_fmt(d.mean_paper)} SE {d.se_paper:.2g} over {d.n_paper} participants, "
+            f"virtual SE {d.se_virtual:.2g} over {d.n_virtual} seeds); margin "
+            f"+-{d.margin:.3g}, TOST p = {d.tost_p:.2g}: ")
+    if v is Verdict.EQUIVALENT:
+        return head + f"the 90 % interval [{lo90:.3g}, {hi90:.3g}] lies inside the margin."
+    if v is Verdict.DIFFERS:
+        return head + "the whole 95 % interval lies beyond the margin."
+    if d.low > 0 or d.high < 0:
+        return head + "not zero, but not shown to exceed the margin either."
+    return head + "the interval reaches both inside and beyond the margin."
 
 
 def judge(claim: Claim, values: Sequence[float]) -> ClaimResult:
@@ -466,6 +553,13 @@ def judge(claim: Claim, values: Sequence[float]) -> ClaimResult:
     if iv.n == 0:
         return ClaimResult(claim, iv, Verdict.DIFFERS,
                            "No seed gave a value (the measure is undefined).", seeds)
+    if claim.kind == "difference":
+        if iv.n < 2:
+            return ClaimResult(claim, iv, Verdict.INCONCLUSIVE,
+                               "One seed: the virtual study's spread is unknown.", seeds)
+        d = welch(values, claim.paper_values, claim.margin)
+        v = difference_verdict(d)
+        return ClaimResult(claim, iv, v, _difference_reason(d, v), seeds, d)
     if claim.kind == "value":
         v = value_verdict(claim.paper, iv)
         where = "inside" if v is Verdict.REPRODUCED else (
@@ -486,15 +580,32 @@ def judge(claim: Claim, values: Sequence[float]) -> ClaimResult:
                        f"within {_fmt(claim.tolerance)}.", seeds)
 
 
+def seed_halves(n: int) -> tuple[slice, slice] | None:
+    """The first and the last `n // 2` of `n` seeds (the middle one of an odd number is
+    left out, so both halves weigh the same); None with fewer than two per half."""
+    k = n // 2
+    return None if k < 2 else (slice(0, k), slice(n - k, n))
+
+
 def judge_all(per_seed: Sequence[Mapping[str, float]], checks: Mapping[str, float],
               claims: Sequence[Claim] = CLAIMS) -> list[ClaimResult]:
     """Every claim: seed measures from `per_seed` (one mapping per seed), method checks
-    (deterministic) and per-seed model measures from `checks` or `per_seed`."""
+    (deterministic) and per-seed model measures from `checks` or `per_seed`.
+
+    With four seeds or more, each claim measured per seed is also judged on the two
+    disjoint halves of the seeds (`seed_halves`) and marked unstable when they
+    disagree."""
     out = []
+    halves = seed_halves(len(per_seed))
     for c in claims:
         if c.measure in checks:
-            values: list[float] = [checks[c.measure]]
-        else:
-            values = [m.get(c.measure, math.nan) for m in per_seed]
-        out.append(judge(c, values))
+            out.append(judge(c, [checks[c.measure]]))
+            continue
+        values = [m.get(c.measure, math.nan) for m in per_seed]
+        res = judge(c, values)
+        if halves is not None and c.kind != "not_simulated":
+            first, second = (judge(c, values[h]).verdict for h in halves)
+            res = ClaimResult(res.claim, res.interval, res.verdict, res.reason, res.seeds,
+                              res.difference, (first, second))
+        out.append(res)
     return out

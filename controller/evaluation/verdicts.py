@@ -10,9 +10,19 @@ values a bootstrap interval is too narrow (it cannot reach beyond the observed v
 
 The verdict rule, one per kind of claim:
 
-- **value** (the paper states a number): *reproduced* if the paper's number lies inside
-  the interval, *differs* otherwise. A zero-width interval (every seed gave the same
-  value) contains only that value.
+- **difference** (a cell of the paper's tables, or a number derived from them, with the
+  paper's per-participant values): the difference `virtual - paper`, with the standard
+  error of both means (Welch, `controller.evaluation.equivalence`), against an
+  equivalence margin stated per claim: *equivalent* if the TOST shows it inside the
+  margin (the 90 % Welch interval lies inside `(-margin, +margin)`), *differs* if the
+  whole 95 % Welch interval lies beyond the margin on one side (the difference is
+  shown to be larger than the margin), *inconclusive* otherwise. The two are
+  exclusive (equivalence needs `|d| < margin`), and because "differs" asks for the
+  whole interval beyond the margin, more seeds with the same mean can never turn an
+  equivalent claim into a differing one.
+- **value** (the paper states a number without per-participant values): *reproduced*
+  if the paper's number lies inside the interval, *differs* otherwise. A zero-width
+  interval (every seed gave the same value) contains only that value.
 - **ordinal** (the paper states a direction, "more", "higher", "never reaches"):
   *reproduced* if the whole interval lies on the claimed side of the threshold (for a
   difference, the same sign as the paper's), *differs* otherwise, which includes an
@@ -33,6 +43,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from controller.evaluation.equivalence import Difference
+
 #: Confidence level of every interval.
 CONFIDENCE = 0.95
 
@@ -41,7 +53,9 @@ class Verdict(enum.StrEnum):
     """The outcome of one claim."""
 
     REPRODUCED = "reproduced"
+    EQUIVALENT = "equivalent"
     DIFFERS = "differs"
+    INCONCLUSIVE = "inconclusive"
     NOT_SIMULATED = "not simulated"
 
 
@@ -111,3 +125,13 @@ def check_verdict(value: float, expected: float, tolerance: float) -> Verdict:
     if not math.isfinite(value):
         return Verdict.DIFFERS
     return Verdict.REPRODUCED if abs(value - expected) <= tolerance else Verdict.DIFFERS
+
+
+def difference_verdict(d: Difference) -> Verdict:
+    """A table claim judged on `virtual - paper` with both errors: equivalent (TOST
+    inside the margin), differs (the whole 95 % interval beyond it), else inconclusive."""
+    if d.equivalent:
+        return Verdict.EQUIVALENT
+    if d.beyond_margin:
+        return Verdict.DIFFERS
+    return Verdict.INCONCLUSIVE

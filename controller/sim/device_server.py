@@ -508,6 +508,7 @@ def serve(
     key: bytes,
     rate_factor: int = 1,
     unique_id: bytes | None = None,
+    emg_lsl: bool = False,
 ) -> ServerStats:
     """Run the simulated exoskeleton on UDP `port` for the host at `host_address`.
 
@@ -524,6 +525,10 @@ def serve(
         model = SimulatedExoskeleton(
             seed=seed, script=script, precompression_pct=precompression_pct, loop=loop
         )
+    if emg_lsl:  # the wearer's muscles on LSL, as an EMG amplifier (emg_amplifier.py)
+        from controller.sim.emg_amplifier import tap
+
+        model = tap(model)
     _warm_up(model)
     signalled = SignalSafeFlag()
     stop: StopFlag = signalled if stop_event is None else _Either(signalled, stop_event)
@@ -580,6 +585,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the link key shared with the host (64 hex digits, mode 0600)")
     parser.add_argument("--rate-factor", type=int, default=1,
                         help="fault probe: send each sample this many times, as fast")
+    parser.add_argument("--emg-lsl", action="store_true",
+                        help="also publish the wearer's simulated EMG on LSL (16 ch, 2 kHz)")
     parser.add_argument("--device-id", default=None,
                         help="unique id reported in CHALLENGEs, 1..32 hex digits (default: "
                              "derived from the key)")
@@ -611,6 +618,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         key=key,
         rate_factor=args.rate_factor,
         unique_id=unique_id,
+        emg_lsl=args.emg_lsl,
     )
     print(json.dumps(stats.summary()), flush=True)
     return 0

@@ -17,7 +17,8 @@ the muscle's activation. Per channel:
   contraction is of the order of a millivolt (De Luca 1997, J Appl Biomech 13:135-163,
   quotes 0-10 mV peak-to-peak for sEMG); 1 mV RMS is this project's assumption.
 - `e`: sensor noise, white Gaussian, 3 uV RMS (assumed; amplifier input noise and the
-  electrode-skin interface, a few uV RMS for good modern systems).
+  electrode-skin interface, a few uV RMS for good modern systems), drawn once as a
+  65536-sample table per channel and repeated (period 33 s).
 - `h`: mains hum at 50 Hz (60 optional) with a weaker 3rd harmonic, a seeded amplitude
   per channel (5-20 uV) and phase (assumed).
 - `m`: motion artefacts: at each movement onset every channel gets a damped
@@ -54,6 +55,7 @@ MAINS_V = (5e-6, 20e-6)  # amplitude range of the hum's fundamental, per channel
 ARTEFACT_V = (0.05e-3, 0.3e-3)  # amplitude range of a motion artefact, per channel
 ARTEFACT_HZ = (1.0, 8.0)
 ARTEFACT_DECAY_S = (0.1, 0.3)
+SENSOR_TABLE = 1 << 16
 ARTEFACT_LENGTH_S = 1.5  # a transient is cut after this long (e^-5 of it at most left)
 
 
@@ -144,7 +146,6 @@ class SurfaceEmgGenerator:
         root = np.random.SeedSequence([0xE36, self.seed])
         fixed, muscle, sensor, artefact = (np.random.default_rng(c) for c in root.spawn(4))
         self._muscle_rng = muscle
-        self._sensor_rng = sensor
         self._artefact_rng = artefact
         #: Per-channel RMS at full activation (V): the generating gain.
         self.gain_v = s.full_activation_rms_v * fixed.uniform(*s.gain_spread, n_channels)
@@ -153,6 +154,15 @@ class SurfaceEmgGenerator:
         self._sos = signal.butter(BAND_ORDER, s.band_hz, btype="bandpass", fs=s.fs, output="sos")
         self._norm = 1.0 / _unit_noise_gain(self._sos)
         self._zi = np.zeros((self._sos.shape[0], 2, n_channels))
+        #: Sensor noise: a table of SENSOR_TABLE samples per channel, drawn once and
+        #: repeated (a 33 s period at 2 kHz, invisible to amplitude analysis); drawing it
+        #: afresh for every sample would double the generator's cost.
+        self._sensor = s.sensor_noise_rms_v * sensor.standard_normal((SENSOR_TABLE, n_channels))
+        self._mains_mix = np.vstack([
+            self.mains_v * np.cos(self.mains_phase),
+            self.mains_v * np.sin(self.mains_phase),
+            0.2 * self.mains_v,
+        ])
         self._n = 0  # samples generated so far (dropped ones included)
         self._last_activation: FloatArray | None = None
         self._artefacts: list[tuple[int, FloatArray]] = []  # (start sample, (L, ch) shape)
@@ -181,7 +191,7 @@ class SurfaceEmgGenerator:
         prev = activation[:1] if self._last_activation is None else self._last_activation
         knots = np.vstack([prev, activation])  # (K + 1, ch)
         frac = (np.arange(1, self.upsample + 1) / self.upsample)[None, :, None]
-        out = knots[:-1, None, :] + frac * (knots[1:] - knots[:-1])[:, None, :]
+        out = (1.0 - frac) * knots[:-1, None, :] + frac * knots[1:, None, :]
         self._last_activation = activation[-1:].copy()
         return out.reshape(-1, self.n_channels)
 
@@ -212,19 +222,16 @@ class SurfaceEmgGenerator:
         x = np.asarray(band, dtype=np.float64)
         x *= act
         x *= self.gain_v * self._norm
-        noise = self._sensor_rng.standard_normal(shape, dtype=np.float32)
-        x += s.sensor_noise_rms_v * noise
+        rows = np.arange(start, start + n) % self._sensor.shape[0]
+        x += self._sensor[rows]
         idx = np.arange(start, start + n)
         t = idx / s.fs
         if s.mains_hz is not None:
-            # sin(wt + p) = sin(wt) cos(p) + cos(wt) sin(p): two sines per block, not per
-            # channel; the 3rd harmonic from sin(3u) = 3 sin(u) - 4 sin(u)^3.
+            # sin(wt + p) = sin(wt) cos(p) + cos(wt) sin(p) and sin(3u) = 3 sin(u) -
+            # 4 sin(u)^3: three time courses per block, mixed per channel in one product.
             w = 2.0 * math.pi * s.mains_hz * t
-            sw, cw = np.sin(w)[:, None], np.cos(w)[:, None]
-            fund = sw * (self.mains_v * np.cos(self.mains_phase))
-            fund += cw * (self.mains_v * np.sin(self.mains_phase))
-            x += fund
-            x += (0.2 * self.mains_v) * (3.0 * sw - 4.0 * sw**3)
+            sw = np.sin(w)
+            x += np.stack([sw, np.cos(w), 3.0 * sw - 4.0 * sw**3], axis=1) @ self._mains_mix
         if self._artefacts:
             x += self._artefact_part(start, n)
         self._n = start + n
@@ -261,7 +268,7 @@ class SurfaceEmgGenerator:
 
 def generate(
     activation: ArrayLike, seed: int = 0, settings: EmgSettings | None = None,
-    upsample: int = 20, onsets: ArrayLike = (), block_ticks: int = 6000,
+    upsample: int = 20, onsets: ArrayLike = (), block_ticks: int = 1000,
 ) -> EmgBlock:
     """sEMG for a whole recording from tick-rate activation (K, ch), in blocks of
     `block_ticks` ticks (bounded memory for the intermediate arrays). `onsets` are tick
@@ -271,14 +278,16 @@ def generate(
     marks = np.sort(np.asarray(onsets, dtype=np.int64).ravel())
     cuts = sorted({0, a.shape[0], *range(0, a.shape[0], block_ticks),
                    *(int(m) for m in marks if 0 <= m < a.shape[0])})
-    parts = []
+    total = a.shape[0] * upsample
+    t = np.empty(total)
+    x = np.empty((total, a.shape[1]))
+    act = np.empty((total, a.shape[1]))
+    at = 0
     for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
         if np.any(marks == lo):
             gen.onset()
-        parts.append(gen.push(a[lo:hi]))
-    if not parts:
-        empty = np.zeros((0, a.shape[1]))
-        return EmgBlock(np.zeros(0), empty, empty.copy(), gen.gain_v)
-    return EmgBlock(np.concatenate([p.t for p in parts]),
-                    np.concatenate([p.samples for p in parts]),
-                    np.concatenate([p.activation for p in parts]), gen.gain_v)
+        part = gen.push(a[lo:hi])
+        m = part.t.size
+        t[at:at + m], x[at:at + m], act[at:at + m] = part.t, part.samples, part.activation
+        at += m
+    return EmgBlock(t[:at], x[:at], act[:at], gen.gain_v)

@@ -548,11 +548,12 @@ export const questionnaires = Object.freeze({
   getStudyInstrument: operation("questionnaires.getStudyInstrument", "GET", "/api/studies/{study_id}/instruments/{key}/{version}", {"params": ["study_id", "key", "version"], "query": [], "body": false}),
   /**
    * POST /api/studies/{study_id}/instruments: Import the study's own definition file (the
-   * JSON body); only this study's links can use it. It is validated like the built-ins; the
-   * key of a built-in instrument is refused (422), and 409 if the study has this key and
-   * version (add a new version).
+   * JSON body); only this study's links can use it. It is validated like the built-ins, and
+   * its form must stay usable: at most 101 scale points, one label per point with its own
+   * words, at most 5,000 answer choices (items x points); the key of a built-in instrument
+   * is refused (422), and 409 if the study has this key and version (add a new version).
    * @param {number} studyId
-   * @param {InstrumentDefinition} body
+   * @param {ImportedInstrument} body
    * @returns {Promise<InstrumentOut>}
    */
   importInstrument: operation("questionnaires.importInstrument", "POST", "/api/studies/{study_id}/instruments", {"params": ["study_id"], "query": [], "body": true}),

@@ -5,16 +5,18 @@ ceiling, its time limit, any exception, a signal) refuses the file with `XdfErro
 
 from __future__ import annotations
 
+import math
 import os
 import stat
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from backend.lab import xdf_child
+from backend.lab import xdf_child, xdf_reader
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES
 from backend.lab.xdf_reader import XdfError, XdfLimits
 from tests.backend.lab import xdf_hostile
@@ -104,3 +106,36 @@ def test_the_memory_ceiling_refuses_the_file(tmp_path: Path,
     with pytest.raises(XdfError, match=r"needs more than \d+ bytes of memory"), \
             xdf_child.parsed(data, limits, tmp_path, 60.0):
         raise AssertionError("the child read a file beyond its memory")
+
+
+def _summarize(data: bytes, folder: Path) -> list[dict[str, object]]:
+    return xdf_child.summarize(xdf_reader.read(data, decode_strings=False), folder)
+
+
+@pytest.mark.parametrize(("spoiled", "words"), [
+    ({"fmt": "string", "seq": ["x"] * 20}, "seq channel holds strings"),
+    ({"seq": [1000.0] * 19 + [math.nan]}, "sample 19 has seq nan"),
+    ({"seq": [1000.0] * 19 + [-math.inf]}, "sample 19 has seq -inf"),
+    ({"seq": [1000.5] * 20}, "sample 0 has seq 1000.5"),
+    ({"seq": [-1.0] * 20}, "sample 0 has seq -1.0"),
+    ({"seq": [2.0**60] * 20}, "not a whole sample number from 0 to 9007199254740992"),
+    ({"labels": [*TICK_CHANNEL_NAMES[1:], "seq"], "channels": 3},
+     "declares 3 channels but labels 15"),
+    ({"labels": ["a", "b"]}, "needs exactly one channel labelled 'seq', has 0"),
+    ({"labels": ["seq", "seq"]}, "needs exactly one channel labelled 'seq', has 2"),
+])
+def test_every_field_of_a_tick_stream_is_checked(tmp_path: Path, spoiled: dict[str, Any],
+                                                 words: str) -> None:
+    with pytest.raises(XdfError) as caught:
+        _summarize(xdf_hostile.tick_stream(**spoiled), tmp_path)
+    assert words in str(caught.value)
+    assert list(tmp_path.iterdir()) == []  # no tick columns written
+
+
+def test_a_clock_that_overflows_is_refused(tmp_path: Path) -> None:
+    # Finite offsets whose correction is beyond the range of doubles: refused, not
+    # stored as infinity.
+    huge = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1e308, 1.7e308],
+                                [[0.0], [1.0]], clock_offsets=[(1.0, 1.7e308)])])
+    with pytest.raises(XdfError, match="out of the range of numbers"):
+        _summarize(huge, tmp_path)

@@ -11,6 +11,7 @@ import collections
 import multiprocessing as mp
 import os
 import threading
+import typing
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
@@ -29,6 +30,7 @@ from backend.worker.machine import (
 from backend.worker.messages import (
     BringupCapture,
     BringupPulse,
+    BringupRelease,
     BringupResult,
     BringupWatchdog,
     Calibrate,
@@ -38,6 +40,7 @@ from backend.worker.messages import (
     SetController,
     SetSimulation,
     StopWorker,
+    WorkerCommand,
     WorkerConfig,
     WorkerError,
 )
@@ -54,8 +57,9 @@ ID, C, T, K, B, R, S = (State.IDLE, State.CONTROLLING, State.TRIAL, State.CALIBR
 PEC = ControllerSpec("pec")
 NONE = ControllerSpec("none")
 LAY = DEFAULT_LAYOUT
-COMMAND_TYPES = (SetController, SetSimulation, Calibrate, BringupCapture, BringupPulse,
-                 BringupWatchdog, StopWorker)
+#: Every command the server can send, read from the message union itself, so that a new
+#: command without a rule in every state fails here.
+COMMAND_TYPES = typing.get_args(WorkerCommand)
 
 
 # -- the tables ---------------------------------------------------------------------------
@@ -71,6 +75,7 @@ def test_every_way_out_of_a_locking_state_to_a_safe_one_passes_through_releasing
 
 def test_every_state_that_takes_commands_has_a_rule_for_each_and_always_takes_stop() -> None:
     assert set(RULES) == {ID, C, T, K}
+    assert {SetController, StopWorker, BringupRelease} <= set(COMMAND_TYPES)
     for state, rules in RULES.items():
         assert set(rules) == set(COMMAND_TYPES), state
         assert rules[StopWorker] is None, state
@@ -79,7 +84,7 @@ def test_every_state_that_takes_commands_has_a_rule_for_each_and_always_takes_st
     # A trial refuses every change but its stop, outright.
     assert all(isinstance(RULES[T][t], str)
                for t in (SetSimulation, Calibrate, BringupCapture, BringupPulse,
-                         BringupWatchdog))
+                         BringupWatchdog, BringupRelease))
 
 
 # -- the machine in this process ----------------------------------------------------------

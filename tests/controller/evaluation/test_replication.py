@@ -10,6 +10,8 @@ from controller.evaluation import GaitTrial, evaluate_recording, lifts_from_trut
 from controller.evaluation.columns import TickData
 from controller.evaluation.replication import (
     CLAIMS,
+    MARGIN_PER_10_LIFTS,
+    MARGIN_PER_TRIAL,
     PAPER_FALSE_POSITIVES,
     PAPER_PERFORMANCE,
     Claim,
@@ -17,6 +19,7 @@ from controller.evaluation.replication import (
     judge_all,
     paper_eumc_gain,
     paper_mean,
+    seed_halves,
     seed_measures,
     trial_data,
 )
@@ -128,3 +131,50 @@ def test_every_claim_is_judged_and_checks_come_from_checks() -> None:
     assert by["chi_square"].verdict is Verdict.REPRODUCED
     assert by["questionnaires"].verdict is Verdict.NOT_SIMULATED
     assert by["umc.correct.SQ"].verdict is Verdict.DIFFERS  # no seed gave a value
+
+
+def test_table_claims_are_judged_on_the_difference_with_the_papers_participants() -> None:
+    by = {c.key: c for c in CLAIMS}
+    walk = by["fp.umc.W"]
+    assert walk.kind == "difference"
+    assert walk.paper_values == (0.0, 0.0, 7.0, 0.0, 1.0, 0.0, 14.0, 0.0)
+    assert walk.margin == MARGIN_PER_TRIAL == 1.0
+    assert by["eumc.correct.AS"].paper_values == (10.0, 10.0, 10.0)
+    assert by["umc.correct.AS"].margin == MARGIN_PER_10_LIFTS == 1.0
+    assert by["umc_fp_walk_some"].paper_values == (0, 0, 1, 0, 1, 0, 1, 0)
+    assert by["umc_fp_walk_some"].margin == 1 / 8
+    for c in CLAIMS:
+        if c.kind == "difference":
+            assert c.paper == pytest.approx(sum(c.paper_values) / len(c.paper_values))
+    with pytest.raises(ValueError, match="per-participant values"):
+        Claim("x", "Table", "no values", "x", "difference", 1.0, margin=1.0)
+
+
+def test_judge_a_difference_claim() -> None:
+    walk = next(c for c in CLAIMS if c.key == "fp.umc.W")
+    # Seeds 11-15 of the cohort engine gave about 0.75 with a narrow interval.
+    r = judge(walk, [0.5, 0.75, 1.0, 0.625, 0.875])
+    assert r.verdict is Verdict.INCONCLUSIVE and r.difference is not None
+    assert r.difference.se_paper == pytest.approx(1.82, abs=0.005)
+    assert "TOST" in r.reason and "margin" in r.reason
+    stairs = next(c for c in CLAIMS if c.key == "fp.umc.SW")
+    assert judge(stairs, [3.5, 1.3, 2.0, 4.1, 3.0]).verdict is Verdict.DIFFERS
+    zero = next(c for c in CLAIMS if c.key == "fp.pec.W")
+    assert judge(zero, [0.0] * 5).verdict is Verdict.EQUIVALENT
+    assert judge(zero, [0.0]).verdict is Verdict.INCONCLUSIVE  # one seed: no spread
+    assert judge(zero, [math.nan] * 3).verdict is Verdict.DIFFERS  # no value
+
+
+def test_halves_of_the_seeds_mark_a_claim_unstable() -> None:
+    zero = next(c for c in CLAIMS if c.key == "fp.pec.W")
+    stable = judge_all([{"fp.pec.W": 0.0}] * 4, {}, [zero])[0]
+    assert stable.halves == (Verdict.EQUIVALENT, Verdict.EQUIVALENT)
+    assert stable.unstable is False and stable.verdict_text() == "equivalent"
+    # First two seeds none, last two many: the halves disagree.
+    mixed = judge_all([{"fp.pec.W": v} for v in (0.0, 0.0, 5.0, 6.0, 5.5)], {}, [zero])[0]
+    assert mixed.halves == (Verdict.EQUIVALENT, Verdict.DIFFERS)
+    assert mixed.unstable is True and mixed.verdict_text().endswith(", unstable")
+    # Fewer than two seeds per half: not measured.
+    assert judge_all([{"fp.pec.W": 0.0}] * 3, {}, [zero])[0].unstable is None
+    assert seed_halves(5) == (slice(0, 2), slice(3, 5))
+    assert seed_halves(3) is None

@@ -1,0 +1,1 @@
+"""Muscle activity on the server: recording files, montages, imports, live EMG, MVC."""

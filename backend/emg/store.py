@@ -1,0 +1,256 @@
+"""EMG recordings as files beside the database: chunked, compressed per chunk, float32.
+
+Why files: an hour of 16 channels at 2 kHz is 230 MB as float32. In a database row it
+would bloat every backup and, with SQLite or PostgreSQL alike, be read whole into the
+server's memory. Here each recording is one file `<id>.emgc` in the EMG folder (by
+default `emg/` beside the SQLite database, or in the data folder when the database is
+PostgreSQL: the files never go into PostgreSQL), mode 0600 in a 0700 folder; the database
+holds one row per recording (`backend.db.emg.EmgRecording`) with its sha256.
+
+Format (ExoStudy's own; numpy and zlib only, no new dependency): the magic line
+`EXOEMG1\\n`, a header (4-byte little-endian length, JSON: channel count, nominal rate,
+labels), then chunks, each a 4-byte length and a JSON chunk header (rows, byte lengths)
+followed by the timestamps (float64) and samples (float32, row-major), each
+byte-shuffled (byte k of every value together, so the slowly changing high bytes
+compress) and zlib-compressed. A chunk is written when the writer's buffer holds
+`CHUNK_ROWS` rows (5 s at 2 kHz), so the writer keeps at most one chunk in memory and a
+reader one chunk at a time. The file is written as `<name>.part` and renamed when
+closed, so a recording cut short by a crash is never mistaken for a finished one.
+
+Samples keep NaN and infinities as they came (flagged, never altered); timestamps are
+the session clock minus the row's `time_offset_s` (see `backend.db.emg`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import struct
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import numpy as np
+from numpy.typing import NDArray
+
+from backend.core import config
+from backend.core.config import Settings
+from backend.core.data_folder import sqlite_file
+from controller.private_files import make_private_dir
+
+MAGIC = b"EXOEMG1\n"
+#: Rows per chunk: 10,000 rows of 16 channels is 640 kB of float32 before compression.
+CHUNK_ROWS = 10_000
+#: zlib level: 1 is several times faster than 6 for a few percent more bytes, so an
+#: hour-long live recording costs little CPU beside the control loop.
+ZLIB_LEVEL = 1
+_LEN = struct.Struct("<I")
+#: Largest JSON header a reader accepts (a file is ours, but a damaged one must not
+#: make the reader allocate gigabytes).
+_MAX_HEADER = 1 << 20
+
+
+class EmgStoreError(ValueError):
+    """A recording file is damaged or does not match what was asked of it."""
+
+
+def _shuffle(arr: NDArray[Any]) -> bytes:
+    a = np.ascontiguousarray(arr)
+    width = a.dtype.itemsize
+    return zlib.compress(a.view(np.uint8).reshape(-1, width).T.tobytes(), ZLIB_LEVEL)
+
+
+def _unshuffle(data: bytes, dtype: Any, n: int) -> NDArray[Any]:
+    dt = np.dtype(dtype)
+    raw = zlib.decompress(data)
+    if len(raw) != n * dt.itemsize:
+        raise EmgStoreError(f"chunk holds {len(raw)} bytes, expected {n * dt.itemsize}")
+    return np.frombuffer(raw, np.uint8).reshape(dt.itemsize, n).T.copy().view(dt).ravel()
+
+
+@dataclass(frozen=True, slots=True)
+class Header:
+    """What a file says about itself."""
+
+    n_channels: int
+    fs: float
+    labels: tuple[str, ...]
+
+
+class EmgWriter:
+    """Appends blocks of (timestamps, samples) to a new recording file.
+
+    Holds at most `CHUNK_ROWS` rows in memory; `close()` writes the rest, renames the
+    file into place and returns its sha256 and row count."""
+
+    def __init__(self, path: Path, labels: list[str], fs: float) -> None:
+        if not labels:
+            raise EmgStoreError("a recording needs at least one channel")
+        self.path = Path(path)
+        self.n_channels = len(labels)
+        self.fs = float(fs)
+        self.rows = 0
+        self.first_t: float | None = None
+        self.last_t: float | None = None
+        make_private_dir(self.path.parent)
+        self._part = self.path.with_name(self.path.name + ".part")
+        fd = os.open(self._part, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        self._f: BinaryIO = os.fdopen(fd, "wb")
+        self._sha = hashlib.sha256()
+        self._t: list[NDArray[np.float64]] = []
+        self._x: list[NDArray[np.float32]] = []
+        self._buffered = 0
+        self._write(MAGIC)
+        self._record({"n_channels": self.n_channels, "fs": self.fs, "labels": list(labels)})
+
+    def _write(self, data: bytes) -> None:
+        self._f.write(data)
+        self._sha.update(data)
+
+    def _record(self, doc: dict[str, Any], *payload: bytes) -> None:
+        head = json.dumps(doc, separators=(",", ":")).encode()
+        self._write(_LEN.pack(len(head)) + head)
+        for p in payload:
+            self._write(p)
+
+    def append(self, timestamps: NDArray[Any], samples: NDArray[Any]) -> None:
+        """Add rows; `samples` (n, n_channels) in volts, `timestamps` (n,) in seconds."""
+        x = np.asarray(samples, dtype=np.float32)
+        t = np.asarray(timestamps, dtype=np.float64).ravel()
+        if x.ndim != 2 or x.shape[1] != self.n_channels:
+            raise EmgStoreError(f"samples must have shape (n, {self.n_channels}), got "
+                                f"{x.shape}")
+        if t.shape[0] != x.shape[0]:
+            raise EmgStoreError(f"{t.shape[0]} timestamps for {x.shape[0]} samples")
+        if not x.shape[0]:
+            return
+        if self.first_t is None:
+            self.first_t = float(t[0])
+        self.last_t = float(t[-1])
+        self._t.append(t)
+        self._x.append(x)
+        self._buffered += x.shape[0]
+        while self._buffered >= CHUNK_ROWS:
+            self._flush(CHUNK_ROWS)
+
+    def _flush(self, rows: int) -> None:
+        t = np.concatenate(self._t)
+        x = np.concatenate(self._x)
+        head_t, head_x = t[:rows], x[:rows]
+        self._t, self._x = ([t[rows:]], [x[rows:]]) if rows < t.shape[0] else ([], [])
+        self._buffered = t.shape[0] - rows
+        tb, xb = _shuffle(head_t), _shuffle(head_x)
+        self._record({"rows": int(rows), "t_bytes": len(tb), "x_bytes": len(xb)}, tb, xb)
+        self.rows += rows
+
+    def close(self) -> tuple[str, int]:
+        """Write what is buffered, make the file final; (sha256, rows)."""
+        if self._buffered:
+            self._flush(self._buffered)
+        self._f.flush()
+        os.fsync(self._f.fileno())
+        self._f.close()
+        os.replace(self._part, self.path)
+        return self._sha.hexdigest(), self.rows
+
+    def abort(self) -> None:
+        """Drop the unfinished file."""
+        try:
+            self._f.close()
+        finally:
+            self._part.unlink(missing_ok=True)
+
+
+def emg_folder(settings: Settings) -> Path:
+    """Where recording files live: `emg_dir` if set, else `emg/` beside a SQLite
+    database file, else (PostgreSQL, in-memory SQLite) `emg/` in the data folder."""
+    if settings.emg_dir is not None:
+        return Path(settings.emg_dir)
+    db_file = sqlite_file(settings.database_url)
+    base = db_file.parent if db_file is not None else Path(config.DATA_DIR)
+    return base / "emg"
+
+
+def recording_path(settings: Settings, recording_id: int) -> Path:
+    """The file of recording `recording_id`."""
+    return emg_folder(settings) / f"{recording_id}.emgc"
+
+
+def _read_exact(f: BinaryIO, n: int) -> bytes:
+    data = f.read(n)
+    if len(data) != n:
+        raise EmgStoreError("the recording file ends in the middle of a chunk")
+    return data
+
+
+def _read_json(f: BinaryIO) -> dict[str, Any] | None:
+    raw = f.read(_LEN.size)
+    if not raw:
+        return None
+    if len(raw) != _LEN.size:
+        raise EmgStoreError("the recording file ends in the middle of a chunk header")
+    (n,) = _LEN.unpack(raw)
+    if n > _MAX_HEADER:
+        raise EmgStoreError(f"chunk header of {n} bytes: the file is damaged")
+    doc = json.loads(_read_exact(f, n))
+    if not isinstance(doc, dict):
+        raise EmgStoreError("chunk header is not an object")
+    return doc
+
+
+def read_header(path: Path) -> Header:
+    """The channel count, nominal rate and labels of a recording file."""
+    with open(path, "rb") as f:
+        return _header(f)
+
+
+def _header(f: BinaryIO) -> Header:
+    if f.read(len(MAGIC)) != MAGIC:
+        raise EmgStoreError("not an ExoStudy EMG recording file")
+    doc = _read_json(f)
+    if doc is None:
+        raise EmgStoreError("recording file has no header")
+    return Header(int(doc["n_channels"]), float(doc["fs"]), tuple(doc["labels"]))
+
+
+def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float32]]]:
+    """(timestamps, samples) of each chunk in order: one chunk in memory at a time."""
+    with open(path, "rb") as f:
+        head = _header(f)
+        while (doc := _read_json(f)) is not None:
+            rows = int(doc["rows"])
+            t = _unshuffle(_read_exact(f, int(doc["t_bytes"])), np.float64, rows)
+            x = _unshuffle(_read_exact(f, int(doc["x_bytes"])), np.float32,
+                           rows * head.n_channels).reshape(rows, head.n_channels)
+            yield t, x
+
+
+def read_window(path: Path, start: float = -np.inf, stop: float = np.inf
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Timestamps and samples (float64 volts) with start <= t < stop, read chunk by
+    chunk so only the window is ever held whole."""
+    ts: list[NDArray[np.float64]] = []
+    xs: list[NDArray[np.float32]] = []
+    n_channels = read_header(path).n_channels
+    for t, x in iter_chunks(path):
+        if t.size == 0 or t.max() < start or t.min() >= stop:
+            continue
+        keep = (t >= start) & (t < stop)
+        if keep.any():
+            ts.append(t[keep])
+            xs.append(x[keep])
+    if not ts:
+        return np.zeros(0), np.zeros((0, n_channels))
+    return np.concatenate(ts), np.concatenate(xs).astype(np.float64)
+
+
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file, read in 1 MB pieces."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while piece := f.read(1 << 20):
+            h.update(piece)
+    return h.hexdigest()

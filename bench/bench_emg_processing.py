@@ -1,0 +1,86 @@
+"""Benchmark of the offline EMG chain (`controller.emg.processing.process`).
+
+Run: `.venv/bin/python bench/bench_emg_processing.py [--minutes 60] [--channels 16]`
+(about a minute for the full hour).
+
+One hour of 16-channel EMG at 2 kHz (synthetic: amplitude-modulated Gaussian noise with
+electrode offsets, float64, 0.92 GB) through DC removal, the 20-450 Hz band-pass, a 50 Hz
+notch, rectification and the 6 Hz envelope, in each precision. Target: under 10 s.
+Peak memory is what `tracemalloc` saw allocated during the call beyond the input (numpy
+reports its arrays to it); the output, a float64 array as large as the input, is part of
+it. Baseline in the same run: one `np.abs` over the whole array (a pass that only reads
+and writes every sample once).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import tracemalloc
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.record import load_average, record
+from controller.emg.processing import EmgProcessing, process
+
+FS = 2000.0
+
+
+def _synthetic(minutes: float, channels: int) -> np.ndarray:
+    n = int(minutes * 60 * FS)
+    rng = np.random.default_rng(0)
+    raw = rng.standard_normal((n, channels))
+    t = np.arange(n) / FS
+    raw *= (1e-4 * (0.3 + np.sin(np.pi * t / 4.0) ** 2))[:, None]
+    raw += rng.uniform(-5e-3, 5e-3, channels)
+    return raw
+
+
+def _measure(fn: Callable[[], object]) -> tuple[float, float]:
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    t0 = time.perf_counter()
+    out = fn()
+    seconds = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
+    del out
+    return seconds, peak
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=60.0)
+    parser.add_argument("--channels", type=int, default=16)
+    args = parser.parse_args()
+    load_before = load_average()
+    raw = _synthetic(args.minutes, args.channels)
+    size_mb = raw.nbytes / 2**20
+    print(f"input: {raw.shape[0]} samples x {raw.shape[1]} channels, {size_mb:.0f} MiB float64, "
+          f"load {load_before}", flush=True)
+    rows: list[list[object]] = []
+    base_s, base_mb = _measure(lambda: np.abs(raw))
+    rows.append(["np.abs over the whole array (baseline)", f"{base_s:.2f}", f"{base_mb:.0f}"])
+    for settings in (EmgProcessing(notch_hz=50), EmgProcessing(notch_hz=50, precision="float64")):
+        precision = settings.precision
+        seconds, peak = _measure(partial(process, raw, FS, settings))
+        label = f"process, {precision} filters" + (" (default)" if precision == "float32" else "")
+        rows.append([label, f"{seconds:.2f}", f"{peak:.0f}"])
+        print(f"{label}: {seconds:.2f} s, peak {peak:.0f} MiB", flush=True)
+    record("emg_processing",
+           " ".join(["bench/bench_emg_processing.py", *sys.argv[1:]]),
+           ["call", "seconds", "peak memory beyond the input (MiB)"], rows, load_before,
+           note=f"{args.minutes:g} min x {args.channels} channels at 2 kHz "
+           f"({size_mb:.0f} MiB float64 input; the float64 output is included in the peak). "
+           "Target: under 10 s.")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

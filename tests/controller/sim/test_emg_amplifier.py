@@ -1,0 +1,84 @@
+"""The simulated EMG amplifier: fed by the simulated wearer tick by tick, published on LSL
+and received by a real inlet on this machine."""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from controller.sim.emg_amplifier import N_CHANNELS, EmgTap, channel_labels
+from controller.sim.exoskeleton import SimulatedExoskeleton
+from tests.polling import wait_for
+
+# liblsl reads its configuration at its first call: this machine only, loopback peers.
+os.environ.setdefault(
+    "LSLAPICFG", str(Path(__file__).parents[2] / "backend" / "lab" / "lsl_api.cfg"))
+
+
+def test_tap_follows_the_wearer_and_spots_movement_onsets() -> None:
+    tap = EmgTap(SimulatedExoskeleton(seed=2, script="squat-sequence"), publish=False, keep=True)
+    n = 800
+    for _ in range(n):
+        tap.tick(None)
+    x = np.concatenate([b.samples for b in tap.blocks])
+    act = np.concatenate([b.activation for b in tap.blocks])
+    assert x.shape == (n * 20, N_CHANNELS)
+    assert tap.stats.onsets >= 1  # standing, then the first lift
+    assert np.all(act[:, 12:] == 0)  # spare inputs hold no muscle
+    es = act[:, 0]
+    assert es.max() > 5 * es.min()  # the lift shows in the back's activation
+    assert len(set(channel_labels())) == N_CHANNELS
+
+
+def test_emg_reaches_an_lsl_inlet_at_2_khz() -> None:
+    pylsl: Any = pytest.importorskip("pylsl")
+    source = f"test-simemg-{uuid.uuid4().hex[:8]}"
+    tap = EmgTap(SimulatedExoskeleton(seed=1, script="squat-sequence"), source_id=source)
+    tap.start()
+    try:
+        found = pylsl.resolve_byprop("source_id", source, minimum=1, timeout=10.0)
+        assert len(found) == 1
+        inlet = pylsl.StreamInlet(found[0], max_buflen=10)
+        inlet.open_stream(timeout=10.0)
+        info = inlet.info(timeout=5.0)
+        assert (info.type(), info.channel_count(), info.nominal_srate()) == ("EMG", 16, 2000.0)
+        assert info.channel_format() == pylsl.cf_float32
+        ch = info.desc().child("channels").child("channel")
+        labels, units, types = [], [], []
+        for _ in range(N_CHANNELS):
+            labels.append(ch.child_value("label"))
+            units.append(ch.child_value("unit"))
+            types.append(ch.child_value("type"))
+            ch = ch.next_sibling()
+        assert labels == channel_labels() and set(units) == {"V"} and set(types) == {"EMG"}
+        montage = info.desc().child("montage")
+        assert montage.child_value("inter_electrode_distance_mm") == "20"
+
+        ticks = 100  # one second of ticks: 2000 samples
+        for _ in range(ticks):
+            tap.tick(None)
+        got: list[np.ndarray] = []
+        stamps: list[np.ndarray] = []
+
+        def pulled() -> bool:
+            data, ts = inlet.pull_chunk(timeout=0.0)
+            if ts:
+                got.append(np.asarray(data))
+                stamps.append(np.asarray(ts))
+            return sum(len(s) for s in stamps) >= ticks * 20
+
+        wait_for(pulled, 20.0, "2000 EMG samples on the inlet")
+        x, t = np.concatenate(got), np.concatenate(stamps)
+        assert x.shape == (ticks * 20, N_CHANNELS)
+        assert np.all(np.isfinite(x))
+        np.testing.assert_allclose(np.diff(t), 1 / 2000.0, atol=1e-6)
+        assert tap.stats.samples_pushed == ticks * 20
+        # Values are the generator's, in volts (float32).
+        assert 1e-6 < float(np.std(x[:, 0])) < 5e-3
+    finally:
+        tap.close()
