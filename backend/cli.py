@@ -286,9 +286,11 @@ def _export(args: argparse.Namespace) -> int:
 
 def _replicate(args: argparse.Namespace) -> int:
     from backend.analysis.replication import ReplicationConfig, run
+    from controller.evaluation.replication import DEFAULT_SEEDS
 
     cfg = ReplicationConfig(
-        out=Path(args.out), seeds=args.seeds, first_seed=args.first_seed, engine=args.engine,
+        out=Path(args.out), seeds=DEFAULT_SEEDS if args.seeds is None else args.seeds,
+        first_seed=args.first_seed, engine=args.engine,
         from_db=tuple(Path(p) for p in args.from_db or ()), participants=args.participants,
         eumc=args.eumc, data_participants=args.data_participants,
         offset_participants=args.offset_participants,
@@ -416,7 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("replicate", help="the paper's claims one by one over several "
                         "virtual studies: an HTML report with figures (docs/replication.md)")
     rp.add_argument("--out", required=True, help="folder for the report and the seeds")
-    rp.add_argument("--seeds", type=int, default=5, help="virtual studies (default 5)")
+    rp.add_argument("--seeds", type=int, default=None,
+                    help="virtual studies (default 20: DEFAULT_SEEDS of "
+                    "controller.evaluation.replication)")
     rp.add_argument("--first-seed", type=int, default=1)
     rp.add_argument("--engine", choices=["study", "cohort"], default="study",
                     help="study: the live virtual study per seed (reused when finished); "

@@ -23,6 +23,7 @@ from backend.api.routes import (
     auth,
     cohorts,
     device_grants,
+    emg,
     hardware,
     health,
     lab,
@@ -165,6 +166,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(trials.router)
     app.include_router(trial_segments.router)
     app.include_router(lab.router)
+    app.include_router(emg.router)
     app.include_router(results.router)
     app.include_router(cohorts.router)
     app.include_router(replication.router)

@@ -36,6 +36,7 @@ DATABASE_FACING = {
     "test_participants", "test_sessions", "test_questionnaires", "test_preferences",
     "test_audit", "test_auth", "test_access", "test_data_protection", "test_export",
     "test_instrument_ownership_migration", "test_job_lanes_migration", "test_quotas",
+    "test_emg_api",
 }
 
 

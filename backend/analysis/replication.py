@@ -62,12 +62,16 @@ from controller.evaluation.method_figures import (
 )
 from controller.evaluation.rendering import render_figure
 from controller.evaluation.replication import (
+    DEFAULT_SEEDS,
     PAPER_FALSE_POSITIVES,
     PAPER_PERFORMANCE,
+    RULE_TEXT,
     ClaimResult,
+    difference_dict,
     judge_all,
     seed_measures,
     trial_data,
+    verdict_counts,
 )
 from controller.evaluation.study import RecordingEvaluation, evaluate_recording
 from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
@@ -104,7 +108,7 @@ class ReplicationConfig:
     """What to run; see the module docstring."""
 
     out: Path
-    seeds: int = 5
+    seeds: int = DEFAULT_SEEDS
     first_seed: int = 1
     engine: Engine = "study"
     from_db: tuple[Path, ...] = ()
@@ -575,7 +579,7 @@ def claims_markdown(rep: Replication) -> str:
             sign = ">" if c.claim.direction > 0 else "<"
             paper = f"{sign} {c.claim.threshold:g}" + (f" (paper {paper})" if paper else "")
         lines.append(f"| {c.claim.key} | {c.claim.source} | {paper} | "
-                     f"{c.interval.text('.3g')} {c.claim.unit} | {c.verdict.value} | "
+                     f"{c.interval.text('.3g')} {c.claim.unit} | {c.verdict_text()} | "
                      f"{c.reason} |")
     return "\n".join(lines) + "\n"
 
@@ -627,15 +631,14 @@ def _md_table_html(md: str) -> str:
 _CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
         "line-height:1.4}table{border-collapse:collapse;margin:0.5em 0;font-size:0.85em}"
         "td,th{border:1px solid #bbb;padding:3px 6px;vertical-align:top}"
-        ".reproduced{background:#dff0d8}.differs{background:#f8d7da}"
+        ".reproduced,.equivalent{background:#dff0d8}.differs{background:#f8d7da}"
+        ".inconclusive{background:#fff3cd}.unstable td:nth-child(6){font-style:italic}"
         ".not-simulated{background:#eee}img{max-width:100%}figure{margin:1em 0}")
 
 
 def report_html(rep: Replication) -> str:
     """The self-contained HTML report."""
     cfg = rep.config
-    counts = {v: sum(1 for c in rep.claims if c.verdict.value == v)
-              for v in ("reproduced", "differs", "not simulated")}
     if cfg.from_db:
         how = f"{len(rep.seeds)} existing study databases"
     else:
@@ -648,14 +651,8 @@ def report_html(rep: Replication) -> str:
              "<h1>The paper replicated claim by claim</h1>",
              f"<p>{html.escape(how)}. Run time {rep.wall_s:.0f} s ("
              + ", ".join(f"{k} {v:.0f} s" for k, v in rep.phases.items()) + ").</p>",
-             f"<p>Verdicts: {counts['reproduced']} reproduced, {counts['differs']} differ, "
-             f"{counts['not simulated']} not simulated.</p>",
-             "<h2>Rule</h2><p>Each number is a mean over a seed's virtual participants; the "
-             "interval is the Student t 95 % confidence interval of the mean over seeds "
-             "(mean &plusmn; t(0.975, n-1) sd/&radic;n). A stated number is "
-             "<b>reproduced</b> if it lies inside the interval; a stated direction if the "
-             "whole interval lies on the claimed side of the threshold; a deterministic "
-             "check if it holds within its tolerance. Anything else <b>differs</b>. Counts "
+             f"<p>Verdicts: {html.escape(verdict_counts(rep.claims))}.</p>",
+             f"<h2>Rule</h2><p>{html.escape(RULE_TEXT)} Counts "
              "are per 10 lifts of a kind, decisions by the paper's counting rule (squat: "
              "both sides commanded in the first half, in one decision or two; stoop: the "
              "first lock decision is the supporting side).</p>",
@@ -667,12 +664,12 @@ def report_html(rep: Replication) -> str:
             sign = "&gt;" if c.claim.direction > 0 else "&lt;"
             paper = f"{sign} {c.claim.threshold:g}" + (f" (paper {paper})" if paper else "")
         seeds = ", ".join("n/a" if not math.isfinite(v) else f"{v:.3g}" for v in c.seeds)
-        cls = c.verdict.value.replace(" ", "-")
+        cls = c.verdict.value.replace(" ", "-") + (" unstable" if c.unstable else "")
         parts.append(
             f"<tr class='{cls}'><td><b>{html.escape(c.claim.key)}</b><br>"
             f"{html.escape(c.claim.statement)}</td><td>{html.escape(c.claim.source)}</td>"
             f"<td>{paper}</td><td>{html.escape(c.interval.text('.3g'))} "
-            f"{html.escape(c.claim.unit)}</td><td>{seeds}</td><td>{c.verdict.value}</td>"
+            f"{html.escape(c.claim.unit)}</td><td>{seeds}</td><td>{c.verdict_text()}</td>"
             f"<td>{html.escape(c.reason)}</td></tr>")
     parts.append("</table>")
     parts.append("<h2>The paper's tables</h2>" + _paper_table_html())
@@ -772,7 +769,11 @@ def write(rep: Replication) -> list[Path]:
                        "paper": _jsonable(c.claim.paper), "unit": c.claim.unit,
                        "interval": _jsonable(_interval_dict(c)),
                        "seeds": _jsonable(list(c.seeds)), "verdict": c.verdict.value,
-                       "reason": c.reason} for c in rep.claims],
+                       "reason": c.reason, "paper_values": list(c.claim.paper_values),
+                       "margin": _jsonable(c.claim.margin),
+                       "difference": _jsonable(difference_dict(c.difference)),
+                       "halves": None if c.halves is None else [v.value for v in c.halves],
+                       "unstable": c.unstable} for c in rep.claims],
            "checks": _jsonable(rep.checks),
            "offsets": _jsonable({k: v for k, v in rep.offsets.items()
                                  if k not in ("offset_deg", "gain")}),

@@ -41,11 +41,10 @@ def compute(out: Path, seeds: int, participants: int, progress: Any) -> str:
     eumc = min(3, participants)
     cfg = ReplicationConfig(out=out, seeds=seeds, engine="cohort", participants=participants,
                             eumc=eumc)
+    from controller.evaluation.replication import verdict_counts
+
     rep = run(cfg, log=lambda _m: None, progress=progress)
-    counts = {v: sum(1 for c in rep.claims if c.verdict.value == v)
-              for v in ("reproduced", "differs", "not simulated")}
-    return (f"{counts['reproduced']} reproduced, {counts['differs']} differ, "
-            f"{counts['not simulated']} not simulated, in {rep.wall_s:.0f} s")
+    return f"{verdict_counts(rep.claims)}, in {rep.wall_s:.0f} s"
 
 
 def start(jobs: JobRunner, user: User, run_dir: Path, seeds: int, participants: int,
@@ -117,5 +116,6 @@ def summary(folder: Path) -> dict[str, Any]:
     doc = json.loads((folder / "replication.json").read_text())
     return {"folder": folder.name, "wall_s": doc.get("wall_s"), "config": doc.get("config"),
             "claims": [{k: c.get(k) for k in ("key", "source", "statement", "kind", "paper",
-                                               "unit", "interval", "verdict", "reason")}
+                                               "unit", "interval", "verdict", "reason",
+                                               "difference", "unstable")}
                        for c in doc.get("claims", [])]}

@@ -93,6 +93,8 @@ class EmgWriter:
         self.n_channels = len(labels)
         self.fs = float(fs)
         self.rows = 0
+        #: Rows appended so far (written or buffered).
+        self.appended = 0
         self.first_t: float | None = None
         self.last_t: float | None = None
         make_private_dir(self.path.parent)
@@ -133,6 +135,7 @@ class EmgWriter:
         self._t.append(t)
         self._x.append(x)
         self._buffered += x.shape[0]
+        self.appended += x.shape[0]
         while self._buffered >= CHUNK_ROWS:
             self._flush(CHUNK_ROWS)
 

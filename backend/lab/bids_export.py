@@ -1,4 +1,5 @@
-"""A study as a BIDS dataset with the motion modality (BIDS 1.9, "Motion").
+"""A study as a BIDS dataset with the motion modality (BIDS 1.9, "Motion") and, where
+the session has EMG recordings, the EMG modality (BIDS 1.11, `backend.emg.bids`).
 
 Layout (entities as BIDS defines them):
 
@@ -6,6 +7,9 @@ Layout (entities as BIDS defines them):
     sub-<code>/ses-<kind><n>/motion/
         sub-<code>_ses-<n>_task-<task>_tracksys-exo_acq-<controller>_run-<k>_motion.tsv
         ... _motion.json, _channels.tsv
+    sub-<code>/ses-<kind><n>/emg/
+        sub-<code>_ses-<n>_task-<task>_acq-<controller>_run-<k>_emg.bdf, _emg.json,
+        ... _channels.tsv, _events.tsv/.json (the motion events on the EMG file's axis)
         sub-<code>_ses-<n>_task-<task>_acq-<controller>_run-<k>_events.tsv/.json
     phenotype/<questionnaire>.tsv/.json
     sourcedata/sub-<code>/ses-<n>/<attached XDF files>
@@ -32,13 +36,16 @@ import math
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import data_dictionary, tick_queries
+from backend.core.config import get_settings
 from backend.core.resources import version
+from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
 from backend.db.lab import Marker, XdfAttachment
 from backend.db.models import (
@@ -49,11 +56,15 @@ from backend.db.models import (
     Study,
     StudySession,
 )
+from backend.emg import bids as emg_bids
+from backend.emg import store
 from controller import spreadsheet
 from controller.device.base import SAMPLE_RATE_HZ
+from controller.emg.processing import EmgProcessing
 
-#: The BIDS version the layout follows (motion entered the specification in 1.9.0).
-BIDS_VERSION = "1.9.0"
+#: The BIDS version the layout follows (motion entered the specification in 1.9.0, EMG
+#: in 1.11.0).
+BIDS_VERSION = "1.11.0"
 TRACKSYS = "exo"
 
 
@@ -290,6 +301,9 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
                              .order_by(Trial.planned_order, Trial.id)))
     counts: dict[tuple[str, str], int] = {}
     scans: list[list[Any]] = []
+    emg_recordings = list(db.scalars(select(EmgRecording).where(
+        EmgRecording.session_id == sess.id, EmgRecording.status == "complete")
+        .order_by(EmgRecording.id)))
     for trial in trials:
         assert trial.run_id is not None
         cols = tick_queries.columns(engine, trial.run_id)
@@ -329,6 +343,14 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
             "Code": "no stimuli are presented; events are the experimenter's lifts, the "
                     "exoskeleton's lock commands and states, and markers"}
         yield f"{folder}{base}_acq-{acq}_run-{k}_events.json", _json(events_doc).encode()
+        for path, data in _emg_files(db, emg_recordings, trial, f"sub-{sub}/{ses}/emg/",
+                                     f"{base}_acq-{acq}_run-{k}", ev_rows, ev_cols,
+                                     events_doc, blinded_label, unblind, info):
+            if path.endswith("_emg.bdf"):
+                scans.append([f"emg/{path.rsplit('/', 1)[1]}", started,
+                              *([trial.id, trial.controller] if unblind else []),
+                              blinded_label, trial.status, trial.hardware_profile_id])
+            yield path, data
     if scans:
         prefix = f"sub-{sub}/{ses}/sub-{sub}_{ses}_scans"
         scan_cols = [c for c in data_dictionary.BIDS_FILES["*_scans.tsv"][1]
@@ -340,6 +362,47 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
                           .order_by(XdfAttachment.id)):
         yield (f"sourcedata/sub-{sub}/{ses}/{att.id}_{label(att.filename.removesuffix('.xdf'))}"
                ".xdf", att.content)
+
+
+def _emg_files(db: Session, recs: list[EmgRecording], trial: Trial, folder: str, stem: str,
+               ev_rows: list[list[Any]], ev_cols: list[str], events_doc: dict[str, Any],
+               blinded_label: str | None, unblind: bool, info: dict[str, Any]
+               ) -> Iterator[tuple[str, bytes]]:
+    """The trial's EMG (BIDS-EMG) from the first recording covering it, with the motion
+    file's events on the EMG file's time axis."""
+    rec = next((r for r in recs if any(t["trial_id"] == trial.id for t in r.trials)), None)
+    montage = db.get(EmgMontage, rec.montage_id) if rec is not None else None
+    if rec is None or montage is None:
+        return
+    study_id = db.scalar(select(Participant.study_id).join(
+        StudySession, StudySession.participant_id == Participant.id)
+        .where(StudySession.id == trial.session_id))
+    analysis = db.get(EmgAnalysisSettings, study_id) if study_id is not None else None
+    processing = (analysis.processing if analysis is not None and analysis.processing
+                  else EmgProcessing().to_dict())
+    about = (f"{trial.task} under the {trial.controller} controller" if unblind else
+             f"{trial.task} under the controller the participant knew as "
+             f"{blinded_label or 'n/a'}")
+    start = next(float(t["start"]) for t in rec.trials if t["trial_id"] == trial.id)
+    parts = dict(emg_bids.trial_files(emg_folder(), rec, montage, trial.id, stem,
+                                      trial.task, about,
+                                      analysis.mains_hz if analysis is not None else 50,
+                                      processing, info))
+    if not parts:
+        return
+    shift = float(parts.pop("shift")) - start
+    yield f"{folder}{stem}_emg.bdf", parts[f"{stem}_emg.bdf"]
+    yield f"{folder}{stem}_emg.json", _json(parts[f"{stem}_emg.json"]).encode()
+    cols, rows = parts[f"{stem}_channels.tsv"]
+    yield f"{folder}{stem}_channels.tsv", _tsv(cols, rows).encode()
+    shifted = [[r[0] - shift, *r[1:]] for r in ev_rows if r[0] - shift >= 0]
+    yield f"{folder}{stem}_events.tsv", _tsv(ev_cols, shifted).encode()
+    yield f"{folder}{stem}_events.json", _json(events_doc).encode()
+
+
+def emg_folder() -> Path:
+    """The EMG recordings' folder of this installation's settings."""
+    return store.emg_folder(get_settings())
 
 
 def _events(db: Session, trial: Trial, t0: float, cols: dict[str, Any]) -> list[list[Any]]:

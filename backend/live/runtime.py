@@ -18,6 +18,7 @@ from sqlalchemy import Engine
 from backend import bootstrap
 from backend.core.config import Settings
 from backend.core.resources import version
+from backend.emg.live import EmgLab
 from backend.lab.hub import Lab
 from backend.live import device_process
 from backend.live.device_binding import BoundDevice, mismatch
@@ -33,6 +34,7 @@ from backend.schemas.live import (
     WorkerHealth,
 )
 from backend.study import activity
+from backend.worker.device_gate import DeviceGate
 from backend.worker.messages import (
     BringupCommand,
     BringupResult,
@@ -62,6 +64,11 @@ COMMAND_TIMEOUT_S = 120.0
 #: its default backlog limit), at most `RECORDER_WAIT_S` per batch.
 RECORDER_HOLD = 10_000
 RECORDER_WAIT_S = 30.0
+
+
+class WrongDeviceError(RuntimeError):
+    """A controller was not started: the hardware profile in effect is not (or not yet
+    shown to be) the device on the link's; the message says which is which."""
 
 
 class Runtime:
@@ -103,6 +110,7 @@ class Runtime:
         self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
         # LSL outlets and event markers: one more consumer of the tick batches.
         self.lab = Lab(settings.lsl_enabled, settings.lsl_name, engine, self.stream)
+        self.emg = EmgLab(settings.lsl_enabled, engine, settings)
         self.supervisor = WorkerSupervisor(
             self.worker_config,
             WorkerCallbacks(
@@ -117,6 +125,8 @@ class Runtime:
         )
         self.device_process: subprocess.Popen[bytes] | None = None
         self._status_task: asyncio.Task[None] | None = None
+        #: (key id, unique id) of the device last seen on the link (`_follow_identity`).
+        self._seen_device: tuple[str, str] | None = None
 
     @property
     def hardware_is_simulated(self) -> bool:
@@ -236,9 +246,31 @@ class Runtime:
             models_path=str(self.settings.models_path) if needs_models(name) else None,
             utilities_path=str(self.utilities_path()) if needs_models(name) else None)
 
+    def device_gate(self, spec: ControllerSpec) -> DeviceGate | None:
+        """The device `spec` may run on, for the worker to hold it to: None for `none`
+        and while no hardware profile is in effect (the default layout, any device).
+        Raises WrongDeviceError while the device on the link has not proved to be the
+        profile's, and when `spec` was built with another layout than the profile's
+        (the device changed while it was being built)."""
+        if spec.name == registry.idle() or self.hardware_profile is None:
+            return None
+        profile_id, made_on, layout = self.hardware_profile
+        verdict = self.profile_verdict()
+        if verdict:
+            raise WrongDeviceError(f"controller {spec.name!r} not started: {verdict}")
+        if (tuple(spec.settings.encoder_offsets) != tuple(layout.offsets)
+                or tuple(spec.settings.encoder_directions) != tuple(layout.directions)):
+            raise WrongDeviceError(f"controller {spec.name!r} not started: its encoder layout is "
+                              f"not hardware profile {profile_id}'s (the device on the "
+                              "link changed while it was being built, or the request "
+                              "overrides the layout)")
+        return DeviceGate(profile_id, made_on.key_id, made_on.unique_id)
+
     def set_controller(self, name: str, overrides: dict[str, Any] | None = None) -> None:
-        """Switch the worker's controller (a new run starts)."""
-        self.supervisor.set_controller(self.controller_spec(name, overrides))
+        """Switch the worker's controller (a new run starts). Raises WrongDeviceError (see
+        `device_gate`)."""
+        spec = self.controller_spec(name, overrides)
+        self.supervisor.set_controller(spec, device=self.device_gate(spec))
 
     def release(self) -> None:
         """Back to controller `none` without waiting: nothing locks until a new switch
@@ -256,8 +288,9 @@ class Runtime:
         name = spec.name
         if not self.supervisor.state.alive:
             raise RuntimeError("the worker is not running: restart it first")
+        gate = self.device_gate(spec)
         fut = self._command_future()
-        rid = self.supervisor.set_controller(spec, max_ticks)
+        rid = self.supervisor.set_controller(spec, max_ticks, gate)
         answer = await self._answer(rid, fut, f"start {name}", timeout)
         if not answer.ok:
             raise RuntimeError(answer.message)
@@ -434,6 +467,7 @@ class Runtime:
         self.recorder.start()
         await self.stream.start()
         self.lab.start()
+        self.emg.start()
         if self.settings.device_kind == "udp":
             # First start: a new link key, private to this user (mode 0600).
             load_or_create_key(self.settings.device_key_file)
@@ -454,8 +488,35 @@ class Runtime:
         # message keeps their timing figures current.
         while True:
             await asyncio.sleep(1.0)
+            try:
+                await self._follow_identity()
+            except Exception:
+                log.exception("re-resolving the encoder layout for a new device failed")
             if self.stream.client_count:
                 self._on_event("tick", {})
+
+    async def _follow_identity(self) -> None:
+        """When the device on the link first proves its identity, or another device
+        appears, the idle worker's `none` is started again so that it decodes with the
+        layout that applies to this device (the profile's, or the default one). A
+        controller that locks is held to its device by the worker itself (it stops,
+        released, on another device: `backend.worker.device_gate`)."""
+        identity = self.device_identity
+        if identity is None:
+            return
+        seen = (identity.key_id, identity.unique_id)
+        if seen == self._seen_device:
+            return
+        self._seen_device = seen
+        if self.hardware_profile is None:
+            return  # nothing to re-resolve: the default layout applies to any device
+        from sqlalchemy.orm import Session
+
+        async with self.activity:
+            with Session(self.recorder.engine) as db:
+                busy = activity.running(db)
+            if busy is None and self.supervisor.config.controller == registry.idle():
+                await self.idle()
 
     async def stop(self) -> None:
         """Stop the worker first (it releases the device), then flush and close."""
@@ -465,6 +526,7 @@ class Runtime:
         self.recorder.worker_exited("server shutdown")
         self.recorder.stop()
         await self.stream.stop()
+        self.emg.stop()
         self.lab.stop()
         if self.device_process is not None:
             device_process.stop(self.device_process, self._device_pid_file())

@@ -10,7 +10,9 @@ from pydantic import BaseModel, Field
 class ReplicationIn(BaseModel):
     """What to run: seeds (virtual studies) of `participants` each."""
 
-    seeds: int = Field(5, ge=2, le=20, description="virtual studies (2..20)")
+    # DEFAULT_SEEDS of controller.evaluation.replication, not imported: it is slow to
+    # load and this module loads with the server.
+    seeds: int = Field(20, ge=2, le=20, description="virtual studies (2..20)")
     participants: int = Field(8, ge=2, le=40, description="participants per seed")
 
 
@@ -52,6 +54,10 @@ class ClaimOut(BaseModel):
     interval: ClaimIntervalOut
     verdict: str
     reason: str
+    #: Table claims: virtual minus paper with both errors (Welch interval, TOST).
+    difference: dict[str, float | None] | None = None
+    #: The two halves of the seeds gave different verdicts (None: too few seeds).
+    unstable: bool | None = None
 
 
 class ReplicationReportOut(BaseModel):

@@ -37,6 +37,9 @@ async def _start(db: Session, user: User, runtime: Runtime, session_id: int,
     if db.get(StudySession, session_id) is None:
         raise NotFoundError("session", session_id)
     activity.ensure_idle(db)
+    verdict = runtime.profile_verdict()
+    if verdict:  # its angles would be decoded with another device's encoder layout
+        raise ConflictError("device", f"no recording: {verdict}")
     try:
         run_id = await runtime.switch_controller(runtime.controller_spec(registry.idle()))
     except RuntimeError as exc:

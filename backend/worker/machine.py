@@ -30,6 +30,7 @@ import numpy as np
 
 from backend.schemas.live import DeviceReport, LoopReport
 from backend.worker import bringup
+from backend.worker.device_gate import DeviceGate
 from backend.worker.devices import make_device
 from backend.worker.messages import (
     BringupCapture,
@@ -255,6 +256,9 @@ class Machine:
         self.calibration: CalibrationJob | None = None
         self.runs = Runs(outbox, self.pid)
         self.next_status = time.monotonic()
+        #: The device the running controller's encoder layout belongs to (None: no
+        #: hardware profile, any device); see `backend.worker.device_gate`.
+        self.gate: DeviceGate | None = None
         #: One handler per command type: the state's rules have already taken it.
         self.handlers: dict[type, Callable[[Any], None]] = {
             SetController: self.on_set_controller,
@@ -273,7 +277,7 @@ class Machine:
                                    f"{_resting()!r}"))
             self.spec = ControllerSpec(_resting())
             controller = build(self.spec)
-        self.loop = ControlLoop(device, controller)
+        self.loop = self._new_loop(controller)
         target = self._target(self.spec, None)
         if target is not State.IDLE:
             self.go(target)
@@ -304,9 +308,25 @@ class Machine:
             return State.TRIAL
         return State.IDLE if _is_resting(spec.name) else State.CONTROLLING
 
+    def _new_loop(self, controller: Controller) -> ControlLoop:
+        """A control loop on the current device whose locks pass the device gate."""
+        loop = ControlLoop(self.device, controller)
+        loop.lock_gate = self._gate_refusal
+        return loop
+
+    def _gate_refusal(self) -> str:
+        """Why the running controller may not lock the device on the link now ("" if
+        it may): its encoder layout belongs to another device, or to a device that has
+        not proved its identity since the link (re)joined."""
+        gate = self.gate
+        return "" if gate is None else gate.refusal(self.device.identity)
+
     def _run(self, controller: Controller, spec: ControllerSpec, to: State,
-             max_ticks: int | None = None) -> int:
-        """Run `controller` (built from `spec`) in state `to`, as a new run; its token."""
+             max_ticks: int | None = None, gate: DeviceGate | None = None) -> int:
+        """Run `controller` (built from `spec`) in state `to`, as a new run; its token.
+        `gate`: the device its layout belongs to (kept only for a controller that
+        locks)."""
+        self.gate = None if _is_resting(spec.name) else gate
         if self.state is State.CALIBRATING:
             # The calibration goes on beside the new controller, then returns to `to`
             # (the rules refuse a trial here).
@@ -366,8 +386,21 @@ class Machine:
             else:
                 self.answer(cmd.request_id, refused, self._fall_back())
             return
+        wrong_device = "" if _is_resting(cmd.spec.name) or cmd.device is None \
+            else cmd.device.refusal(self.device.identity)
+        if wrong_device:
+            # The layout is not this device's: the controller does not start, and the one
+            # it was to replace stops too (released), as for a spec that does not build.
+            refused = f"controller {cmd.spec.name!r} not started: {wrong_device}"
+            self.outbox.put(WorkerError(refused))
+            if self.state is State.IDLE or (self.state is State.CALIBRATING
+                                            and self.base is State.IDLE):
+                self.answer(cmd.request_id, refused)
+            else:
+                self.answer(cmd.request_id, refused, self._fall_back())
+            return
         token = self._run(new, cmd.spec, self._target(cmd.spec, cmd.max_ticks),
-                          cmd.max_ticks)
+                          cmd.max_ticks, cmd.device)
         self.answer(cmd.request_id, "", token)
 
     def on_set_simulation(self, cmd: SetSimulation) -> None:
@@ -393,7 +426,7 @@ class Machine:
         self.config = sim_config
         self.go(back)
         # Fresh timing too: health counts ticks from the new wearer's start.
-        self.loop = ControlLoop(self.device, fresh)
+        self.loop = self._new_loop(fresh)
         self.next_status = 0.0  # report the new wearer at its first sample
         self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind))
 
@@ -410,7 +443,7 @@ class Machine:
         self.go(State.BRINGUP)
         self.outbox.put(bringup.handle(cmd, self.device))
         self.leave_for(State.IDLE)
-        self.loop = ControlLoop(self.device, self.loop.controller)  # fresh timing after it
+        self.loop = self._new_loop(self.loop.controller)  # fresh timing after it
 
     def on_stop(self, _cmd: StopWorker) -> None:
         """Release and leave the loop."""
@@ -513,11 +546,23 @@ class Machine:
             silent = record is None and not held
             if record is not None:
                 self.after_tick(record)
+                if self.gate is not None:
+                    self.check_device()
             now = time.monotonic()
             if now >= self.next_status:
                 self.next_status = now + self.config.status_interval
                 outbox.put(status(self.loop, outbox, self.pid, self.runs.token,
                                   device.kind, device.faults(), self.state))
+
+    def check_device(self) -> None:
+        """Stop a controller, released, when the device on the link is no longer the
+        one its encoder layout belongs to (swapped, or rebooted as another device). Its
+        lock on that device's first sample was already withheld (`_new_loop`)."""
+        why = self._gate_refusal()
+        if why:
+            name = self.spec.name
+            self.outbox.put(WorkerError(f"controller {name!r} stopped, released: {why}"))
+            self._fall_back()
 
     def stop(self) -> None:
         """Every way out of the loop: release, then close the device."""

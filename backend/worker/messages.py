@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from backend.schemas.live import DeviceReport, LoopReport
+from backend.worker.device_gate import DeviceGate
 from controller.controllers.spec import ControllerSpec
 from controller.device.base import DeviceIdentity
 from controller.tick_codec import TickBlock, pack, unpack
@@ -120,6 +121,10 @@ class SetController:
     max_ticks: int | None = None
     #: Answered by a `CommandResult` with this id (0: nobody waits for the answer).
     request_id: int = 0
+    #: The device the spec's encoder layout was measured on (a hardware profile's);
+    #: the worker runs the controller only on that device (`device_gate`). None: no
+    #: profile, the default layout, any device.
+    device: DeviceGate | None = None
 
     @property
     def name(self) -> str:

@@ -18,6 +18,7 @@ from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from typing import Any
 
+from backend.worker.device_gate import DeviceGate
 from backend.worker.messages import (
     BringupCommand,
     BringupResult,
@@ -85,6 +86,7 @@ class WorkerSupervisor:
         self._lock = threading.RLock()
         self._stopping = False
         self._request_id = 0
+        self._bound = False  # the configured spec is bound to a device (`set_controller`)
 
     @property
     def process(self) -> BaseProcess | None:
@@ -98,10 +100,13 @@ class WorkerSupervisor:
                 return
             if self._reader is not None:
                 self._reader.join(2.0)
-            if self.state.started_at is not None:
+            if self.state.started_at is not None or self._bound:
                 # A restarted worker never resumes the controller of a trial that has
-                # ended with its predecessor: it begins unlocked, with "none".
+                # ended with its predecessor: it begins unlocked, with "none". Nor does
+                # a first one start a controller bound to a device that has not proved
+                # its identity to it yet.
                 self.config = replace(self.config, spec=ControllerSpec("none"))
+                self._bound = False
             out_parent, out_child = self._ctx.Pipe(duplex=False)
             cmd_child, cmd_parent = self._ctx.Pipe(duplex=False)
             proc = self._ctx.Process(
@@ -161,18 +166,22 @@ class WorkerSupervisor:
         self._request_id += 1
         return self._request_id
 
-    def set_controller(self, spec: ControllerSpec, max_ticks: int | None = None) -> int:
+    def set_controller(self, spec: ControllerSpec, max_ticks: int | None = None,
+                       device: DeviceGate | None = None) -> int:
         """Switch controller in the running worker; it takes effect at the next tick (and
-        ends after `max_ticks` samples, if given). Returns the request id the worker's
+        ends after `max_ticks` samples, if given); with `device`, only on that device
+        (`backend.worker.device_gate`). Returns the request id the worker's
         `CommandResult` will carry, 0 when no worker runs (the specification then
-        applies at the next start)."""
+        applies at the next start, unless it is bound to a device: a worker starts
+        before its device has proved anything, so then it starts with `none`)."""
         with self._lock:
             self.config = replace(self.config, spec=spec)
+            self._bound = device is not None
             if self._cmd is None or not self.state.alive:
                 return 0
             rid = self._next_request_id()
             try:
-                self._cmd.send(SetController(spec, max_ticks, rid))
+                self._cmd.send(SetController(spec, max_ticks, rid, device))
             except (BrokenPipeError, OSError):
                 return 0
             return rid

@@ -16,13 +16,13 @@ Priors are one typed definition, `LearnedPriors` (values, estimate, provenance).
 one the settings' `priors` apply (equal by default, the paper's controller bit for bit);
 with one, its values become the settings' priors, and a settings mapping that asks for
 other priors at the same time is refused. Whatever the source, the UMC refuses priors
-outside the safe set of its utility table (`controller.decision.prior_safety`).
+outside the safe set of its utility table (`controller.intent.prior_safety`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,7 +71,8 @@ class ControllerSpec:
         if self.priors is not None:
             if not isinstance(self.priors, LearnedPriors):
                 raise SettingError("priors", "must be a LearnedPriors record")
-            values = tuple(self.priors.values)
+            v = self.priors.values
+            values = (v[0], v[1], v[2], v[3])
             asked = tuple(self.settings.priors)
             if asked != values and asked != tuple(EQUAL_PRIORS):
                 raise SettingError("priors", f"settings ask for priors {list(asked)} but the "

@@ -20,11 +20,11 @@ from controller.controllers.registry import PlanPlace, register
 from controller.controllers.spec import ControllerSpec
 from controller.decision import expected_utility as decision
 from controller.decision.expected_utility import decide_fast
-from controller.decision.prior_safety import PriorBounds
 from controller.decision.utility_function import UtilitySet
 from controller.intent.motion_model import ModelSet
 from controller.intent.onset import ModelBank, OnsetCriteria, _bank_kernel, window_start
 from controller.intent.posteriors import IntentEstimator, _intent_kernel
+from controller.intent.prior_safety import PriorBounds
 from controller.kernel import Compiled, Kernel, KernelController
 from controller.kernel.entry_points import entry_points
 from controller.kernel.records import BoolArray, FloatArray, IntArray

@@ -68,7 +68,8 @@ class LinkStats:
     stale: int = 0  # older than the last accepted sample (reordered or delayed)
     restarts: int = 0  # a new device session; host sequence continued
     # Authentic but not of this link now: a sample of another device session or to
-    # another host session, a CHALLENGE that answers none of our recent HELLOs.
+    # another host session, a CHALLENGE to another host session or to a HELLO this
+    # session never sent.
     replayed: int = 0
     malformed: Counter[str] = field(default_factory=Counter)  # by ProtocolError reason
     # The device's own drop counts, as its latest sample reports them.
@@ -80,8 +81,9 @@ class LinkStats:
     versions: int = 0  # VERSION packets: the device speaks another protocol version
     outages: int = 0
     joins: int = 0  # JOINs sent (one per accepted CHALLENGE)
-    # CHALLENGEs to a HELLO of ours that an earlier CHALLENGE already answered (the
-    # device answered two HELLOs, or the path doubled one): ignored, not a replay.
+    # CHALLENGEs to a HELLO of this session that is older than a second or that a JOIN
+    # already answered (the device answered two HELLOs, the path doubled or delayed
+    # one, or the host read late): ignored, not a replay.
     late_challenges: int = 0
     commands_sent: int = 0
     commands_unaddressed: int = 0  # not sent: no sample of a joined session to answer
@@ -375,14 +377,23 @@ class UdpDevice(Device):
 
     def _on_challenge(self, packet: ChallengePacket, sender: int, receiver: int) -> None:
         now = time.monotonic()
+        if receiver != self.session or seq_diff(packet.hello_seq, self._host_seq) > 0:
+            self.stats.replayed += 1  # to another host session, or a HELLO never sent
+            return
         recent = {seq for seq, at in self._hellos if now - at <= HELLO_MEMORY_S}
-        if receiver != self.session or packet.hello_seq not in recent:
-            self.stats.replayed += 1  # not an answer to this host's HELLOs of the last second
+        if packet.hello_seq not in recent or (
+                self._answered is not None and seq_diff(packet.hello_seq, self._answered) <= 0):
+            # An answer to one of this session's own HELLOs that comes too late: the
+            # HELLO is older than a second (the host was busy between open() and its
+            # first read, or the path delayed it), or a JOIN already superseded it. The
+            # device's own doing, or a copy of it: ignored, and not an attack.
+            self.stats.late_challenges += 1
             return
-        if self._answered is not None and seq_diff(packet.hello_seq, self._answered) <= 0:
-            self.stats.late_challenges += 1  # that HELLO, or an older one, was answered
-            return
-        self._answered = packet.hello_seq  # one JOIN per join
+        # One JOIN per join: every HELLO sent so far is answered by this JOIN. A second
+        # CHALLENGE to one of them (the device answered two HELLOs that crossed the
+        # first CHALLENGE, with the same challenge) would make a JOIN the device drops
+        # as a replay of the spent challenge.
+        self._answered = self._hellos[-1][0] if self._hellos else packet.hello_seq
         self._silent_hellos = 0
         self.problem = ""
         if self.device_session is not None and sender != self.device_session:

@@ -89,6 +89,14 @@ GROUP_KINDS: dict[str, tuple[str, ...]] = {"SQ": ("squat",),
                                            "AS": ("stoop_left", "stoop_right")}
 TRIAL_GROUPS: dict[str, str] = {"walking": "W", "stair_walking": "SW"}
 
+#: Seeds of a replication unless told otherwise: measured by
+#: `bench/bench_verdict_stability.py` (docs/replication.md, "How many seeds"). Table
+#: verdicts judged on the difference stop changing between disjoint seed sets by 15-20
+#: seeds except for claims whose difference sits at the margin; 20 also gives the
+#: unstable marker two halves of 10 seeds, enough for each half's verdict to mean
+#: something (with 2 per half, t(0.975, 1) = 12.7 makes every half inconclusive).
+DEFAULT_SEEDS = 20
+
 # Equivalence margins, one per kind of table cell. The rule is the same for every kind:
 # the smallest difference one participant's cell in the paper's tables can show, i.e.
 # the tables' own unit. Chosen from the tables' design before any verdict was computed,
@@ -578,6 +586,47 @@ def judge(claim: Claim, values: Sequence[float]) -> ClaimResult:
     v = check_verdict(iv.mean, claim.paper, claim.tolerance)
     return ClaimResult(claim, iv, v, f"Computed {_fmt(iv.mean)}, expected {_fmt(claim.paper)} "
                        f"within {_fmt(claim.tolerance)}.", seeds)
+
+
+#: The verdict rule in a few sentences, for the report's "Rule" section.
+RULE_TEXT = (
+    "Each number is a mean over a seed's virtual participants; the interval is the "
+    "Student t 95 % confidence interval of the mean over seeds. A cell of the paper's "
+    "tables (or a share derived from them) is judged on the difference virtual minus "
+    "paper, with the standard error of both means: the seed means on one side, the "
+    "paper's participants on the other (Welch interval, Welch-Satterthwaite degrees of "
+    "freedom). It is equivalent if the two one-sided tests (TOST, alpha 0.05) show the "
+    "difference inside the claim's margin (the 90 % interval lies inside it), differs "
+    "if the whole 95 % interval lies beyond the margin, and is inconclusive otherwise. "
+    "Margins are the smallest difference one participant's cell can show: one lift in "
+    "10, one false positive per trial, one participant of eight. A stated number "
+    "without per-participant values is reproduced if it lies inside the interval; a "
+    "stated direction if the whole interval lies on the claimed side of the threshold; "
+    "a deterministic check if it holds within its tolerance; anything else differs. "
+    "Unstable: the first and the second half of the seeds, judged apart, give "
+    "different verdicts.")
+
+
+def verdict_counts(results: Sequence[ClaimResult]) -> str:
+    """'n equivalent, n reproduced, ...' over the categories that occur, and how many
+    claims are unstable."""
+    order = [Verdict.EQUIVALENT, Verdict.REPRODUCED, Verdict.INCONCLUSIVE, Verdict.DIFFERS,
+             Verdict.NOT_SIMULATED]
+    parts = [f"{n} {v.value}" for v in order
+             if (n := sum(1 for r in results if r.verdict is v))]
+    unstable = sum(1 for r in results if r.unstable)
+    return ", ".join(parts) + f"; {unstable} unstable"
+
+
+def difference_dict(d: Difference | None) -> dict[str, float] | None:
+    """A difference's numbers for the report's JSON (None for other kinds of claim)."""
+    if d is None:
+        return None
+    lo90, hi90 = d.interval(0.90)
+    return {"diff": d.diff, "low": d.low, "high": d.high, "low90": lo90, "high90": hi90,
+            "df": d.df, "se": d.se, "se_virtual": d.se_virtual, "se_paper": d.se_paper,
+            "n_virtual": d.n_virtual, "n_paper": d.n_paper, "margin": d.margin,
+            "tost_p": d.tost_p}
 
 
 def seed_halves(n: int) -> tuple[slice, slice] | None:

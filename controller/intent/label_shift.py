@@ -30,8 +30,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import chi2
 
-from controller.decision.prior_safety import PriorBounds
 from controller.intent.learned_priors import LearnedPriors
+from controller.intent.prior_safety import PriorBounds
 
 FloatArray = npt.NDArray[np.float64]
 

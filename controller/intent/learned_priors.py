@@ -6,7 +6,7 @@ be updated once usage data exist. This module keeps two things apart:
 - the **estimate**: what the wearer's history says (for insight into how they use the
   exoskeleton), and
 - the **values**: the estimate projected onto the safe set of the utility table
-  (`controller.decision.prior_safety.PriorBounds`), which is all the controller uses.
+  (`controller.intent.prior_safety.PriorBounds`), which is all the controller uses.
 
 Count-based update (Dirichlet posterior mean with forgetting). Every confirmed motion
 (ground truth in simulation; markers or the lift segmentation in a study) adds 1 to its
@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from controller.decision.prior_safety import ClassRole, PriorBounds
 from controller.intent.posteriors import EQUAL_PRIORS
+from controller.intent.prior_safety import ClassRole, PriorBounds
 from controller.tick_record import CATEGORY_NAMES
 
 FloatArray = npt.NDArray[np.float64]

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from controller.intent.motion_model import MotionModel, ModelSet, fit_model_set, time_normalise
+from controller.intent.motion_model import ModelSet, MotionModel, fit_model_set, time_normalise
 from controller.tick_record import MODEL_NAMES
 
 FloatArray = NDArray[np.float64]
@@ -43,7 +43,7 @@ DEFAULT_TAU = 5.0
 MIN_PARTICIPANT_DEMOS = 3
 
 
-class TooFewDemonstrations(ValueError):
+class TooFewDemonstrationsError(ValueError):
     """A participant-only fit was asked for with too few demonstrations of some motion."""
 
 
@@ -125,7 +125,7 @@ def fit_participant_model_set(
     """A model set fitted from one wearer's demonstrations alone.
 
     Raises:
-        TooFewDemonstrations: naming every motion with fewer than `min_per_motion`.
+        TooFewDemonstrationsError: naming every motion with fewer than `min_per_motion`.
     """
     if min_per_motion < 2:
         raise ValueError(f"min_per_motion must be at least 2 (PPCA needs two), got "
@@ -133,7 +133,7 @@ def fit_participant_model_set(
     short = {n: len(demos.get(n, [])) for n in MODEL_NAMES
              if len(demos.get(n, [])) < min_per_motion}
     if short:
-        raise TooFewDemonstrations(
+        raise TooFewDemonstrationsError(
             "a participant-only model set needs at least "
             f"{min_per_motion} demonstrations of each motion; have "
             + ", ".join(f"{n}: {k}" for n, k in short.items()))

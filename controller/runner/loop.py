@@ -114,6 +114,12 @@ class ControlLoop:
         self.last_sample_at: float | None = None
         #: Ticks whose sample failed a plausibility check (for health).
         self.implausible = 0
+        #: Asked before any lock is sent: "" if the device on the link may be locked
+        #: now, else why not (the worker's check that the controller's encoder layout
+        #: belongs to this device). A refused tick's lock is not sent, nor recorded.
+        self.lock_gate: Callable[[], str] | None = None
+        #: Ticks whose lock `lock_gate` withheld.
+        self.withheld = 0
 
     def tick(self, timeout: float = 0.05) -> TickRecord | None:
         """One iteration; None when no sample arrived within `timeout` seconds."""
@@ -136,6 +142,10 @@ class ControlLoop:
         if gap:
             self.timing.gaps += 1
             record = record.with_(flags=record.flags | int(TickFlag.GAP))
+        if (record.lock_left or record.lock_right) and self.lock_gate is not None \
+                and self.lock_gate():
+            self.withheld += 1
+            record = record.with_(lock_left=False, lock_right=False)
         self._cmd_seq += 1
         self.device.send(LockCommand(self._cmd_seq, record.lock_left, record.lock_right))
         overrun = self.timing.record(start, self._clock())

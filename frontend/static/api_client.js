@@ -142,6 +142,133 @@ export const cohorts = Object.freeze({
   start: operation("cohorts.start", "POST", "/api/cohorts", {"params": [], "query": [], "body": true}),
 });
 
+export const emg = Object.freeze({
+  /**
+   * DELETE /api/studies/{study_id}/emg-montage: Remove the study's montage (every version);
+   * 409 once a recording or a subscription uses one (a recording's channels must stay
+   * mapped).
+   * @param {number} studyId
+   * @returns {Promise<Array<MontageOut>>}
+   */
+  deleteMontage: operation("emg.deleteMontage", "DELETE", "/api/studies/{study_id}/emg-montage", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * GET /api/sessions/{session_id}/emg-recordings/{emg_recording_id}: One recording.
+   * @param {number} sessionId
+   * @param {number} emgRecordingId
+   * @returns {Promise<EmgRecordingOut>}
+   */
+  getEmgRecording: operation("emg.getEmgRecording", "GET", "/api/sessions/{session_id}/emg-recordings/{emg_recording_id}", {"params": ["session_id", "emg_recording_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/emg-settings: The study's EMG processing chain and
+   * normalisation (defaults until set).
+   * @param {number} studyId
+   * @returns {Promise<EmgSettingsOut>}
+   */
+  getEmgSettings: operation("emg.getEmgSettings", "GET", "/api/studies/{study_id}/emg-settings", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/emg-montage: The study's current montage (its newest
+   * version); 404 before the first.
+   * @param {number} studyId
+   * @returns {Promise<MontageOut>}
+   */
+  getMontage: operation("emg.getMontage", "GET", "/api/studies/{study_id}/emg-montage", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * POST /api/sessions/{session_id}/emg/edf: Import an EDF/BDF file's EMG as a recording of
+   * the session: channels mapped by the study's montage (422 listing unmatched and expected
+   * labels), units converted to volts (422 if not a voltage), placed on the session clock by
+   * `marker` or by `trial` and `offset_s` (422 if neither or it cannot be found). Nothing is
+   * stored on error.
+   * @param {number} sessionId
+   * @param {Body_import_edf_api_sessions__session_id__emg_edf_post} body
+   * @returns {Promise<EmgRecordingOut>}
+   */
+  importEdf: operation("emg.importEdf", "POST", "/api/sessions/{session_id}/emg/edf", {"params": ["session_id"], "query": [], "body": true}),
+  /**
+   * GET /api/sessions/{session_id}/emg-recordings: The session's EMG recordings with their
+   * span, trials and quality flags.
+   * @param {number} sessionId
+   * @returns {Promise<Array<EmgRecordingOut>>}
+   */
+  listEmgRecordings: operation("emg.listEmgRecordings", "GET", "/api/sessions/{session_id}/emg-recordings", {"params": ["session_id"], "query": [], "body": false}),
+  /**
+   * GET /api/sessions/{session_id}/emg-streams: The session's EMG stream subscriptions.
+   * @param {number} sessionId
+   * @returns {Promise<Array<EmgStreamOut>>}
+   */
+  listEmgStreams: operation("emg.listEmgStreams", "GET", "/api/sessions/{session_id}/emg-streams", {"params": ["session_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/emg-montages: Every version of the study's montage, oldest
+   * first.
+   * @param {number} studyId
+   * @returns {Promise<Array<MontageOut>>}
+   */
+  listMontages: operation("emg.listMontages", "GET", "/api/studies/{study_id}/emg-montages", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * GET /api/sessions/{session_id}/mvc-steps: The session's MVC steps in order, with the
+   * repetitions done.
+   * @param {number} sessionId
+   * @returns {Promise<Array<MvcStepOut>>}
+   */
+  listMvcSteps: operation("emg.listMvcSteps", "GET", "/api/sessions/{session_id}/mvc-steps", {"params": ["session_id"], "query": [], "body": false}),
+  /**
+   * POST /api/sessions/{session_id}/mvc-steps/{mvc_step_id}/events: Start or stop the step's
+   * next repetition: an `mvc_start` / `mvc_stop` marker (stored, shown and sent on LSL like
+   * every marker) names muscle, side and repetition. 409 for a stop without a start, a start
+   * while one runs, or a step whose repetitions are all done.
+   * @param {number} sessionId
+   * @param {number} mvcStepId
+   * @param {MvcEventIn} body
+   * @returns {Promise<MvcStepOut>}
+   */
+  mvcEvent: operation("emg.mvcEvent", "POST", "/api/sessions/{session_id}/mvc-steps/{mvc_step_id}/events", {"params": ["session_id", "mvc_step_id"], "query": [], "body": true}),
+  /**
+   * PUT /api/sessions/{session_id}/mvc-steps: Plan the session's MVC steps (per muscle and
+   * side, repetitions, contraction and rest times); 409 once a repetition has run (its
+   * markers are data).
+   * @param {number} sessionId
+   * @param {MvcPlanIn} body
+   * @returns {Promise<Array<MvcStepOut>>}
+   */
+  planMvc: operation("emg.planMvc", "PUT", "/api/sessions/{session_id}/mvc-steps", {"params": ["session_id"], "query": [], "body": true}),
+  /**
+   * PUT /api/studies/{study_id}/emg-settings: Set the study's EMG processing chain and
+   * normalisation method; every parameter is stored (defaults filled in) and written into
+   * results and exports.
+   * @param {number} studyId
+   * @param {EmgSettingsIn} body
+   * @returns {Promise<EmgSettingsOut>}
+   */
+  putEmgSettings: operation("emg.putEmgSettings", "PUT", "/api/studies/{study_id}/emg-settings", {"params": ["study_id"], "query": [], "body": true}),
+  /**
+   * PUT /api/studies/{study_id}/emg-montage: A new version of the study's montage (older
+   * versions stay: recordings keep the version their channels were mapped by). Unknown
+   * muscles and repeated channels are a 422 naming the field.
+   * @param {number} studyId
+   * @param {MontageIn} body
+   * @returns {Promise<MontageOut>}
+   */
+  putMontage: operation("emg.putMontage", "PUT", "/api/studies/{study_id}/emg-montage", {"params": ["study_id"], "query": [], "body": true}),
+  /**
+   * POST /api/sessions/{session_id}/emg-streams: Record this LSL EMG stream with the session
+   * from now on, in chunks to the EMG folder, on this server's LSL clock (clock correction).
+   * The stream must be visible (409 otherwise), of type EMG, in volts (V, mV, uV), and its
+   * channel labels must match the study's montage (422 listing unmatched and expected
+   * labels); nothing is stored otherwise.
+   * @param {number} sessionId
+   * @param {EmgStreamIn} body
+   * @returns {Promise<EmgStreamOut>}
+   */
+  subscribe: operation("emg.subscribe", "POST", "/api/sessions/{session_id}/emg-streams", {"params": ["session_id"], "query": [], "body": true}),
+  /**
+   * DELETE /api/sessions/{session_id}/emg-streams/{emg_stream_id}: Stop recording the
+   * stream; the recording so far is finished and kept.
+   * @param {number} sessionId
+   * @param {number} emgStreamId
+   * @returns {Promise<EmgStreamOut>}
+   */
+  unsubscribe: operation("emg.unsubscribe", "DELETE", "/api/sessions/{session_id}/emg-streams/{emg_stream_id}", {"params": ["session_id", "emg_stream_id"], "query": [], "body": false}),
+});
+
 export const hardware = Object.freeze({
   /**
    * POST /api/hardware/direction: Step b: flex the `side` hip during the capture; stores its

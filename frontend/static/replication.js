@@ -28,7 +28,8 @@ function show(report) {
   $("#rep-claims tbody").replaceChildren(...report.claims.map((c) => h("tr",
     { "data-verdict": c.verdict },
     h("td", {}, h("b", {}, c.key), h("br"), c.statement), h("td", {}, paperCell(c)),
-    h("td", {}, intervalCell(c)), h("td", {}, c.verdict), h("td", {}, c.reason))));
+    h("td", {}, intervalCell(c)),
+    h("td", {}, c.unstable ? `${c.verdict}, unstable` : c.verdict), h("td", {}, c.reason))));
 }
 
 async function load() {

@@ -13,5 +13,6 @@ def test_probe(settings: Settings, experimenter) -> None:
         for i in range(80):
             r = httpx.get(url + "/api/health").json()
             print("H", round(time.time()-t0,1), r.get("worker",{}).get("ticks"), r.get("device",{}).get("alive"), r.get("device",{}).get("link_drops"), str(r.get("device",{}).get("identity"))[:80], file=sys.__stderr__)
-            if r.get("device",{}).get("identity"): break
+            if i==0: print(r, file=sys.__stderr__)
+            if r.get("device",{}).get("alive"): break
             time.sleep(0.5)

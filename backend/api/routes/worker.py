@@ -9,6 +9,7 @@ from fastapi import APIRouter, Depends, HTTPException
 from backend.api.deps import RuntimeDep, SessionDep, access, current_user
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, MALFORMED, conflict, invalid
 from backend.live.device_process import DeviceStartError
+from backend.live.runtime import WrongDeviceError
 from backend.schemas.live import (
     CalibrationOutcome,
     CalibrationRequest,
@@ -71,6 +72,8 @@ def _set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
         )
     try:
         runtime.set_controller(choice.name, dict(choice.config))
+    except WrongDeviceError as exc:
+        conflict("device", str(exc))
     except SettingError as exc:
         invalid(["body", "config", exc.field], exc.problem)
     except (ValueError, TypeError) as exc:

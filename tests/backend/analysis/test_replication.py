@@ -31,7 +31,8 @@ def test_report_is_self_contained_and_judges_every_claim(tiny: Path) -> None:
     assert page.count("src='data:image/png;base64,") >= 9
     doc = json.loads((tiny / "replication.json").read_text())
     assert [c["key"] for c in doc["claims"]] == [c.key for c in CLAIMS]
-    assert {c["verdict"] for c in doc["claims"]} <= {"reproduced", "differs", "not simulated"}
+    assert {c["verdict"] for c in doc["claims"]} <= {"reproduced", "equivalent", "differs",
+                                                     "inconclusive", "not simulated"}
     by = {c["key"]: c for c in doc["claims"]}
     assert by["questionnaires"]["verdict"] == "not simulated"
     assert by["chi_square"]["verdict"] == "reproduced"
@@ -42,6 +43,16 @@ def test_report_is_self_contained_and_judges_every_claim(tiny: Path) -> None:
         assert b"<svg" in (tiny / "figures" / f"{name}.svg").read_bytes()[:2000]
     md = (tiny / "replication.md").read_text()
     assert md.count("\n| ") == len(CLAIMS) + 1
+
+
+def test_the_default_seed_count_is_the_measured_one() -> None:
+    from backend.cli import build_parser
+    from backend.schemas.replication import ReplicationIn
+    from controller.evaluation.replication import DEFAULT_SEEDS
+
+    assert ReplicationConfig(out=Path("x")).seeds == DEFAULT_SEEDS
+    assert ReplicationIn.model_fields["seeds"].default == DEFAULT_SEEDS
+    assert build_parser().parse_args(["replicate", "--out", "x"]).seeds is None
 
 
 def test_offsets_regression_is_ordinary_least_squares(tiny: Path) -> None:

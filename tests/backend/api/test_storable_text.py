@@ -18,8 +18,10 @@ import schemathesis
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from schemathesis import GenerationMode
 
+from backend.api import json_text
 from backend.core.config import Settings
 from backend.main import create_app
 from tests.backend.api.test_api_fuzz import EXCLUDED, _fuzz_target
@@ -159,3 +161,32 @@ def test_numbers_json_or_the_database_cannot_hold_are_refused_where_they_are(
     r = client.post("/api/studies/1/participants", headers=JSON,
                     content=f'{{"code": "P01", "notes": "{literal} [[[["}}'.encode())
     assert r.status_code == 201, r.text
+
+
+json_documents = st.recursive(
+    st.none() | st.booleans() | st.integers(-(2**63), 2**63 - 1)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(alphabet=st.sampled_from('[]{}"\\ax\u00e9\u2028'), max_size=8),
+    lambda inner: st.lists(inner, max_size=3)
+    | st.dictionaries(st.text(alphabet=st.sampled_from('[]{}"\\k'), max_size=4), inner,
+                      max_size=3),
+    max_leaves=30)
+
+
+def _depth(doc: Any) -> int:
+    if isinstance(doc, list):
+        return 1 + max(map(_depth, doc), default=0)
+    if isinstance(doc, dict):
+        return 1 + max(map(_depth, doc.values()), default=0)
+    return 0
+
+
+@given(json_documents, st.booleans())
+@settings(max_examples=300, deadline=None)
+def test_the_door_measures_nesting_as_the_parser_would(doc: Any, ascii_only: bool) -> None:
+    """Brackets and quotes inside strings (escaped or not) never count; the depth from
+    the bytes is the depth of the parsed document."""
+    text = json.dumps(doc, ensure_ascii=ascii_only).encode()
+    assert json_text.nesting_depth(json_text._STRING.sub(b"", text)) == _depth(doc)
+    if _depth(doc) <= json_text.MAX_DEPTH:
+        assert json_text.problems(text) == []

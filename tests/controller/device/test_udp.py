@@ -379,19 +379,42 @@ def test_challenges_that_answer_no_recent_hello_of_this_session_are_replays(
         fake.send_raw(fake.challenge_bytes(first.host_seq + 1000))
         assert dev.read(0.1) is None
         assert dev.stats.replayed == 2 and dev.stats.joins == 0
-        # Answering a HELLO older than the host's memory (delayed or replayed late).
+        # Answering one of its own HELLOs older than the host's memory (the host read
+        # late, or the path delayed it): late, not a replay (the link step would fail
+        # on a replay), and no JOIN.
         wait_for(lambda: dev.read(0.01) is None and dev.stats.hellos_sent >= 3, 5,
                  "two more HELLOs")
         fake.send_raw(fake.challenge_bytes(first.host_seq))
         dev.read(0.02)
-        assert dev.stats.replayed == 3 and dev.stats.joins == 0
+        assert (dev.stats.replayed, dev.stats.late_challenges, dev.stats.joins) == (2, 1, 0)
         # A good one: one JOIN; the same CHALLENGE again (a copy) changes nothing.
         latest = dev._host_seq
         fake.send_raw(fake.challenge_bytes(latest))
         fake.send_raw(fake.challenge_bytes(latest))
         dev.read(0.02)
-        assert dev.stats.joins == 1 and dev.stats.replayed == 3
-        assert dev.stats.late_challenges == 1
+        assert dev.stats.joins == 1 and dev.stats.replayed == 2
+        assert dev.stats.late_challenges == 2
+    fake.sock.close()
+
+
+def test_a_challenge_to_a_hello_that_crossed_the_join_makes_no_second_join() -> None:
+    """Two HELLOs out, the device answers both with the same challenge: the JOIN to the
+    first answers both; a JOIN to the second would spend nothing (the device drops it
+    as a replay of the spent challenge), so none is sent."""
+    fake = FakeDevice()
+    with UdpDevice(device_port=fake.port, key=KEY) as dev:
+        first = fake.receive()
+        assert isinstance(first, HelloPacket)
+        wait_for(lambda: dev.read(0.01) is None and dev.stats.hellos_sent >= 2, 5,
+                 "a second HELLO")
+        second = dev._host_seq
+        assert second != first.host_seq
+        fake.send_raw(fake.challenge_bytes(first.host_seq))
+        dev.read(0.02)
+        fake.send_raw(fake.challenge_bytes(second))
+        dev.read(0.02)
+        assert (dev.stats.joins, dev.stats.late_challenges, dev.stats.replayed) == (1, 1, 0)
+    fake.sock.close()
     fake.sock.close()
 
 

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.decision.prior_safety import ClassRole, PriorBounds
 from controller.intent.learned_priors import (
     LearnedPriors,
     dirichlet_estimate,
@@ -17,6 +16,7 @@ from controller.intent.learned_priors import (
     forgotten_counts,
     learn_from_confirmed,
 )
+from controller.intent.prior_safety import ClassRole, PriorBounds
 from controller.tick_record import CATEGORY_NAMES
 
 BOUNDS = PriorBounds((ClassRole.FAVOURS_LOCK, ClassRole.MIXED, ClassRole.MIXED,

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from controller.intent.motion_model import ModelSet, fit_model_set, time_normalise
 from controller.intent.personal_models import (
-    TooFewDemonstrations,
+    TooFewDemonstrationsError,
     adapt_model_set,
     fit_participant_model_set,
 )
@@ -83,7 +83,7 @@ def test_provenance_and_round_trip() -> None:
 
 def test_too_few_demonstrations_are_named() -> None:
     user = demos(4, 2)
-    with pytest.raises(TooFewDemonstrations, match="at least 3 .*squat: 2"):
+    with pytest.raises(TooFewDemonstrationsError, match=r"at least 3 .*squat: 2"):
         fit_participant_model_set(user)
     with pytest.raises(ValueError, match="tau must be a positive"):
         adapt_model_set(POPULATION, user, tau=0.0)

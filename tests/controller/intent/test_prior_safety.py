@@ -13,13 +13,13 @@ from hypothesis import strategies as st
 
 from controller.controllers.umc import UMC
 from controller.decision.expected_utility import decide_fast
-from controller.decision.prior_safety import ClassRole, PriorBounds, class_roles, lock_decided
 from controller.decision.utility_function import UtilitySet
 from controller.evaluation.cohort import trial_recording
 from controller.intent.label_shift import learn_from_unconfirmed
 from controller.intent.learned_priors import learn_from_confirmed
 from controller.intent.motion_model import ModelSet
 from controller.intent.posteriors import posteriors
+from controller.intent.prior_safety import ClassRole, PriorBounds, class_roles, lock_decided
 from controller.runner.replay import replay_columns
 from controller.sim.participant import VirtualParticipant
 from controller.tick_record import CATEGORY_NAMES, MODEL_NAMES

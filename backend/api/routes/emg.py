@@ -1,0 +1,399 @@
+"""Muscle activity: a study's montage and EMG analysis settings, a session's EMG from LSL
+and from EDF/BDF and XDF files, its recordings, and its MVC steps."""
+
+from __future__ import annotations
+
+import asyncio
+from datetime import UTC, datetime
+from typing import Annotated, Any
+
+from fastapi import APIRouter, File, Form, HTTPException, Path, UploadFile
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, SettingsDep
+from backend.api.errors import (
+    AUTH_RESPONSES,
+    BODY,
+    CONFLICT,
+    NOT_FOUND,
+    conflict,
+    invalid,
+    invalid_many,
+    not_found,
+    one_or_404,
+)
+from backend.api.params import MAX_ID, SessionId, StudyId
+from backend.core.config import Settings
+from backend.db.emg import (
+    EmgAnalysisSettings,
+    EmgMontage,
+    EmgRecording,
+    EmgStream,
+    MvcStep,
+)
+from backend.db.models import Study, StudySession
+from backend.emg import edf_import, mvc, recordings
+from backend.emg.recordings import ChannelMismatchError, NoMontageError
+from backend.schemas.emg import (
+    EmgRecordingOut,
+    EmgSettingsIn,
+    EmgSettingsOut,
+    EmgStreamIn,
+    EmgStreamOut,
+    MontageIn,
+    MontageOut,
+    MvcEventIn,
+    MvcPlanIn,
+    MvcStepOut,
+)
+from backend.study import audit
+from controller.emg.montage import normalise_label
+from controller.emg.processing import EmgProcessing, EmgSettingsError
+
+router = APIRouter(tags=["emg"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
+
+EmgStreamId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG subscription id")]
+EmgRecordingId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG recording id")]
+MvcStepId = Annotated[int, Path(ge=1, le=MAX_ID, description="MVC step id")]
+
+
+# Montage ------------------------------------------------------------------------------------
+def _montage_out(row: EmgMontage) -> MontageOut:
+    return MontageOut(id=row.id, study_id=row.study_id, version=row.version,
+                      created_at=row.created_at, placement_scheme=row.placement_scheme,
+                      channels=row.channels)  # type: ignore[arg-type]
+
+
+def _check_montage(body: MontageIn) -> None:
+    """Repeated labels or (muscle, side): 422 naming each repeated entry's field."""
+    problems: list[tuple[list[str | int], str]] = []
+    labels: dict[str, int] = {}
+    pairs: dict[tuple[str, str], int] = {}
+    for i, c in enumerate(body.channels):
+        key = normalise_label(c.label)
+        if not key:
+            problems.append((["body", "channels", i, "label"], "a channel label needs a "
+                             "letter or digit"))
+        elif key in labels:
+            problems.append((["body", "channels", i, "label"],
+                             f"duplicate channel: label {c.label!r} is also channel "
+                             f"{labels[key]}"))
+        else:
+            labels[key] = i
+        pair = (c.muscle, c.side)
+        if pair in pairs:
+            problems.append((["body", "channels", i, "muscle"],
+                             f"duplicate channel: {c.side} {c.muscle} is also channel "
+                             f"{pairs[pair]}"))
+        else:
+            pairs[pair] = i
+    if problems:
+        invalid_many(problems)
+
+
+@router.get("/api/studies/{study_id}/emg-montage", response_model=MontageOut)
+def get_montage(study_id: StudyId, user: CurrentUser, db: SessionDep) -> MontageOut:
+    """The study's current montage (its newest version); 404 before the first."""
+    one_or_404(db, Study, study_id, "study")
+    row = recordings.current_montage(db, study_id)
+    if row is None:
+        not_found("EMG montage of study", study_id)
+    return _montage_out(row)
+
+
+@router.get("/api/studies/{study_id}/emg-montages", response_model=list[MontageOut])
+def list_montages(study_id: StudyId, user: CurrentUser, db: SessionDep) -> list[MontageOut]:
+    """Every version of the study's montage, oldest first."""
+    one_or_404(db, Study, study_id, "study")
+    return [_montage_out(r) for r in db.scalars(
+        select(EmgMontage).where(EmgMontage.study_id == study_id)
+        .order_by(EmgMontage.version))]
+
+
+@router.put("/api/studies/{study_id}/emg-montage", response_model=MontageOut)
+def put_montage(study_id: StudyId, body: MontageIn, user: CurrentUser,
+                db: SessionDep) -> MontageOut:
+    """A new version of the study's montage (older versions stay: recordings keep the
+    version their channels were mapped by). Unknown muscles and repeated channels are
+    a 422 naming the field."""
+    one_or_404(db, Study, study_id, "study")
+    _check_montage(body)
+    latest = db.scalar(select(func.max(EmgMontage.version))
+                       .where(EmgMontage.study_id == study_id)) or 0
+    row = EmgMontage(study_id=study_id, version=latest + 1,
+                     placement_scheme=body.placement_scheme,
+                     channels=[c.model_dump() for c in body.channels], created_by=user.id)
+    db.add(row)
+    db.flush()
+    audit.record(db, user, "update", "emg_montage", study_id,
+                 {"version": row.version, "channels": len(body.channels)})
+    db.commit()
+    return _montage_out(row)
+
+
+@router.delete("/api/studies/{study_id}/emg-montage", response_model=list[MontageOut],
+               responses=CONFLICT)
+def delete_montage(study_id: StudyId, user: CurrentUser, db: SessionDep) -> list[MontageOut]:
+    """Remove the study's montage (every version); 409 once a recording or a
+    subscription uses one (a recording's channels must stay mapped)."""
+    one_or_404(db, Study, study_id, "study")
+    rows = list(db.scalars(select(EmgMontage).where(EmgMontage.study_id == study_id)))
+    ids = [r.id for r in rows] or [-1]
+    used = db.scalar(select(func.count()).select_from(EmgRecording)
+                     .where(EmgRecording.montage_id.in_(ids)))
+    subs = db.scalar(select(func.count()).select_from(EmgStream)
+                     .where(EmgStream.montage_id.in_(ids)))
+    if used or subs:
+        conflict("montage", f"{used} recordings and {subs} EMG subscriptions use the "
+                 "study's montage; change it with PUT (a new version) instead")
+    out = [_montage_out(r) for r in rows]
+    for r in rows:
+        db.delete(r)
+    audit.record(db, user, "delete", "emg_montage", study_id, {"versions": len(rows)})
+    db.commit()
+    return out
+
+
+# Analysis settings --------------------------------------------------------------------------
+def _settings_out(row: EmgAnalysisSettings | None) -> EmgSettingsOut:
+    proc = EmgProcessing.from_dict(row.processing) if row is not None else EmgProcessing()
+    return EmgSettingsOut(processing=proc.to_dict(), normalisation=proc.normalisation,
+                          mains_hz=row.mains_hz if row is not None else 50)
+
+
+@router.get("/api/studies/{study_id}/emg-settings", response_model=EmgSettingsOut)
+def get_emg_settings(study_id: StudyId, user: CurrentUser, db: SessionDep) -> EmgSettingsOut:
+    """The study's EMG processing chain and normalisation (defaults until set)."""
+    one_or_404(db, Study, study_id, "study")
+    return _settings_out(db.get(EmgAnalysisSettings, study_id))
+
+
+@router.put("/api/studies/{study_id}/emg-settings", response_model=EmgSettingsOut)
+def put_emg_settings(study_id: StudyId, body: EmgSettingsIn, user: CurrentUser,
+                     db: SessionDep) -> EmgSettingsOut:
+    """Set the study's EMG processing chain and normalisation method; every parameter is
+    stored (defaults filled in) and written into results and exports."""
+    one_or_404(db, Study, study_id, "study")
+    data = dict(body.processing)
+    if body.normalisation is not None:
+        data["normalisation"] = body.normalisation
+    try:
+        proc = EmgProcessing.from_dict(data)
+    except (EmgSettingsError, TypeError) as exc:
+        invalid(["body", "processing"], str(exc))
+    row = db.get(EmgAnalysisSettings, study_id)
+    if row is None:
+        row = EmgAnalysisSettings(study_id=study_id)
+        db.add(row)
+    row.processing = proc.to_dict()
+    row.mains_hz = body.mains_hz
+    row.updated_at = datetime.now(UTC)
+    audit.record(db, user, "update", "emg_settings", study_id, row.processing)
+    db.commit()
+    return _settings_out(row)
+
+
+# Live EMG from LSL --------------------------------------------------------------------------
+def _stream_out(runtime: Any, sub: EmgStream) -> EmgStreamOut:
+    out = EmgStreamOut.model_validate(sub)
+    inlet = runtime.emg.inlets.get(sub.id)
+    out.connected = bool(inlet is not None and inlet.connected)
+    return out
+
+
+def _mismatch(loc: list[str | int], exc: ChannelMismatchError) -> None:
+    raise HTTPException(422, [{"loc": loc, "msg": str(exc), "type": "value_error",
+                               "unmatched_labels": exc.unmatched,
+                               "missing_labels": exc.missing,
+                               "expected_labels": exc.expected}])
+
+
+@router.get("/api/sessions/{session_id}/emg-streams", response_model=list[EmgStreamOut])
+def list_emg_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
+                     runtime: RuntimeDep) -> list[EmgStreamOut]:
+    """The session's EMG stream subscriptions."""
+    one_or_404(db, StudySession, session_id, "session")
+    return [_stream_out(runtime, s) for s in db.scalars(
+        select(EmgStream).where(EmgStream.session_id == session_id).order_by(EmgStream.id))]
+
+
+@router.post("/api/sessions/{session_id}/emg-streams", response_model=EmgStreamOut,
+             status_code=201, responses=CONFLICT)
+async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentUser,
+                        db: SessionDep, runtime: RuntimeDep) -> EmgStreamOut:
+    """Record this LSL EMG stream with the session from now on, in chunks to the EMG
+    folder, on this server's LSL clock (clock correction). The stream must be visible
+    (409 otherwise), of type EMG, in volts (V, mV, uV), and its channel labels must match
+    the study's montage (422 listing unmatched and expected labels); nothing is stored
+    otherwise."""
+    from backend.emg import live
+
+    one_or_404(db, StudySession, session_id, "session")
+    if not runtime.emg.enabled:
+        conflict("lsl", "the Lab Streaming Layer is switched off (EXOSTUDY_LSL_ENABLED)")
+    try:
+        montage = recordings.session_montage(db, session_id)
+    except NoMontageError as exc:
+        conflict("montage", str(exc))
+    key = body.source_id or body.name
+    for other in db.scalars(select(EmgStream).where(EmgStream.active)):
+        if (other.source_id or other.name) == key:
+            conflict("source_id", f"session {other.session_id} already records {key}; "
+                     "unsubscribe it there first")
+    info = await asyncio.to_thread(live.resolve, body.name, body.source_id)
+    if info is None:
+        conflict("name", f"no LSL stream {key!r} is visible now")
+    try:
+        live.layout_of(info, montage, body.ignore_labels)
+    except ChannelMismatchError as exc:
+        _mismatch(["body", "name"], exc)
+    except ValueError as exc:
+        invalid(["body", "name"], f"stream {key!r}: {exc}")
+    sub = EmgStream(session_id=session_id, name=body.name, source_id=body.source_id,
+                    montage_id=montage.id, ignored_labels=body.ignore_labels, active=True,
+                    error="")
+    db.add(sub)
+    db.flush()
+    audit.record(db, user, "create", "emg_stream", sub.id, body.model_dump())
+    db.commit()
+    runtime.emg.subscribe(sub.id)
+    return _stream_out(runtime, sub)
+
+
+@router.delete("/api/sessions/{session_id}/emg-streams/{emg_stream_id}",
+               response_model=EmgStreamOut)
+async def unsubscribe_emg(session_id: SessionId, emg_stream_id: EmgStreamId,
+                          user: CurrentUser, db: SessionDep, runtime: RuntimeDep
+                          ) -> EmgStreamOut:
+    """Stop recording the stream; the recording so far is finished and kept."""
+    sub = db.get(EmgStream, emg_stream_id)
+    if sub is None or sub.session_id != session_id:
+        not_found("EMG subscription", emg_stream_id)
+    await asyncio.to_thread(runtime.emg.unsubscribe, sub.id)
+    db.refresh(sub)
+    sub.active = False
+    audit.record(db, user, "delete", "emg_stream", sub.id, {})
+    db.commit()
+    return _stream_out(runtime, sub)
+
+
+# Files -------------------------------------------------------------------------------------
+def _mains(db: Session, session_id: int) -> int:
+    from backend.lab.markers import study_of_session
+
+    sid = study_of_session(db, session_id)
+    row = db.get(EmgAnalysisSettings, sid) if sid is not None else None
+    return row.mains_hz if row is not None else 50
+
+
+def _labels(text: str) -> list[str]:
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+@router.post("/api/sessions/{session_id}/emg/edf", response_model=EmgRecordingOut,
+             status_code=201, responses={413: {"description": "the file is too large"},
+                                         **CONFLICT})
+async def import_edf(
+    session_id: SessionId, user: CurrentUser, db: SessionDep, settings: SettingsDep,
+    file: Annotated[UploadFile, File(description="an EDF, EDF+, BDF or BDF+ file")],
+    marker: Annotated[str | None, Form(max_length=100, description=(
+        "align by this annotation text, also the label of a session marker"))] = None,
+    trial: Annotated[int | None, Form(ge=1, le=MAX_ID, description=(
+        "align: the file starts offset_s after this trial's start"))] = None,
+    offset_s: Annotated[float, Form(ge=-86400, le=86400)] = 0.0,
+    ignore_labels: Annotated[str, Form(max_length=4000, description=(
+        "comma-separated channel labels to leave out (spare inputs)"))] = "",
+) -> EmgRecording:
+    """Import an EDF/BDF file's EMG as a recording of the session: channels mapped by
+    the study's montage (422 listing unmatched and expected labels), units converted to
+    volts (422 if not a voltage), placed on the session clock by `marker` or by `trial`
+    and `offset_s` (422 if neither or it cannot be found). Nothing is stored on error."""
+    one_or_404(db, StudySession, session_id, "session")
+    limit = settings.max_upload_bytes
+    data = await file.read(limit + 1)
+    if len(data) > limit:
+        raise HTTPException(413, f"file: larger than {limit} bytes")
+    how = edf_import.Alignment(marker=marker or None, trial=trial, offset_s=offset_s)
+    return await _import(db, settings, session_id, lambda: edf_import.import_file(
+        db, settings, session_id, data, file.filename or "recording.edf", how,
+        _labels(ignore_labels), user.id, _mains(db, session_id)), user)
+
+
+async def _import(db: Session, settings: Settings, session_id: int, work: Any,
+                  user: Any) -> EmgRecording:
+    try:
+        row: EmgRecording = await asyncio.to_thread(work)
+    except NoMontageError as exc:
+        conflict("montage", str(exc))
+    except ChannelMismatchError as exc:
+        _mismatch(["body", "file"], exc)
+    except ValueError as exc:
+        invalid(["body", "file"], str(exc))
+    audit.record(db, user, "create", "emg_recording", row.id,
+                 {"source": row.source, "sha256": row.sha256, "filename": row.filename})
+    db.commit()
+    return row
+
+
+@router.get("/api/sessions/{session_id}/emg-recordings",
+            response_model=list[EmgRecordingOut])
+def list_emg_recordings(session_id: SessionId, user: CurrentUser, db: SessionDep
+                        ) -> list[EmgRecording]:
+    """The session's EMG recordings with their span, trials and quality flags."""
+    one_or_404(db, StudySession, session_id, "session")
+    return list(db.scalars(select(EmgRecording).where(EmgRecording.session_id == session_id)
+                           .order_by(EmgRecording.id)))
+
+
+@router.get("/api/sessions/{session_id}/emg-recordings/{emg_recording_id}",
+            response_model=EmgRecordingOut)
+def get_emg_recording(session_id: SessionId, emg_recording_id: EmgRecordingId,
+                      user: CurrentUser, db: SessionDep) -> EmgRecording:
+    """One recording."""
+    row = db.get(EmgRecording, emg_recording_id)
+    if row is None or row.session_id != session_id:
+        not_found("EMG recording", emg_recording_id)
+    return row
+
+
+# MVC -----------------------------------------------------------------------------------------
+@router.get("/api/sessions/{session_id}/mvc-steps", response_model=list[MvcStepOut])
+def list_mvc_steps(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[MvcStep]:
+    """The session's MVC steps in order, with the repetitions done."""
+    one_or_404(db, StudySession, session_id, "session")
+    return mvc.steps(db, session_id)
+
+
+@router.put("/api/sessions/{session_id}/mvc-steps", response_model=list[MvcStepOut],
+            responses=CONFLICT)
+def plan_mvc(session_id: SessionId, body: MvcPlanIn, user: CurrentUser, db: SessionDep
+             ) -> list[MvcStep]:
+    """Plan the session's MVC steps (per muscle and side, repetitions, contraction and
+    rest times); 409 once a repetition has run (its markers are data)."""
+    one_or_404(db, StudySession, session_id, "session")
+    try:
+        rows = mvc.plan(db, session_id, body)
+    except mvc.MvcConflictError as exc:
+        conflict("steps", str(exc))
+    audit.record(db, user, "plan", "mvc_steps", session_id,
+                 {"steps": [s.model_dump() for s in body.steps]})
+    db.commit()
+    return rows
+
+
+@router.post("/api/sessions/{session_id}/mvc-steps/{mvc_step_id}/events",
+             response_model=MvcStepOut, responses=CONFLICT)
+def mvc_event(session_id: SessionId, mvc_step_id: MvcStepId, body: MvcEventIn,
+              user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> MvcStep:
+    """Start or stop the step's next repetition: an `mvc_start` / `mvc_stop` marker
+    (stored, shown and sent on LSL like every marker) names muscle, side and
+    repetition. 409 for a stop without a start, a start while one runs, or a step
+    whose repetitions are all done."""
+    step = db.get(MvcStep, mvc_step_id)
+    if step is None or step.session_id != session_id:
+        not_found("MVC step", mvc_step_id)
+    try:
+        return mvc.event(db, runtime.lab, step, body.event, user.id)
+    except mvc.MvcConflictError as exc:
+        conflict("event", str(exc))

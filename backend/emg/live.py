@@ -1,0 +1,262 @@
+"""Live EMG from LSL: a session subscribes to a stream of type `EMG` (as to a marker
+stream), and a thread records it to the store in chunks.
+
+The thread pulls chunks from its inlet, adds the inlet's `time_correction()` (liblsl's
+running estimate of the sender's clock against ours) so every timestamp is on this
+server's LSL clock, the session clock of markers and trials, picks the montage's
+channels in montage order, converts to volts and appends to the recording file. It
+never touches the control worker (a separate process) and holds at most one pull and
+one file chunk in memory.
+
+Bad streams: a stream whose type is not EMG, whose channel units are not voltages,
+whose labels do not match the montage, or whose nominal rate is not positive is refused
+when subscribing (422) and, if it changes later, when connecting (the subscription is
+closed with the reason). A stream that is lost ends its recording (flag `stream_lost`);
+when it comes back a new recording starts (flag `stream_restarted`). NaN samples,
+clipping, flat channels, gaps and a rate that disagrees with the timestamps are flagged
+in the recording's quality, never dropped.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import Engine, select
+from sqlalchemy.orm import Session
+
+from backend.core.config import Settings
+from backend.db.emg import EmgMontage, EmgStream
+from backend.emg import recordings
+from backend.emg.quality_summary import STREAM_LOST, STREAM_RESTARTED
+from backend.lab.lsl_names import Property, predicate
+from backend.lab.marker_inlet import backoff_delays
+
+log = logging.getLogger(__name__)
+
+_PULL_TIMEOUT_S = 0.2
+#: Most samples one pull takes (0.5 s at 4 kHz).
+_MAX_PULL = 2048
+_RESOLVE_TIMEOUT_S = 1.0
+ALIGNMENT = "LSL: timestamps plus the inlet's time_correction(), on this server's LSL clock"
+
+
+@dataclass(frozen=True, slots=True)
+class StreamLayout:
+    """What a stream's description says, checked against the montage."""
+
+    columns: tuple[int, ...]
+    volts: tuple[float, ...]
+    fs: float
+
+
+def describe(info: Any) -> tuple[list[str], list[str]]:
+    """Channel labels and units from an LSL stream info's description (labels default
+    to the channel number, units to "")."""
+    labels: list[str] = []
+    units: list[str] = []
+    ch = info.desc().child("channels").child("channel")
+    while not ch.empty() and len(labels) < info.channel_count():
+        labels.append(ch.child_value("label") or str(len(labels) + 1))
+        units.append(ch.child_value("unit") or "")
+        ch = ch.next_sibling()
+    while len(labels) < info.channel_count():
+        labels.append(str(len(labels) + 1))
+        units.append("")
+    return labels, units
+
+
+def check_layout(stream_type: str, fs: float, labels: list[str], units: list[str],
+                 montage: EmgMontage, ignore: list[str]) -> StreamLayout:
+    """Whether a stream can be recorded with this montage; ValueError saying why not."""
+    if stream_type.strip().casefold() != "emg":
+        raise ValueError(f"stream type is {stream_type!r}, not 'EMG'")
+    if not fs > 0:
+        raise ValueError(f"stream has no regular sampling rate (nominal {fs} Hz); EMG "
+                         "needs one")
+    cols = recordings.map_channels(montage, labels, ignore)
+    volts = []
+    for i in cols:
+        try:
+            volts.append(recordings.volts_per_unit(units[i] or "V"))
+        except ValueError as exc:
+            raise ValueError(f"channel {labels[i]!r}: {exc}") from exc
+    return StreamLayout(tuple(cols), tuple(volts), float(fs))
+
+
+def layout_of(info: Any, montage: EmgMontage, ignore: list[str]) -> StreamLayout:
+    """`check_layout` on a resolved stream."""
+    labels, units = describe(info)
+    return check_layout(info.type(), float(info.nominal_srate()), labels, units, montage,
+                        ignore)
+
+
+def resolve(name: str, source_id: str, timeout: float = _RESOLVE_TIMEOUT_S) -> Any:
+    """The stream's info, or None when it is not visible."""
+    import pylsl
+
+    prop: Property = "source_id" if source_id else "name"
+    found = pylsl.resolve_bypred(predicate(prop, source_id or name), minimum=1,
+                                 timeout=timeout)
+    return found[0] if found else None
+
+
+class EmgInlet:
+    """Records one EMG subscription until stopped."""
+
+    def __init__(self, engine: Engine, settings: Settings, subscription_id: int) -> None:
+        self.engine = engine
+        self.settings = settings
+        self.subscription_id = subscription_id
+        self.connected = False
+        self.samples = 0
+        self.recordings: list[int] = []
+        self.failure = ""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name=f"emg-inlet-{subscription_id}")
+
+    def start(self) -> None:
+        """Begin resolving and recording."""
+        self._thread.start()
+
+    def stop(self, wait: bool = True) -> None:
+        """Stop (the current recording is finished and kept)."""
+        self._stop.set()
+        if wait and self._thread is not threading.current_thread():
+            self._thread.join(5.0)
+
+    @property
+    def alive(self) -> bool:
+        """The recording thread still runs."""
+        return self._thread.is_alive()
+
+    def _sub(self, db: Session) -> tuple[EmgStream, EmgMontage]:
+        sub = db.get(EmgStream, self.subscription_id)
+        if sub is None:
+            raise LookupError(f"EMG subscription {self.subscription_id} is gone")
+        montage = db.get(EmgMontage, sub.montage_id)
+        assert montage is not None
+        return sub, montage
+
+    def _fail(self, why: str) -> None:
+        self.failure = why
+        log.warning("EMG subscription %d closed: %s", self.subscription_id, why)
+        with Session(self.engine) as db:
+            sub = db.get(EmgStream, self.subscription_id)
+            if sub is not None:
+                sub.active = False
+                sub.error = why[:1000]
+                db.commit()
+
+    def _run(self) -> None:
+        delays = backoff_delays()
+        restarted = False
+        while not self._stop.is_set():
+            try:
+                with Session(self.engine) as db:
+                    sub, _ = self._sub(db)
+                    name, source_id = sub.name, sub.source_id
+                info = resolve(name, source_id)
+                if info is None:
+                    continue
+                self._record(info, restarted)
+                restarted = True
+                delays = backoff_delays()
+            except ValueError as exc:  # the stream no longer fits: stop, say why
+                self._fail(str(exc))
+                return
+            except LookupError:
+                return
+            except Exception as exc:  # liblsl raises RuntimeError and others
+                log.warning("EMG stream %d: %s", self.subscription_id, exc)
+            if self._stop.wait(next(delays)):
+                return
+
+    def _record(self, info: Any, restarted: bool) -> None:
+        import pylsl
+
+        with Session(self.engine) as db:
+            sub, montage = self._sub(db)
+            layout = layout_of(info, montage, list(sub.ignored_labels))
+            inlet = pylsl.StreamInlet(info, max_buflen=60, recover=False)
+            inlet.open_stream(timeout=5.0)
+            rec = recordings.RecordingWriter(
+                db, self.settings, sub.session_id, montage, "lsl", layout.fs, 0.0, ALIGNMENT,
+                f"{info.name()}.lsl", stream_id=sub.id)
+            self.recordings.append(rec.row.id)
+            if restarted:
+                rec.quality.flag(STREAM_RESTARTED)
+            cols = np.asarray(layout.columns)
+            volts = np.asarray(layout.volts)
+            self.connected = True
+            try:
+                correction = inlet.time_correction(timeout=5.0)
+                while not self._stop.is_set():
+                    chunk, ts = inlet.pull_chunk(timeout=_PULL_TIMEOUT_S,
+                                                 max_samples=_MAX_PULL)
+                    if not ts:
+                        continue
+                    correction = inlet.time_correction(timeout=1.0)
+                    x = np.asarray(chunk, dtype=np.float64)[:, cols] * volts
+                    rec.append(np.asarray(ts, dtype=np.float64) + correction, x)
+                    self.samples += len(ts)
+            except (pylsl.LostError, TimeoutError):
+                log.warning("EMG stream %s was lost; resolving it again", info.name())
+                rec.quality.flag(STREAM_LOST)
+            finally:
+                self.connected = False
+                try:
+                    inlet.close_stream()
+                except Exception:
+                    pass
+                if rec.writer.appended:
+                    rec.finish()
+                else:
+                    rec.abort()  # connected, got nothing: no empty recording
+                    self.recordings.remove(rec.row.id)
+
+
+class EmgLab:
+    """The EMG inlets of one server."""
+
+    def __init__(self, enabled: bool, engine: Engine, settings: Settings) -> None:
+        self.enabled = enabled
+        self.engine = engine
+        self.settings = settings
+        self.inlets: dict[int, EmgInlet] = {}
+
+    def start(self) -> None:
+        """Resume the active subscriptions."""
+        if not self.enabled:
+            return
+        with Session(self.engine) as db:
+            ids = list(db.scalars(select(EmgStream.id).where(EmgStream.active)))
+        for sub_id in ids:
+            self.subscribe(sub_id)
+
+    def stop(self) -> None:
+        """Stop every inlet (recordings are finished and kept)."""
+        inlets = list(self.inlets.values())
+        for inlet in inlets:
+            inlet.stop(wait=False)
+        for inlet in inlets:
+            inlet.stop()
+        self.inlets.clear()
+
+    def subscribe(self, sub_id: int) -> None:
+        """Start recording subscription `sub_id`."""
+        if not self.enabled or sub_id in self.inlets:
+            return
+        inlet = EmgInlet(self.engine, self.settings, sub_id)
+        self.inlets[sub_id] = inlet
+        inlet.start()
+
+    def unsubscribe(self, sub_id: int) -> None:
+        """Stop recording (what is recorded stays)."""
+        inlet = self.inlets.pop(sub_id, None)
+        if inlet is not None:
+            inlet.stop()

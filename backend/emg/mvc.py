@@ -1,0 +1,93 @@
+"""A session's maximum-voluntary-contraction steps: planned per muscle and side with
+repetitions, timed in the console by `mvc_start` and `mvc_stop` markers, and turned into
+windows of a recording for MVC normalisation (`controller.emg.normalisation`).
+
+Each marker's note says `<muscle> <side> rep <k>`, so the MVC windows can be read back
+from the markers alone (an XDF or BIDS consumer sees the same markers); the step keeps
+the marker ids of each repetition.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from backend.db.emg import EmgRecording, MvcStep
+from backend.db.lab import Marker
+from backend.schemas.emg import MvcPlanIn
+
+MVC_START = "mvc_start"
+MVC_STOP = "mvc_stop"
+
+
+class MvcConflictError(ValueError):
+    """The step is not in a state where this makes sense."""
+
+
+def steps(db: Session, session_id: int) -> list[MvcStep]:
+    """The session's steps in order."""
+    return list(db.scalars(select(MvcStep).where(MvcStep.session_id == session_id)
+                           .order_by(MvcStep.planned_order, MvcStep.id)))
+
+
+def plan(db: Session, session_id: int, body: MvcPlanIn) -> list[MvcStep]:
+    """Replace the session's steps (none may have run); the caller commits."""
+    old = steps(db, session_id)
+    if any(s.repetitions_done for s in old):
+        raise MvcConflictError("a repetition of this session's MVC steps has run; its "
+                               "markers are data, so the plan is kept")
+    for s in old:
+        db.delete(s)
+    rows = [MvcStep(session_id=session_id, planned_order=i, muscle=s.muscle, side=s.side,
+                    repetitions=s.repetitions, contraction_s=s.contraction_s,
+                    rest_s=s.rest_s, repetitions_done=[])
+            for i, s in enumerate(body.steps)]
+    db.add_all(rows)
+    db.flush()
+    return rows
+
+
+def event(db: Session, lab: Any, step: MvcStep, what: str, user_id: int | None) -> MvcStep:
+    """Start or stop the next repetition with a console marker (committed)."""
+    done = [dict(r) for r in step.repetitions_done]
+    running = done[-1] if done and done[-1].get("stop_marker_id") is None else None
+    if what == "start":
+        if running is not None:
+            raise MvcConflictError(f"repetition {running['rep']} is running; stop it first")
+        if len(done) >= step.repetitions:
+            raise MvcConflictError(f"all {step.repetitions} repetitions of this step are done")
+        rep = len(done) + 1
+        marker = lab.console_marker(db, step.session_id, MVC_START,
+                                    f"{step.muscle} {step.side} rep {rep}", user_id)
+        done.append({"rep": rep, "start_marker_id": marker.id, "stop_marker_id": None})
+    else:
+        if running is None:
+            raise MvcConflictError("no repetition is running; start one first")
+        marker = lab.console_marker(db, step.session_id, MVC_STOP,
+                                    f"{step.muscle} {step.side} rep {running['rep']}",
+                                    user_id)
+        running["stop_marker_id"] = marker.id
+    step.repetitions_done = done
+    db.commit()
+    db.refresh(step)
+    return step
+
+
+def windows(db: Session, recording: EmgRecording
+            ) -> dict[tuple[str, str], list[tuple[float, float]]]:
+    """Per (muscle, side): the MVC repetitions as (start, stop) on the recording's own
+    clock (file timestamps), from the session's start/stop markers."""
+    out: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for step in steps(db, recording.session_id):
+        sides = ("left", "right") if step.side == "both" else (step.side,)
+        for rep in step.repetitions_done:
+            a = db.get(Marker, rep.get("start_marker_id") or -1)
+            b = db.get(Marker, rep.get("stop_marker_id") or -1)
+            if a is None or b is None or a.lsl_time is None or b.lsl_time is None:
+                continue
+            span = (a.lsl_time - recording.time_offset_s, b.lsl_time - recording.time_offset_s)
+            for side in sides:
+                out.setdefault((step.muscle, side), []).append(span)
+    return out

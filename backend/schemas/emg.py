@@ -1,0 +1,156 @@
+"""Request and response bodies of muscle activity: montages, EMG analysis settings, EMG
+stream subscriptions, recordings and MVC steps (rows in `backend.db.emg`)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from backend.lab.lsl_names import LSL_TEXT_PATTERN
+from backend.schemas.fields import UtcDatetime
+
+MuscleId = Literal["erector_spinae_lumbar", "erector_spinae_thoracic", "gluteus_maximus",
+                   "biceps_femoris", "rectus_abdominis", "rectus_femoris"]
+SideName = Literal["left", "right"]
+
+
+class MontageChannelIn(BaseModel):
+    """One channel: its label in the recording, the muscle and side, and the electrodes."""
+
+    model_config = ConfigDict(extra="forbid")
+    label: str = Field(min_length=1, max_length=100)
+    muscle: MuscleId
+    side: SideName
+    placement: str = Field(default="", max_length=500, description=(
+        "where the electrodes sit, e.g. the SENIAM recommendation followed"))
+    electrode_type: str = Field(default="", max_length=200)
+    inter_electrode_distance_mm: float | None = Field(default=None, gt=0, le=100)
+    reference: str = Field(default="", max_length=200)
+
+
+class MontageIn(BaseModel):
+    """A study's montage: each channel label and each (muscle, side) at most once."""
+
+    model_config = ConfigDict(extra="forbid")
+    placement_scheme: str = Field(default="SENIAM", max_length=200, description=(
+        "the placement scheme followed (BIDS-EMG's EMGPlacementScheme)"))
+    channels: list[MontageChannelIn] = Field(min_length=1, max_length=64)
+
+
+class MontageOut(MontageIn):
+    """One stored version of a study's montage."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    study_id: int
+    version: int
+    created_at: UtcDatetime
+
+
+class EmgSettingsIn(BaseModel):
+    """A study's EMG processing chain and normalisation (every parameter; missing ones
+    take the defaults: DC removal, 20-450 Hz zero-phase band-pass, no notch, full-wave
+    rectification, 6 Hz envelope, MVC normalisation)."""
+
+    model_config = ConfigDict(extra="forbid")
+    processing: dict[str, Any] = Field(default_factory=dict, description=(
+        "controller.emg.processing.EmgProcessing in its dict form"))
+    normalisation: Literal["mvc", "task_peak", "task_mean", "none"] | None = Field(
+        default=None, description="the normalisation method (overrides processing's)")
+    mains_hz: Literal[50, 60] = 50
+
+
+class EmgSettingsOut(BaseModel):
+    """The stored settings, complete (defaults filled in)."""
+
+    processing: dict[str, Any]
+    normalisation: str
+    mains_hz: int
+
+
+class EmgStreamIn(BaseModel):
+    """Record an LSL stream of type EMG with the session."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(min_length=1, max_length=200, pattern=LSL_TEXT_PATTERN)
+    source_id: str = Field(default="", max_length=200, pattern=LSL_TEXT_PATTERN)
+    ignore_labels: list[str] = Field(default_factory=list, max_length=64, description=(
+        "stream channels to leave out on purpose (spare inputs with no electrode)"))
+
+
+class EmgStreamOut(BaseModel):
+    """A session's EMG stream subscription."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    session_id: int
+    name: str
+    source_id: str
+    montage_id: int
+    ignored_labels: list[str]
+    active: bool
+    error: str
+    created_at: UtcDatetime
+    connected: bool = False
+
+
+class EmgRecordingOut(BaseModel):
+    """One recording: source, span on the session clock, trials covered, quality."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    session_id: int
+    montage_id: int
+    montage_version: int
+    source: str
+    status: str
+    filename: str
+    fs: float
+    channel_count: int
+    labels: list[str]
+    n_samples: int
+    time_offset_s: float
+    alignment: str
+    t_start: float | None
+    t_end: float | None
+    trials: list[dict[str, Any]]
+    size_bytes: int
+    sha256: str
+    quality: dict[str, Any]
+    created_at: UtcDatetime
+
+
+class MvcStepIn(BaseModel):
+    """One MVC step: a muscle, the side(s), repetitions, contraction and rest times."""
+
+    model_config = ConfigDict(extra="forbid")
+    muscle: MuscleId
+    side: Literal["left", "right", "both"] = "both"
+    repetitions: int = Field(default=3, ge=1, le=10)
+    contraction_s: float = Field(default=5.0, gt=0, le=30)
+    rest_s: float = Field(default=60.0, ge=0, le=600)
+
+
+class MvcPlanIn(BaseModel):
+    """A session's MVC steps, in order (replaces the steps none of whose repetitions ran)."""
+
+    model_config = ConfigDict(extra="forbid")
+    steps: list[MvcStepIn] = Field(min_length=1, max_length=24)
+
+
+class MvcStepOut(MvcStepIn):
+    """A stored MVC step with the repetitions done (their start and stop markers)."""
+
+    model_config = ConfigDict(from_attributes=True, extra="ignore")
+    id: int
+    session_id: int
+    planned_order: int
+    repetitions_done: list[dict[str, Any]]
+
+
+class MvcEventIn(BaseModel):
+    """Start or stop the next repetition of an MVC step."""
+
+    model_config = ConfigDict(extra="forbid")
+    event: Literal["start", "stop"]

@@ -1,0 +1,97 @@
+"""The EMG recording file: what goes in comes out (NaN included), in chunks, private,
+and a damaged file is refused rather than misread."""
+
+from __future__ import annotations
+
+import stat
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from backend.emg import store
+
+
+def _write(path: Path, blocks: list[tuple[np.ndarray, np.ndarray]], labels: list[str]
+           ) -> tuple[str, int]:
+    w = store.EmgWriter(path, labels, 2000.0)
+    for t, x in blocks:
+        w.append(t, x)
+    return w.close()
+
+
+@settings(max_examples=25, deadline=None)
+@given(sizes=st.lists(st.integers(0, 25_000), min_size=1, max_size=4),
+       channels=st.integers(1, 5), seed=st.integers(0, 2**32 - 1))
+def test_round_trip_is_exact_in_float32(tmp_path_factory: pytest.TempPathFactory,
+                                        sizes: list[int], channels: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    path = tmp_path_factory.mktemp("s") / "1.emgc"
+    blocks, n = [], 0
+    for size in sizes:
+        t = 100.0 + np.arange(n, n + size) / 2000.0
+        x = rng.normal(0, 1e-4, (size, channels))
+        if size:
+            x[rng.integers(size), 0] = np.nan
+        blocks.append((t, x))
+        n += size
+    sha, rows = _write(path, blocks, [f"c{i}" for i in range(channels)])
+    assert rows == n and sha == store.file_sha256(path)
+    t_all = np.concatenate([b[0] for b in blocks])
+    x_all = np.concatenate([b[1] for b in blocks]).astype(np.float32)
+    got_t, got_x = store.read_window(path)
+    np.testing.assert_array_equal(got_t, t_all)
+    np.testing.assert_array_equal(got_x, x_all.astype(np.float64))  # NaN == NaN here
+    for t, _ in store.iter_chunks(path):
+        assert t.size <= store.CHUNK_ROWS
+
+
+def test_a_window_reads_only_its_rows_and_the_file_is_private(tmp_path: Path) -> None:
+    path = tmp_path / "emg" / "7.emgc"
+    t = np.arange(50_000) / 2000.0
+    x = np.column_stack([t, -t])
+    _write(path, [(t, x)], ["a", "b"])
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert stat.S_IMODE(path.parent.stat().st_mode) == 0o700
+    assert not path.with_name("7.emgc.part").exists()
+    wt, wx = store.read_window(path, 10.0, 12.0)
+    assert wt[0] == 10.0 and wt.size == 4000
+    np.testing.assert_allclose(wx[:, 1], -wt, rtol=1e-6)
+    assert store.read_header(path).labels == ("a", "b")
+
+
+def test_an_hour_of_16_channels_is_never_held_whole(tmp_path: Path) -> None:
+    """The writer buffers at most one chunk: its buffers stay under 2 chunks of rows
+    while a minute of 16 channels at 2 kHz is appended in 0.1 s pieces."""
+    w = store.EmgWriter(tmp_path / "1.emgc", [str(i) for i in range(16)], 2000.0)
+    block = np.zeros((200, 16))
+    most = 0
+    for k in range(600):
+        w.append(k * 0.1 + np.arange(200) / 2000.0, block)
+        most = max(most, sum(len(b) for b in w._x))
+    w.close()
+    assert most < 2 * store.CHUNK_ROWS
+
+
+def test_damaged_files_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "1.emgc"
+    _write(path, [(np.arange(100) / 2000.0, np.ones((100, 2)))], ["a", "b"])
+    data = path.read_bytes()
+    path.write_bytes(data[:-10])
+    with pytest.raises(store.EmgStoreError, match="ends in the middle"):
+        store.read_window(path)
+    path.write_bytes(b"not ours" + data[8:])
+    with pytest.raises(store.EmgStoreError, match="not an ExoStudy EMG"):
+        store.read_header(path)
+
+
+def test_wrong_shapes_are_refused_and_abort_leaves_nothing(tmp_path: Path) -> None:
+    w = store.EmgWriter(tmp_path / "1.emgc", ["a", "b"], 2000.0)
+    with pytest.raises(store.EmgStoreError, match=r"shape \(n, 2\)"):
+        w.append(np.arange(3), np.ones((3, 3)))
+    with pytest.raises(store.EmgStoreError, match="3 timestamps for 2 samples"):
+        w.append(np.arange(3), np.ones((2, 2)))
+    w.abort()
+    assert list(tmp_path.iterdir()) == []
