@@ -41,6 +41,8 @@ _PULL_TIMEOUT_S = 0.2
 #: Most samples one pull takes (0.5 s at 4 kHz).
 _MAX_PULL = 2048
 _RESOLVE_TIMEOUT_S = 1.0
+#: Wait for a resolved stream's full description.
+_INFO_TIMEOUT_S = 5.0
 ALIGNMENT = "LSL: timestamps plus the inlet's time_correction(), on this server's LSL clock"
 
 
@@ -95,13 +97,36 @@ def layout_of(info: Any, montage: EmgMontage, ignore: list[str]) -> StreamLayout
 
 
 def resolve(name: str, source_id: str, timeout: float = _RESOLVE_TIMEOUT_S) -> Any:
-    """The stream's info, or None when it is not visible."""
+    """The stream's info as resolved (to open inlets with), or None when not visible."""
     import pylsl
 
     prop: Property = "source_id" if source_id else "name"
     found = pylsl.resolve_bypred(predicate(prop, source_id or name), minimum=1,
                                  timeout=timeout)
     return found[0] if found else None
+
+
+def full_info(info: Any) -> Any:
+    """The stream's full info with its description, or None when it is gone.
+
+    A resolved info holds only the stream's header: the description (channel labels and
+    units) comes from the outlet itself, through an inlet's `info()`. (The full info
+    cannot open an inlet in turn: it lacks the resolved info's addresses.)"""
+    import pylsl
+
+    inlet = pylsl.StreamInlet(info, max_buflen=1, recover=False)
+    try:
+        return inlet.info(timeout=_INFO_TIMEOUT_S)
+    except (TimeoutError, pylsl.LostError):
+        return None  # gone again between resolving and asking
+    finally:
+        del inlet
+
+
+def resolve_described(name: str, source_id: str) -> Any:
+    """`resolve` then `full_info`: the description of a visible stream, or None."""
+    info = resolve(name, source_id)
+    return None if info is None else full_info(info)
 
 
 class EmgInlet:
@@ -181,8 +206,9 @@ class EmgInlet:
 
         with Session(self.engine) as db:
             sub, montage = self._sub(db)
-            layout = layout_of(info, montage, list(sub.ignored_labels))
             inlet = pylsl.StreamInlet(info, max_buflen=60, recover=False)
+            layout = layout_of(inlet.info(timeout=_INFO_TIMEOUT_S), montage,
+                               list(sub.ignored_labels))
             inlet.open_stream(timeout=5.0)
             rec = recordings.RecordingWriter(
                 db, self.settings, sub.session_id, montage, "lsl", layout.fs, 0.0, ALIGNMENT,

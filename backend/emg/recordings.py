@@ -22,9 +22,9 @@ from sqlalchemy.orm import Session
 from backend.core.config import Settings
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.db.lab import Marker
+from backend.db.models import Participant, StudySession
 from backend.emg import store
 from backend.emg.quality_summary import STOPPED_MID_TRIAL, QualitySummary
-from backend.lab.markers import study_of_session
 from controller.emg.montage import Montage, MontageError, normalise_label
 
 #: Sources a recording may come from.
@@ -71,7 +71,9 @@ def current_montage(db: Session, study_id: int) -> EmgMontage | None:
 
 def session_montage(db: Session, session_id: int) -> EmgMontage:
     """The current montage of the session's study, or `NoMontageError`."""
-    study_id = study_of_session(db, session_id)
+    study_id = db.scalar(select(Participant.study_id).join(
+        StudySession, StudySession.participant_id == Participant.id)
+        .where(StudySession.id == session_id))
     row = current_montage(db, study_id) if study_id is not None else None
     if row is None:
         raise NoMontageError(f"the study of session {session_id} has no EMG montage: "

@@ -19,7 +19,7 @@ import select
 import socket
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +43,7 @@ from controller.device.protocol import (
     encode_sample,
 )
 from controller.device.udp import UdpDevice
+from tests import c_device
 from tests.faults.device_rig import device_process
 from tests.polling import free_udp_port, wait_for
 
@@ -80,6 +81,32 @@ def key_file(tmp_path: Path) -> Iterator[Path]:
     path = tmp_path / "device.key"
     create_key(path)
     yield path
+
+
+#: A booted device of each implementation on a free port, with its key file.
+SharedDevice = Callable[[str], tuple[Path, int]]
+
+
+@pytest.fixture(scope="module")
+def shared_device(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SharedDevice]:
+    """One device process per implementation for the tests that do not need a fresh
+    boot (they count drops relative to where they start and open host sessions of
+    their own; a device start costs seconds): booted on first use, stopped after the
+    module. The tests that read counters since boot, or stop the device, boot their own."""
+    key_file = tmp_path_factory.mktemp("shared-link") / "device.key"
+    create_key(key_file)
+    booted: dict[str, tuple[int, Any]] = {}
+    with ExitStack() as stack:
+        def get(implementation: str) -> tuple[Path, int]:
+            if implementation not in booted:
+                if implementation == "c":
+                    c_device.build()
+                booted[implementation] = stack.enter_context(device(key_file, implementation))
+            port, proc = booted[implementation]
+            assert proc.poll() is None, f"the shared {implementation} device exited"
+            return key_file, port
+
+        yield get
 
 
 class LinkProxy:
@@ -314,9 +341,10 @@ def test_forged_packets_never_energise(key_file: Path, device_implementation: st
 
 
 def test_replayed_locks_behind_many_sessions_never_energise(
-        key_file: Path, device_implementation: str) -> None:
+        shared_device: SharedDevice, device_implementation: str) -> None:
+    key_file, port = shared_device(device_implementation)
     key = load_key(key_file)
-    with device(key_file, device_implementation) as (port, _), LinkProxy(port) as proxy:
+    with LinkProxy(port) as proxy:
         # 1. Record: a real host locks both sides for 30 samples (the commands work).
         with Host(proxy.port, key, lambda s: LOCK_BOTH) as host:
             host.wait_samples(30)
@@ -360,7 +388,8 @@ def test_replayed_locks_behind_many_sessions_never_energise(
 
 
 def test_delayed_hello_cannot_revive_an_older_command(
-        key_file: Path, device_implementation: str) -> None:
+        shared_device: SharedDevice, device_implementation: str) -> None:
+    key_file, port = shared_device(device_implementation)
     key = load_key(key_file)
     lock_once = threading.Event()
 
@@ -370,9 +399,9 @@ def test_delayed_hello_cannot_revive_an_older_command(
             return LOCK_BOTH
         return RELEASE
 
-    with device(key_file, device_implementation) as (port, _), LinkProxy(port) as proxy, \
-            Host(proxy.port, key, policy) as host:
+    with LinkProxy(port) as proxy, Host(proxy.port, key, policy) as host:
         host.wait_samples(20)
+        stale = host.dev.link_counters()["device_stale"]
         hello = next(d for d in proxy.to_device if kind(d) == PacketType.HELLO)
         # Hold back the host's next lock COMMAND; let the release after it through.
         proxy.hold = lambda d: kind(d) == PacketType.COMMAND and lock_bits(d) == 3
@@ -389,7 +418,7 @@ def test_delayed_hello_cannot_revive_an_older_command(
         host.wait_samples(20)
         after = device_samples(proxy.to_host[start:], key)
     assert host.dev.link_counters()["device_replay"] == replays + 1
-    assert host.dev.link_counters()["device_stale"] == 0  # refused for order, not age
+    assert host.dev.link_counters()["device_stale"] == stale  # refused for order, not age
     assert not any(status_of(f) & SOLENOIDS for f in after)
     assert not any(s.status & SOLENOIDS for s in host.samples)
 
@@ -429,9 +458,11 @@ def test_delayed_lock_is_dropped_as_stale(key_file: Path, device_implementation:
     assert all(status_of(f) & Status.WATCHDOG_RELEASED for f in after)
 
 
-def test_replayed_join_changes_nothing(key_file: Path, device_implementation: str) -> None:
+def test_replayed_join_changes_nothing(shared_device: SharedDevice,
+                                      device_implementation: str) -> None:
+    key_file, port = shared_device(device_implementation)
     key = load_key(key_file)
-    with device(key_file, device_implementation) as (port, _), LinkProxy(port) as proxy:
+    with LinkProxy(port) as proxy:
         with Host(proxy.port, key) as earlier:  # an earlier host session of this boot
             earlier.wait_samples(5)
         old_join = next(d for d in proxy.to_device if kind(d) == PacketType.JOIN)
@@ -462,10 +493,11 @@ def test_replayed_join_changes_nothing(key_file: Path, device_implementation: st
     assert host.dev.stats.joins == 1 and host.dev.stats.restarts == 0
 
 
-def test_replayed_hello_does_not_lock_the_host_out(key_file: Path,
+def test_replayed_hello_does_not_lock_the_host_out(shared_device: SharedDevice,
                                                    device_implementation: str) -> None:
+    key_file, port = shared_device(device_implementation)
     key = load_key(key_file)
-    with device(key_file, device_implementation) as (port, _), LinkProxy(port) as proxy:
+    with LinkProxy(port) as proxy:
         with Host(proxy.port, key) as earlier:  # an earlier host session
             earlier.wait_samples(5)
         old_hellos = [d for d in proxy.to_device if kind(d) == PacketType.HELLO]
@@ -530,10 +562,12 @@ def test_flood_is_counted_and_capped(key_file: Path, device_implementation: str)
     assert streamed >= 100 and host.dev.stats.joins == 1
 
 
-def test_stopped_heartbeat_releases(key_file: Path, device_implementation: str) -> None:
+def test_stopped_heartbeat_releases(shared_device: SharedDevice,
+                                    device_implementation: str) -> None:
+    key_file, port = shared_device(device_implementation)
     key = load_key(key_file)
     mode = {"command": LOCK_BOTH}
-    with device(key_file, device_implementation) as (port, _), LinkProxy(port) as proxy, \
+    with LinkProxy(port) as proxy, \
             Host(proxy.port, key, lambda s: mode["command"]) as host:
         wait_for(lambda: any(energised(s.status) for s in host.samples[-3:]), 10,
                  "both solenoids energised")

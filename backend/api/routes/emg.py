@@ -241,7 +241,7 @@ async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentU
         if (other.source_id or other.name) == key:
             conflict("source_id", f"session {other.session_id} already records {key}; "
                      "unsubscribe it there first")
-    info = await asyncio.to_thread(live.resolve, body.name, body.source_id)
+    info = await asyncio.to_thread(live.resolve_described, body.name, body.source_id)
     if info is None:
         conflict("name", f"no LSL stream {key!r} is visible now")
     try:

@@ -1,0 +1,195 @@
+"""Live EMG over LSL, end to end on this machine: the simulated 16-channel 2 kHz amplifier
+publishes, the server subscribes a session through the API, and the recording that lands
+in the EMG store holds the amplifier's own samples, mapped to the montage, on the server's
+LSL clock. A stream of the wrong type or units is refused; a stream that stops ends its
+recording with a flag, and one that comes back starts a new, flagged recording."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pylsl
+import pytest
+from fastapi.testclient import TestClient
+
+from backend.core.config import Settings
+from backend.emg import store
+from controller.sim.emg_amplifier import N_CHANNELS, EmgTap, channel_labels
+from controller.sim.exoskeleton import SimulatedExoskeleton
+from tests.polling import wait_for
+
+#: A known clock offset added to liblsl's own correction (0 on one machine), so the test
+#: sees that the correction is applied.
+SHIFT_S = 250.0
+#: Montage channels in an order of their own, labels written differently from the stream's.
+ORDER = [5, 0, 11, 3, 8, 1, 10, 2, 7, 4, 9, 6]
+
+
+class Amplifier:
+    """The simulated amplifier ticking at the wearer's 100 Hz in a thread of its own."""
+
+    def __init__(self, source: str, seed: int = 3) -> None:
+        self.tap = EmgTap(SimulatedExoskeleton(seed=seed, script="squat-sequence"),
+                          name=f"SimEMG-{source}", source_id=source, keep=True)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def __enter__(self) -> Amplifier:
+        self.tap.start()
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            self.tap.tick(None)
+            next_t += self.tap.dt
+            self._stop.wait(max(0.0, next_t - time.monotonic()))
+
+    def close(self) -> None:
+        """Stop ticking and drop the outlet: consumers see the stream end."""
+        self._stop.set()
+        self._thread.join(5.0)
+        self.tap.close()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def samples(self) -> np.ndarray:
+        """Everything generated so far, as pushed (float32)."""
+        return np.concatenate([b.samples for b in self.tap.blocks]).astype(np.float32)
+
+
+def _montage() -> dict[str, Any]:
+    labels = channel_labels()
+    chans = []
+    for i in ORDER:
+        muscle, _, side = labels[i].rpartition("_")
+        chans.append({"label": labels[i].upper().replace("_", " "), "muscle": muscle,
+                      "side": side, "placement": "SENIAM", "electrode_type": "Ag/AgCl",
+                      "inter_electrode_distance_mm": 20, "reference": "iliac crest"})
+    return {"placement_scheme": "SENIAM", "channels": chans}
+
+
+def _session(client: TestClient) -> int:
+    study = client.post("/api/studies", json={"name": "Live EMG"}).json()["id"]
+    assert client.put(f"/api/studies/{study}/emg-montage", json=_montage()).status_code == 200
+    pid = client.post(f"/api/studies/{study}/participants", json={"code": "P1"}).json()["id"]
+    return int(client.post(f"/api/participants/{pid}/sessions",
+                           json={"kind": "evaluation", "precompression_pct": 25}).json()["id"])
+
+
+@pytest.fixture
+def shifted_clock(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    real = pylsl.StreamInlet.time_correction
+
+    def correction(self: Any, timeout: float = pylsl.FOREVER) -> float:
+        return float(real(self, timeout)) + SHIFT_S
+
+    monkeypatch.setattr(pylsl.StreamInlet, "time_correction", correction)
+    yield
+
+
+def _outlet(source: str, kind: str, unit: str) -> pylsl.StreamOutlet:
+    info = pylsl.StreamInfo(f"Other-{source}", kind, N_CHANNELS, 2000.0, pylsl.cf_float32,
+                            source)
+    chans = info.desc().append_child("channels")
+    for label in channel_labels():
+        ch = chans.append_child("channel")
+        ch.append_child_value("label", label)
+        ch.append_child_value("unit", unit)
+    return pylsl.StreamOutlet(info)
+
+
+def test_bad_streams_are_refused_with_the_reason(client: TestClient) -> None:
+    sess = _session(client)
+    url = f"/api/sessions/{sess}/emg-streams"
+    spare = [f"spare_{i}" for i in range(1, 5)]
+    tag = uuid.uuid4().hex[:8]
+    eeg = _outlet(f"test-eeg-{tag}", "EEG", "V")
+    newton = _outlet(f"test-force-{tag}", "EMG", "N")
+    micro = _outlet(f"test-uv-{tag}", "EMG", "uV")
+    try:
+        r = client.post(url, json={"name": "x", "source_id": f"test-eeg-{tag}",
+                                   "ignore_labels": spare})
+        assert r.status_code == 422 and "not 'EMG'" in str(r.json()), r.text
+        r = client.post(url, json={"name": "x", "source_id": f"test-force-{tag}",
+                                   "ignore_labels": spare})
+        assert r.status_code == 422 and "is not a voltage" in str(r.json()), r.text
+        # Spare inputs not named: each listed, with what the montage expects.
+        r = client.post(url, json={"name": "x", "source_id": f"test-uv-{tag}"})
+        assert r.status_code == 422, r.text
+        detail = r.json()["detail"][0]
+        assert detail["unmatched_labels"] == spare
+        assert len(detail["expected_labels"]) == 12 and detail["missing_labels"] == []
+        r = client.post(url, json={"name": "x", "source_id": f"test-none-{tag}"})
+        assert r.status_code == 409, r.text
+        assert client.get(url).json() == []  # nothing subscribed
+        assert client.get(f"/api/sessions/{sess}/emg-recordings").json() == []
+    finally:
+        del eeg, newton, micro
+
+
+def test_live_emg_is_stored_mapped_and_clock_corrected(
+        client: TestClient, settings: Settings, shifted_clock: None,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(store, "CHUNK_ROWS", 1000)  # 0.5 s per file chunk
+    sess = _session(client)
+    runtime = client.app.state.runtime  # type: ignore[attr-defined]
+    source = f"test-simemg-{uuid.uuid4().hex[:8]}"
+    body = {"name": f"SimEMG-{source}", "source_id": source,
+            "ignore_labels": [f"SPARE {i}" for i in range(1, 5)]}
+    url = f"/api/sessions/{sess}/emg-streams"
+    recs_url = f"/api/sessions/{sess}/emg-recordings"
+    with Amplifier(source) as amp:
+        r = client.post(url, json=body)
+        assert r.status_code == 201, r.text
+        sub = r.json()["id"]
+        inlet = runtime.emg.inlets[sub]
+        t_begin = pylsl.local_clock()
+        wait_for(lambda: inlet.samples >= 3000, 15, "1.5 s of live EMG in the store")
+        # The stream stops mid-recording: the recording ends, flagged, and is kept.
+        amp.close()
+        t_end = pylsl.local_clock()
+        first = wait_for(lambda: [x for x in client.get(recs_url).json()
+                                  if x["status"] == "complete"], 10, "the lost stream's "
+                         "recording finished")[0]
+        generated = amp.samples()
+    assert first["source"] == "lsl" and first["fs"] == 2000.0
+    assert "stream_lost" in first["quality"]["flags"]
+    assert first["labels"] == [_montage()["channels"][k]["label"] for k in range(12)]
+    path = store.recording_path(settings, first["id"])
+    chunks = list(store.iter_chunks(path))
+    assert len(chunks) >= 3  # written in chunks, never whole
+    t = np.concatenate([c[0] for c in chunks])
+    x = np.concatenate([c[1] for c in chunks])
+    n = first["n_samples"]
+    assert x.shape == (n, 12) and t.shape == (n,) and n >= 3000
+    assert np.isfinite(x).all() and np.isfinite(t).all()
+    # The amplifier's own samples, column j being the montage's j-th muscle.
+    start = int(np.flatnonzero(generated[:, ORDER[0]] == x[0, 0])[0])
+    np.testing.assert_array_equal(x, generated[start:start + n][:, ORDER])
+    # Clock: every stamp on this server's clock, corrected by the inlet's estimate.
+    np.testing.assert_allclose(np.diff(t), 1 / 2000.0, atol=2e-5)
+    assert t_begin - 1.0 < t[0] - SHIFT_S and t[-1] - SHIFT_S < t_end + 1.0
+    assert first["t_start"] == pytest.approx(t[0]) and first["t_end"] == pytest.approx(t[-1])
+    assert first["quality"]["dropped_samples"] == 0
+    assert "rate_mismatch" not in first["quality"]["flags"]
+
+    # The stream comes back: a new recording, flagged as a restart.
+    with Amplifier(source, seed=4):
+        wait_for(lambda: len(client.get(recs_url).json()) == 2 and inlet.samples > n + 200,
+                 15, "a second recording after the stream returned")
+        r = client.delete(f"{url}/{sub}")
+        assert r.status_code == 200 and r.json()["active"] is False
+    second = client.get(recs_url).json()[1]
+    assert second["status"] == "complete" and "stream_restarted" in second["quality"]["flags"]
+    assert "stream_lost" not in second["quality"]["flags"]
+    assert store.read_header(store.recording_path(settings, second["id"])).n_channels == 12
+    # The first recording is untouched by what followed.
+    assert client.get(recs_url).json()[0] == first
