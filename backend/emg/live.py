@@ -55,6 +55,15 @@ class StreamLayout:
     fs: float
 
 
+def lsl_errors(pylsl: Any) -> tuple[type[BaseException], type[BaseException]]:
+    """liblsl's "stream lost" and "timed out" exceptions: `pylsl.LostError` up to 1.16,
+    `pylsl.util` from 1.17 on (whose TimeoutError is not the built-in one)."""
+    util: Any = getattr(pylsl, "util", None) or getattr(pylsl, "pylsl", None)
+    lost: type[BaseException] = getattr(pylsl, "LostError", None) or util.LostError
+    timeout: type[BaseException] = getattr(util, "TimeoutError", TimeoutError)
+    return lost, timeout
+
+
 def describe(info: Any) -> tuple[list[str], list[str]]:
     """Channel labels and units from an LSL stream info's description (labels default
     to the channel number, units to "")."""
@@ -83,7 +92,7 @@ def check_layout(stream_type: str, fs: float, labels: list[str], units: list[str
     volts = []
     for i in cols:
         try:
-            volts.append(recordings.volts_per_unit(units[i] or "V"))
+            volts.append(recordings.volts_per_unit(units[i]))
         except ValueError as exc:
             raise ValueError(f"channel {labels[i]!r}: {exc}") from exc
     return StreamLayout(tuple(cols), tuple(volts), float(fs))
@@ -114,10 +123,11 @@ def full_info(info: Any) -> Any:
     cannot open an inlet in turn: it lacks the resolved info's addresses.)"""
     import pylsl
 
+    lost, timed_out = lsl_errors(pylsl)
     inlet = pylsl.StreamInlet(info, max_buflen=1, recover=False)
     try:
         return inlet.info(timeout=_INFO_TIMEOUT_S)
-    except (TimeoutError, pylsl.LostError):
+    except (lost, timed_out, TimeoutError):
         return None  # gone again between resolving and asking
     finally:
         del inlet
@@ -230,7 +240,7 @@ class EmgInlet:
                     x = np.asarray(chunk, dtype=np.float64)[:, cols] * volts
                     rec.append(np.asarray(ts, dtype=np.float64) + correction, x)
                     self.samples += len(ts)
-            except (pylsl.LostError, TimeoutError):
+            except (*lsl_errors(pylsl), TimeoutError):
                 log.warning("EMG stream %s was lost; resolving it again", info.name())
                 rec.quality.flag(STREAM_LOST)
             finally:

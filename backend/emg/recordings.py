@@ -210,11 +210,14 @@ class RecordingWriter:
 def store_blocks(db: Session, settings: Settings, session_id: int, montage: EmgMontage,
                  source: str, fs: float, blocks: Iterable[Block], time_offset_s: float,
                  alignment: str, filename: str = "", user_id: int | None = None,
-                 mains_hz: int | None = None) -> EmgRecording:
+                 mains_hz: int | None = None, flags: Iterable[str] = ()) -> EmgRecording:
     """Write a whole recording from blocks (timestamps None: at the nominal rate from 0)
-    in montage order; on any error nothing is kept."""
+    in montage order, with `flags` of the recording as a whole; on any error nothing is
+    kept."""
     rec = RecordingWriter(db, settings, session_id, montage, source, fs, time_offset_s,
                           alignment, filename, user_id=user_id, mains_hz=mains_hz)
+    for name in flags:
+        rec.quality.flag(name)
     n = 0
     try:
         for t, x in blocks:

@@ -205,14 +205,17 @@ def check_exportable(engine: Engine, db: Session, study_id: int,
 
 
 def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None = None,
-                  unblind: bool = False) -> Iterator[tuple[str, bytes]]:
+                  unblind: bool = False, emg_dir: Path | None = None
+                  ) -> Iterator[tuple[str, bytes]]:
     """Every file of the study's BIDS dataset as (relative path, content).
 
     Withdrawn participants are left out, and with `site` everyone of another site (a
     member limited to one site exports only that site). `unblind`: name controllers
     (only the study's owner may). Raises `NothingToExportError` before the first file if
-    the study has no trial with ticks."""
+    the study has no trial with ticks. `emg_dir`: the EMG recordings' folder (default:
+    the one of the database `engine` is connected to)."""
     check_exportable(engine, db, study_id, site)
+    emg = emg_dir if emg_dir is not None else emg_folder(engine)
     study = db.get(Study, study_id)
     assert study is not None
     yield "dataset_description.json", _json(_description(study)).encode()
@@ -245,7 +248,7 @@ def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None =
             kind = SESSION_KIND.get(sess.kind, label(sess.kind).lower())
             seen[kind] = seen.get(kind, 0) + 1
             yield from _session_files(engine, db, subs[p.id], sess, f"{kind}{seen[kind]}",
-                                      blinded, unblind, info)
+                                      blinded, unblind, info, emg)
     yield from _phenotype(db, subs)
 
 
@@ -293,8 +296,8 @@ def _motion_sidecar(trial: Trial, device: str, t: Any, info: dict[str, Any],
 
 
 def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, ses_label: str,
-                   blinded: dict[str, str], unblind: bool, info: dict[str, Any]
-                   ) -> Iterator[tuple[str, bytes]]:
+                   blinded: dict[str, str], unblind: bool, info: dict[str, Any],
+                   emg_dir: Path) -> Iterator[tuple[str, bytes]]:
     ses = f"ses-{ses_label}"
     trials = list(db.scalars(select(Trial).where(Trial.session_id == sess.id,
                                                  Trial.run_id.is_not(None))
@@ -345,7 +348,7 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
         yield f"{folder}{base}_acq-{acq}_run-{k}_events.json", _json(events_doc).encode()
         for path, data in _emg_files(db, emg_recordings, trial, f"sub-{sub}/{ses}/emg/",
                                      f"{base}_acq-{acq}_run-{k}", ev_rows, ev_cols,
-                                     events_doc, blinded_label, unblind, info):
+                                     events_doc, blinded_label, unblind, info, emg_dir):
             if path.endswith("_emg.bdf"):
                 scans.append([f"emg/{path.rsplit('/', 1)[1]}", started,
                               *([trial.id, trial.controller] if unblind else []),
@@ -366,8 +369,8 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
 
 def _emg_files(db: Session, recs: list[EmgRecording], trial: Trial, folder: str, stem: str,
                ev_rows: list[list[Any]], ev_cols: list[str], events_doc: dict[str, Any],
-               blinded_label: str | None, unblind: bool, info: dict[str, Any]
-               ) -> Iterator[tuple[str, bytes]]:
+               blinded_label: str | None, unblind: bool, info: dict[str, Any],
+               emg_dir: Path) -> Iterator[tuple[str, bytes]]:
     """The trial's EMG (BIDS-EMG) from the first recording covering it, with the motion
     file's events on the EMG file's time axis."""
     rec = next((r for r in recs if any(t["trial_id"] == trial.id for t in r.trials)), None)
@@ -384,7 +387,7 @@ def _emg_files(db: Session, recs: list[EmgRecording], trial: Trial, folder: str,
              f"{trial.task} under the controller the participant knew as "
              f"{blinded_label or 'n/a'}")
     start = next(float(t["start"]) for t in rec.trials if t["trial_id"] == trial.id)
-    parts = dict(emg_bids.trial_files(emg_folder(), rec, montage, trial.id, stem,
+    parts = dict(emg_bids.trial_files(emg_dir, rec, montage, trial.id, stem,
                                       trial.task, about,
                                       analysis.mains_hz if analysis is not None else 50,
                                       processing, info))
@@ -400,9 +403,12 @@ def _emg_files(db: Session, recs: list[EmgRecording], trial: Trial, folder: str,
     yield f"{folder}{stem}_events.json", _json(events_doc).encode()
 
 
-def emg_folder() -> Path:
-    """The EMG recordings' folder of this installation's settings."""
-    return store.emg_folder(get_settings())
+def emg_folder(engine: Engine) -> Path:
+    """The EMG recordings' folder of the database `engine` is connected to (beside its
+    SQLite file, or `emg_dir` of this installation's settings): an export of another
+    database file (`exostudy export --db`) reads that database's recordings."""
+    url = engine.url.render_as_string(hide_password=False)
+    return store.emg_folder(get_settings().model_copy(update={"database_url": url}))
 
 
 def _events(db: Session, trial: Trial, t0: float, cols: dict[str, Any]) -> list[list[Any]]:

@@ -30,7 +30,7 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,8 @@ log = logging.getLogger(__name__)
 TICK_STREAM_TYPE = "ExoskeletonTicks"
 #: The tick channel that numbers samples; the import matches it with stored ticks.
 SEQ_CHANNEL = "seq"
+#: The stream type of an EMG amplifier's stream (case does not matter).
+EMG_STREAM_TYPE = "emg"
 #: Largest sample number a tick stream may carry: every whole number up to it is exact
 #: in a double, which is what the LSL stream sends.
 MAX_SEQ = 2**53
@@ -78,6 +80,12 @@ class ParsedStream:
     last_time: float | None
     #: ExoStudy tick streams only: the `.npy` file of (time, seq) rows, float64.
     ticks: Path | None = None
+    #: Units of the channels ("" where the header gives none).
+    units: list[str] = field(default_factory=list)
+    #: Numeric streams of type EMG only: the `.npy` files of the time stamps (float64,
+    #: on the recording computer's clock) and of the samples (as recorded), which the
+    #: server reads a block at a time (`backend.lab.xdf_emg`).
+    emg: tuple[Path, Path] | None = None
 
 
 def address_space(limits: XdfLimits, file_bytes: int) -> int:
@@ -134,6 +142,15 @@ def summarize(parsed: XdfFile, folder: Path) -> list[dict[str, Any]]:
                 raise XdfError(f"stream {info.stream_id}: a second tick stream of that id")
             with ticks.open("wb") as f:
                 np.save(f, cols, allow_pickle=False)
+        emg = None
+        if (info.type.strip().casefold() == EMG_STREAM_TYPE
+                and isinstance(stream.values, np.ndarray) and stamps.size):
+            emg = [f"emg-{info.stream_id}-t.npy", f"emg-{info.stream_id}-x.npy"]
+            for name, arr in zip(emg, (stamps, stream.values), strict=True):
+                if not create_private_file(folder / name):
+                    raise XdfError(f"stream {info.stream_id}: a second EMG stream of that id")
+                with (folder / name).open("wb") as f:
+                    np.save(f, arr, allow_pickle=False)
         out.append({
             "stream_id": info.stream_id, "name": _clip(info.name), "type": _clip(info.type),
             "source_id": _clip(info.source_id), "channel_count": info.channel_count,
@@ -142,7 +159,8 @@ def summarize(parsed: XdfFile, folder: Path) -> list[dict[str, Any]]:
             "samples": int(stamps.size),
             "first_time": float(stamps[0]) if stamps.size else None,
             "last_time": float(stamps[-1]) if stamps.size else None,
-            "ticks": None if ticks is None else ticks.name})
+            "units": [_clip(u) for u in info.units[:info.channel_count]],
+            "ticks": None if ticks is None else ticks.name, "emg": emg})
     return out
 
 
@@ -155,8 +173,9 @@ def _summary(folder: Path) -> list[ParsedStream]:
     rows = json.loads((folder / SUMMARY).read_text(), parse_constant=_refuse_constant)
     out = []
     for row in rows:
-        ticks = row.pop("ticks")
-        stream = ParsedStream(**row, ticks=None if ticks is None else folder / ticks)
+        ticks, emg = row.pop("ticks"), row.pop("emg")
+        stream = ParsedStream(**row, ticks=None if ticks is None else folder / ticks,
+                              emg=None if emg is None else (folder / emg[0], folder / emg[1]))
         for value in (stream.nominal_srate, stream.first_time, stream.last_time):
             if value is not None and not math.isfinite(value):
                 raise ValueError(f"the reader's summary holds {value}")

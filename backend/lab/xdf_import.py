@@ -125,6 +125,19 @@ def _tick_offset(path: Path, seq: NDArray[np.int64], lsl: NDArray[np.float64]
     return float(np.median(found)) if found.size else None
 
 
+def clock_shift(engine: Engine, db: Session, session_id: int, streams: list[ParsedStream]
+                ) -> float | None:
+    """The file's clock minus ExoStudy's LSL clock, from the first tick stream whose
+    samples match stored ticks of the session; None when none does."""
+    seq, lsl = _stored_ticks(engine, db, _trial_spans(db, session_id))
+    for s in streams:
+        if s.ticks is not None:
+            offset = _tick_offset(s.ticks, seq, lsl)
+            if offset is not None:
+                return offset
+    return None
+
+
 def align(engine: Engine, db: Session, session_id: int, streams: list[ParsedStream]
           ) -> list[XdfStreamSummary]:
     """Summaries of the file's streams, on ExoStudy's LSL clock, with covered trials."""

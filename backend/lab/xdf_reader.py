@@ -86,6 +86,8 @@ class StreamInfo:
     #: Labels of `desc/channels/channel`, as many as the header lists (may differ from
     #: `channel_count`: the format does not require them).
     labels: tuple[str, ...]
+    #: Units of the same channels (`desc/channels/channel/unit`, "" where not given).
+    units: tuple[str, ...] = ()
 
 
 @dataclass
@@ -175,10 +177,12 @@ def _stream_info(sid: int, xml: bytes, where: str) -> StreamInfo:
     if not math.isfinite(rate) or rate < 0:
         raise XdfError(f"{where}: nominal_srate {rate_text[:20]!r} must be a finite number "
                        "of samples per second, 0 or more (0: irregular)")
-    labels = tuple(_text(ch, "label") for ch in root.iterfind("desc/channels/channel"))
+    channels = list(root.iterfind("desc/channels/channel"))
+    labels = tuple(_text(ch, "label") for ch in channels)
+    units = tuple(_text(ch, "unit") for ch in channels)
     return StreamInfo(stream_id=sid, name=_text(root, "name"), type=_text(root, "type"),
                       source_id=_text(root, "source_id"), channel_count=int(count),
-                      channel_format=fmt, nominal_srate=rate, labels=labels)
+                      channel_format=fmt, nominal_srate=rate, labels=labels, units=units)
 
 
 def _sample_bounds(stream: _Pending) -> tuple[int, int]:

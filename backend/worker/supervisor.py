@@ -71,6 +71,10 @@ class WorkerState:
     errors: list[str] = field(default_factory=list)
 
 
+#: How long the reader waits for the process to end once its pipe has closed.
+EXIT_WAIT_S = 5.0
+
+
 class WorkerSupervisor:
     """Owns one worker process at a time."""
 
@@ -236,7 +240,11 @@ class WorkerSupervisor:
                             break
                     except (EOFError, OSError):
                         break
-                proc.join(1.0)
+                # The pipe ends a moment before the process does; on a busy machine
+                # that moment can exceed a second, and an exit code read too early is
+                # None ("unknown"). A worker that hangs after closing its pipe is
+                # killed by `stop`; the device's watchdog has released long before.
+                proc.join(EXIT_WAIT_S)
                 self._on_exit(proc)
                 return
 

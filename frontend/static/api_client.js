@@ -184,6 +184,19 @@ export const emg = Object.freeze({
    */
   importEdf: operation("emg.importEdf", "POST", "/api/sessions/{session_id}/emg/edf", {"params": ["session_id"], "query": [], "body": true}),
   /**
+   * POST /api/sessions/{session_id}/emg/xdf: Import the EMG stream of a LabRecorder XDF file
+   * as a recording of the session: read by the bounded XDF reader (its `xdf_max_*` limits),
+   * put on the session clock through the file's clock offsets and ExoStudy's tick stream in
+   * the same file, the channels mapped by the study's montage (422 listing unmatched and
+   * expected labels), units converted to volts (422 if not a voltage). NaN samples, a rate
+   * that disagrees with the time stamps and gaps are stored and flagged. Nothing is stored
+   * on error.
+   * @param {number} sessionId
+   * @param {Body_import_xdf_api_sessions__session_id__emg_xdf_post} body
+   * @returns {Promise<EmgRecordingOut>}
+   */
+  importXdf: operation("emg.importXdf", "POST", "/api/sessions/{session_id}/emg/xdf", {"params": ["session_id"], "query": [], "body": true}),
+  /**
    * GET /api/sessions/{session_id}/emg-recordings: The session's EMG recordings with their
    * span, trials and quality flags.
    * @param {number} sessionId

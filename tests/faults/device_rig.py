@@ -4,6 +4,7 @@ link for the attacks that need one. Everything waits on progress with a deadline
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import select
@@ -182,3 +183,13 @@ class Proxy:
         self._thread.join(2)
         self.front.close()
         self.back.close()
+
+
+def stop_and_read_stats(proc: Any) -> dict[str, Any]:
+    """SIGTERM the device and parse the statistics line it prints."""
+    proc.terminate()
+    out, err = proc.communicate(timeout=15)
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    assert lines, f"no statistics line from the device:\n{out}\n{err}"
+    stats: dict[str, Any] = json.loads(lines[-1])
+    return stats

@@ -14,7 +14,6 @@ what the device reports: a solenoid it drives (SOLENOID_*) while its drivers are
 
 from __future__ import annotations
 
-import json
 import select
 import socket
 import threading
@@ -44,7 +43,7 @@ from controller.device.protocol import (
 )
 from controller.device.udp import UdpDevice
 from tests import c_device
-from tests.faults.device_rig import device_process
+from tests.faults.device_rig import device_process, stop_and_read_stats
 from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
@@ -284,16 +283,6 @@ def socket_drops(port: int) -> int:
         if int(fields[1].split(":")[1], 16) == port:
             return int(fields[-1])
     raise AssertionError(f"no UDP socket bound to port {port}")
-
-
-def stop_and_read_stats(proc: Any) -> dict[str, Any]:
-    """SIGTERM the device and parse the statistics line it prints."""
-    proc.terminate()
-    out, err = proc.communicate(timeout=15)
-    lines = [line for line in out.splitlines() if line.startswith("{")]
-    assert lines, f"no statistics line from the device:\n{out}\n{err}"
-    stats: dict[str, Any] = json.loads(lines[-1])
-    return stats
 
 
 def test_forged_packets_never_energise(key_file: Path, device_implementation: str) -> None:

@@ -12,7 +12,7 @@ import secrets
 import socket
 import struct
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -24,7 +24,13 @@ from controller.device.protocol import SAMPLE_BODY, SESSIONS, CommandPacket, enc
 from controller.device.protocol import encode_sample as encode
 from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from controller.tick_record import TickRecord
-from tests.faults.device_rig import Proxy, Worker, device_process, locked_ticks
+from tests.faults.device_rig import (
+    Proxy,
+    Worker,
+    device_process,
+    locked_ticks,
+    stop_and_read_stats,
+)
 from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
@@ -126,7 +132,7 @@ def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path,
                                                         device_implementation: str) -> None:
     port = free_udp_port()
     with device_process(port, key_file, "squat-sequence",
-                        implementation=device_implementation), Proxy(port) as proxy, \
+                        implementation=device_implementation) as dev, Proxy(port) as proxy, \
             Worker(proxy.port, key_file, "pec") as worker:
         wait_for(lambda: locked_ticks(worker.ticks()) > 20, 90, "the PEC to lock a squat")
         # The attacker keeps every COMMAND that asked for both locks (bits readable).
@@ -154,27 +160,48 @@ def test_recorded_lock_commands_sent_again_are_dropped(key_file: Path,
             proxy.send_to_device(locks[sent % len(locks)])
             sent += 1
             time.sleep(0.01)
-        try:
-            wait_for(lambda: worker.link_drops().get("device_replay", 0) >= sent, 30,
-                     f"the device to report the {sent} replays")
-        except AssertionError as exc:
-            raise AssertionError(f"{exc}; link drops: {worker.link_drops()}") from None
+        # The device reports its replay drops in every sample; on a busy machine a burst
+        # of replays can also meet the per-period authentication budget (counted as
+        # `flood` in its statistics line, not in samples). Wait until the count settles.
+        settled = SettledCount(lambda: worker.link_drops().get("device_replay", 0))
+        wait_for(lambda: settled.reached(sent), 30, f"the device to report the {sent} replays")
         worker.wait_ticks(200)
         replayed_during = worker.ticks()[start:]
         drops = worker.link_drops()
+        stats = stop_and_read_stats(dev)
 
-    # Every replay dropped and counted, and nothing else: the worker's own datagrams are
-    # all accepted. (A JOIN for a CHALLENGE that answered a second HELLO crossing the
-    # first CHALLENGE used to be refused as a replay of the spent challenge; the host
-    # now answers one CHALLENGE per join, `UdpDevice._on_challenge`.)
-    assert drops["device_replay"] == sent and drops["device_auth"] == 0
+    # Every replay dropped and counted, as a replay or (in a burst) by the budget, and no
+    # datagram of the worker's own counted as a replay. (A JOIN for a CHALLENGE that
+    # answered a second HELLO crossing the first CHALLENGE used to be refused as a replay
+    # of the spent challenge; the host now answers one CHALLENGE per join,
+    # `UdpDevice._on_challenge`.)
+    flood = stats["drops"].get("flood", 0)
+    assert drops["device_replay"] <= sent <= drops["device_replay"] + flood, (sent, stats)
+    assert drops["device_auth"] == 0
     assert locked_ticks(replayed_during) == 0
     assert _max_deflection_deg(replayed_during[100:]) < 3.0
     # The wearer squatted while the replays went on: they had something to lock.
     assert any(r.q_raw_left > 0.5 and r.truth_activity == "squat" for r in replayed_during)
     assert sent >= 300
-    print(f"replayed commands: {sent} sent, device dropped {drops['device_replay']}, "
+    print(f"replayed commands: {sent} sent, device dropped {drops['device_replay']} as "
+          f"replays and {flood} by its budget, "
           f"{locked_ticks(replayed_during)} locked ticks in {len(replayed_during)}")
+
+
+class SettledCount:
+    """A counter that has reached a target, or stopped rising for a second (read by
+    `wait_for` every few ms)."""
+
+    def __init__(self, read: Callable[[], int]) -> None:
+        self.read = read
+        self.value = read()
+        self.since = time.monotonic()
+
+    def reached(self, target: int) -> bool:
+        value = self.read()
+        if value != self.value:
+            self.value, self.since = value, time.monotonic()
+        return value >= target or time.monotonic() - self.since > 1.0
 
 
 def test_sample_fields_offsets_match_the_protocol() -> None:

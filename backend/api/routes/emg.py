@@ -11,7 +11,7 @@ from fastapi import APIRouter, File, Form, HTTPException, Path, UploadFile
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from backend.api.deps import CurrentUser, RuntimeDep, SessionDep, SettingsDep
+from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SettingsDep
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -35,6 +35,7 @@ from backend.db.emg import (
 from backend.db.models import Study, StudySession
 from backend.emg import edf_import, mvc, recordings
 from backend.emg.recordings import ChannelMismatchError, NoMontageError
+from backend.lab import xdf_emg
 from backend.schemas.emg import (
     EmgRecordingOut,
     EmgSettingsIn,
@@ -318,6 +319,35 @@ async def import_edf(
     return await _import(db, settings, session_id, lambda: edf_import.import_file(
         db, settings, session_id, data, file.filename or "recording.edf", how,
         _labels(ignore_labels), user.id, _mains(db, session_id)), user)
+
+
+@router.post("/api/sessions/{session_id}/emg/xdf", response_model=EmgRecordingOut,
+             status_code=201, responses={413: {"description": "the file is too large"},
+                                         **CONFLICT})
+async def import_xdf(
+    session_id: SessionId, user: CurrentUser, db: SessionDep, settings: SettingsDep,
+    engine: EngineDep,
+    file: Annotated[UploadFile, File(description="a LabRecorder .xdf file")],
+    stream: Annotated[str | None, Form(max_length=200, description=(
+        "the EMG stream's name or stream id (needed only when the file has several)"))
+    ] = None,
+    ignore_labels: Annotated[str, Form(max_length=4000, description=(
+        "comma-separated channel labels to leave out (spare inputs)"))] = "",
+) -> EmgRecording:
+    """Import the EMG stream of a LabRecorder XDF file as a recording of the session:
+    read by the bounded XDF reader (its `xdf_max_*` limits), put on the session clock
+    through the file's clock offsets and ExoStudy's tick stream in the same file, the
+    channels mapped by the study's montage (422 listing unmatched and expected labels),
+    units converted to volts (422 if not a voltage). NaN samples, a rate that disagrees
+    with the time stamps and gaps are stored and flagged. Nothing is stored on error."""
+    one_or_404(db, StudySession, session_id, "session")
+    limit = settings.max_upload_bytes
+    data = await file.read(limit + 1)
+    if len(data) > limit:
+        raise HTTPException(413, f"file: larger than {limit} bytes")
+    return await _import(db, settings, session_id, lambda: xdf_emg.import_file(
+        engine, db, settings, session_id, data, file.filename or "recording.xdf",
+        stream or None, _labels(ignore_labels), user.id, _mains(db, session_id)), user)
 
 
 async def _import(db: Session, settings: Settings, session_id: int, work: Any,

@@ -9,6 +9,7 @@ import hashlib
 import io
 import zipfile
 from datetime import UTC, datetime
+from pathlib import Path as PathType
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, HTTPException, Path, Request, UploadFile
@@ -40,6 +41,7 @@ from backend.api.params import MAX_ID, SessionId, StudyId
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream, StudyMarkerLabels, XdfAttachment
 from backend.db.models import Study, StudySession
+from backend.emg import store as emg_store
 from backend.lab import bids_export, markers, xdf_import
 from backend.schemas.lab import (
     LslStreamOut,
@@ -259,12 +261,13 @@ def download_xdf(session_id: SessionId, attachment_id: AttachmentId, user: Curre
 
 # BIDS ----------------------------------------------------------------------------------------
 def bids_zip(engine: Engine, db: Session, study_id: int, site: str | None,
-             unblind: bool = False) -> bytes:
+             unblind: bool = False, emg_dir: PathType | None = None) -> bytes:
     """The study's BIDS dataset as a zip whose top folder is the dataset."""
     buf = io.BytesIO()
     root = f"study-{study_id}-bids/"
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path, data in bids_export.dataset_files(engine, db, study_id, site, unblind):
+        for path, data in bids_export.dataset_files(engine, db, study_id, site, unblind,
+                                                            emg_dir):
             zf.writestr(root + path, data)
     return buf.getvalue()
 
@@ -274,7 +277,8 @@ def bids_zip(engine: Engine, db: Session, study_id: int, site: str | None,
           "description": "a BIDS dataset (motion modality) of the study"}, **CONFLICT},
     openapi_extra=access("experimenter"))
 def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: CurrentUser,
-                db: SessionDep, runtime: RuntimeDep, request: Request) -> Response:
+                db: SessionDep, runtime: RuntimeDep, request: Request,
+                settings: SettingsDep) -> Response:
     """The study as a BIDS-motion dataset: participants, one motion file per trial with
     channels and events (lifts, locks, markers), questionnaires as phenotype files,
     attached XDF files as source data. De-identified fields only. Controllers are
@@ -283,7 +287,8 @@ def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: Curre
     one_or_404(db, Study, study_id, "study")
     runtime.recorder.flush()
     try:
-        data = bids_zip(engine, db, study_id, site, may_unblind(request.state))
+        data = bids_zip(engine, db, study_id, site, may_unblind(request.state),
+                        emg_store.emg_folder(settings))
     except bids_export.NothingToExportError as exc:
         conflict("study", str(exc))
     audit.record(db, user, "export", "study", study_id, {"format": "bids", "bytes": len(data)})

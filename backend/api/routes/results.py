@@ -126,7 +126,9 @@ def trial_what_if(trial_id: TrialId, body: WhatIfIn, engine: EngineDep, user: Cu
                                body.model_set_id, body.utility_set_id, body.rate_hz,
                                body.settings)
     except results.ResultsError as exc:
-        invalid(["body", exc.field_name], exc.problem)
+        # "settings.velocity_threshold" names a place in the body, as a list like every
+        # other 422's location (the JSON check at the door reports the same way).
+        invalid(["body", *exc.field_name.split(".")], exc.problem)
 
 
 @router.get("/api/studies/{study_id}/model-evaluation", response_model=ModelEvaluationOut,

@@ -31,11 +31,14 @@ def chunk(tag: int, content: bytes) -> bytes:
 
 
 def header_xml(name: str, type_: str, channels: int | str, srate: float | str, fmt: str,
-               labels: list[str] | None = None, source_id: str = "") -> bytes:
-    """A stream header's XML (the labels under desc/channels when given)."""
+               labels: list[str] | None = None, source_id: str = "",
+               units: list[str] | None = None) -> bytes:
+    """A stream header's XML (the labels, and units when given, under desc/channels)."""
+    unit = units or [""] * len(labels or [])
     chans = "" if labels is None else "<desc><channels>" + "".join(
-        f"<channel><label>{escape(c)}</label></channel>" for c in labels) + \
-        "</channels></desc>"
+        f"<channel><label>{escape(c)}</label>"
+        + (f"<unit>{escape(u)}</unit>" if u else "") + "</channel>"
+        for c, u in zip(labels, unit, strict=True)) + "</channels></desc>"
     return (f'<?xml version="1.0"?><info><name>{escape(name)}</name>'
             f"<type>{escape(type_)}</type>"
             f"<channel_count>{channels}</channel_count>"
@@ -64,11 +67,12 @@ class XdfStream:
     clock_offsets: list[tuple[float, float]] = field(default_factory=list)
     stamped: list[bool] | None = None
     chunks: list[int] | None = None
+    units: list[str] | None = None
 
     def header(self, sid: int) -> bytes:
         return struct.pack("<I", sid) + header_xml(
             self.name, self.type, len(self.channels), self.srate, self.fmt,
-            self.channels, self.source_id)
+            self.channels, self.source_id, self.units)
 
     def sample(self, k: int) -> bytes:
         out = bytearray()
