@@ -61,9 +61,12 @@ def _parse(reader: csv.DictReader[str], source: str) -> HumanMotionData:
             raise CsvError(row_no, "leg", f"{leg!r} is not left or right")
         if not _INTEGER.fullmatch(row["n"]):
             raise CsvError(row_no, "n", f"not a plain integer (digits only): {row['n']!r}")
-        n = int(row["n"])
+        # Bound the digits before int(): it raises ValueError (not CsvError, a 500)
+        # beyond 4,300 digits, and any n of more digits than N_PROGRESS is out of range.
+        digits = row["n"].lstrip("0")
+        n = int(digits or "0") if len(digits) <= len(str(N_PROGRESS)) else N_PROGRESS
         if not 0 <= n < N_PROGRESS:
-            raise CsvError(row_no, "n", f"{n} outside 0..{N_PROGRESS - 1}")
+            raise CsvError(row_no, "n", f"{row['n'][:40]!r} outside 0..{N_PROGRESS - 1}")
         i, j = HUMAN_MOTIONS.index(motion), LEGS.index(leg)
         if not np.isnan(theta[i, j, n]):
             raise CsvError(row_no, "n", f"duplicate sample {motion}/{leg}/n={n}")

@@ -18,7 +18,7 @@ from backend.analysis.jobs import JobRunner
 from backend.analysis.results import ResultsCache
 from backend.api import web_surface
 from backend.api.errors import not_found
-from backend.api.params import MAX_ID
+from backend.api.params import path_id
 from backend.api.socket_logins import SocketLogins
 from backend.core.config import Settings
 from backend.db.models import AuthToken, User
@@ -219,12 +219,12 @@ def _target(db: Session, conn: HTTPConnection, route: BaseRoute
         resolver = access_rules.RESOLVERS.get(name)
         if resolver is None:
             continue
-        raw = str(conn.path_params.get(name, ""))
-        if not raw.isascii() or not raw.isdigit() or not 1 <= int(raw) <= MAX_ID:
+        value = path_id(str(conn.path_params.get(name, "")))
+        if value is None:
             return None
-        found = resolver(db, int(raw))
+        found = resolver(db, value)
         if found is None:
-            not_found(name.removesuffix("_id").replace("_", " "), int(raw))
+            not_found(name.removesuffix("_id").replace("_", " "), value)
         return found
     return None
 

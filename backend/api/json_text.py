@@ -11,6 +11,15 @@ Checking each schema's fields would leave the next field open; this middleware l
 every JSON body once, before any route, and answers 422 naming the place, in the shape
 of FastAPI's validation errors.
 
+A JSON body must be UTF-8 (RFC 8259, section 8.1), and nothing else is read. Python's
+parser, given bytes, guesses: a byte-order mark or NUL bytes among the first four make
+it read UTF-16 or UTF-32, so `Infinity` written in UTF-16 once passed this door, which
+read the bytes as UTF-8, and was stored. A body that is not strict UTF-8 (which also
+refuses encoded surrogate halves), that starts with a byte-order mark, or that holds a
+NUL byte (never valid in JSON text, and the parser's only cue for UTF-16/32 in a body
+that is otherwise UTF-8) is refused before anything parses it. What passes is read as
+UTF-8 by the parser too, so this door and the parser cannot see different text.
+
 The body is measured before anything parses it: nesting deeper than `MAX_DEPTH` is
 refused from the bytes alone (50,000 brackets once made the parser's recursion escape as
 a 500), and the size is bounded by the body limit this middleware sits inside. Only a
@@ -20,6 +29,7 @@ loop, not recursion.
 
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import re
@@ -98,9 +108,28 @@ def _int(text: str) -> int | _Refused:
     return int(text)
 
 
+def encoding_problem(body: bytes) -> str | None:
+    """Why a body is not the UTF-8 text the parser is guaranteed to read as UTF-8 (None
+    if it is). The parser decodes anything without a BOM or an early NUL as UTF-8."""
+    if body.startswith(codecs.BOM_UTF8):
+        return "JSON bodies must be UTF-8 without a byte-order mark (RFC 8259); this one " \
+               "starts with one"
+    if body[:4].startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)) or b"\x00" in body:
+        return "JSON bodies must be UTF-8 (RFC 8259); this one holds NUL bytes or a " \
+               "byte-order mark, as UTF-16 or UTF-32 text does"
+    try:
+        body.decode("utf-8", "strict")
+    except UnicodeDecodeError as exc:
+        return f"JSON bodies must be UTF-8 (RFC 8259); byte {exc.start} is not valid UTF-8"
+    return None
+
+
 def problems(body: bytes) -> list[dict[str, Any]]:
     """What is wrong with a JSON body, as FastAPI validation errors (empty: nothing, or
     not JSON at all, which the route's own parsing answers)."""
+    bad_encoding = encoding_problem(body)
+    if bad_encoding is not None:
+        return [{"loc": ["body"], "type": "not_utf8", "msg": bad_encoding}]
     outside = _STRING.sub(b"", body)
     depth = nesting_depth(outside)
     if depth > MAX_DEPTH:
@@ -144,7 +173,7 @@ def _walk(doc: Any) -> list[tuple[tuple[str | int, ...], str]]:
 
 
 class StorableJsonText:
-    """ASGI middleware: a JSON request body nested too deep, or with a lone surrogate or
+    """ASGI middleware: a JSON request body that is not UTF-8, nested too deep, or with a lone surrogate or
     NUL in any string, or a number no database stores (NaN, infinities, integers beyond
     64 bits), is answered with 422 before the route runs; every other request passes
     unchanged. Install it inside the body-size limit, so the body it reads is bounded."""

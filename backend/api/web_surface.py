@@ -153,7 +153,8 @@ class BodyLimit:
             return
         limit = self._limit_for(scope.get("path", ""))
         declared = Headers(scope=scope).get("content-length")
-        if declared is not None and (not declared.isdigit() or int(declared) > limit):
+        if declared is not None and (not declared.isascii() or not declared.isdigit()
+                                     or len(declared) > 20 or int(declared) > limit):
             await self._refuse(send, limit)
             return
         seen = 0

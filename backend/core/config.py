@@ -110,6 +110,18 @@ class Settings(BaseSettings):
     #: Bytes the decoded streams may take (time stamps and values): a 64 MB file of double
     #: samples decodes to about 70 MB. The reading process may use twice this and 512 MB.
     xdf_max_decoded_bytes: int = Field(default=1024**3, ge=1024)
+    #: Channels one stream may declare: high-density EEG or EMG has a few hundred, motion
+    #: capture of 100 markers 300.
+    xdf_max_channels: int = Field(default=4096, ge=1, le=65_536)
+    #: Bytes of one stream header's XML: a label, unit and type for each of 4,096
+    #: channels take about 400 kB.
+    xdf_max_header_bytes: int = Field(default=1024**2, ge=1024, le=16 * 1024**2)
+    #: Channel labels of each stream kept in the stored summary (each cut to 64
+    #: characters; the summary also says how many there are).
+    xdf_summary_channels: int = Field(default=64, ge=0, le=4096)
+    #: Largest stored summary of one file (bytes of JSON): 100 streams of 64 plain labels
+    #: take about 510 kB.
+    xdf_max_summary_bytes: int = Field(default=1024**2, ge=1024)
     #: Longest (s) the reading process may take before the file is refused; a 64 MB
     #: recording takes a few seconds.
     xdf_parse_seconds: float = Field(default=120.0, gt=0.0, le=3600.0)

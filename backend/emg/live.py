@@ -32,7 +32,7 @@ from backend.core.config import Settings
 from backend.db.emg import EmgMontage, EmgStream
 from backend.emg import recordings
 from backend.emg.quality_summary import STREAM_LOST, STREAM_RESTARTED
-from backend.lab.lsl_names import Property, predicate
+from backend.lab.lsl_names import Property, lsl_errors, predicate
 from backend.lab.marker_inlet import backoff_delays
 
 log = logging.getLogger(__name__)
@@ -53,15 +53,6 @@ class StreamLayout:
     columns: tuple[int, ...]
     volts: tuple[float, ...]
     fs: float
-
-
-def lsl_errors(pylsl: Any) -> tuple[type[BaseException], type[BaseException]]:
-    """liblsl's "stream lost" and "timed out" exceptions: `pylsl.LostError` up to 1.16,
-    `pylsl.util` from 1.17 on (whose TimeoutError is not the built-in one)."""
-    util: Any = getattr(pylsl, "util", None) or getattr(pylsl, "pylsl", None)
-    lost: type[BaseException] = getattr(pylsl, "LostError", None) or util.LostError
-    timeout: type[BaseException] = getattr(util, "TimeoutError", TimeoutError)
-    return lost, timeout
 
 
 def describe(info: Any) -> tuple[list[str], list[str]]:

@@ -11,7 +11,7 @@ meaning is accepted, and the query is built in one place, after the check.
 from __future__ import annotations
 
 import re
-from typing import Literal
+from typing import Any, Literal
 
 #: Letters, digits, space and `. _ - : @ # + / ( )`, starting with a letter or digit, at
 #: most 200 characters (the column's size). Enough for the names LabRecorder, OpenBCI
@@ -40,3 +40,12 @@ def predicate(prop: Property, value: str) -> str:
     if why is not None:
         raise ValueError(why)
     return f"{prop}='{value}'"
+
+
+def lsl_errors(pylsl: Any) -> tuple[type[BaseException], type[BaseException]]:
+    """liblsl's "stream lost" and "timed out" exceptions: `pylsl.LostError` up to 1.16,
+    `pylsl.util` from 1.17 on (whose TimeoutError is not the built-in one)."""
+    util: Any = getattr(pylsl, "util", None) or getattr(pylsl, "pylsl", None)
+    lost: type[BaseException] = getattr(pylsl, "LostError", None) or util.LostError
+    timeout: type[BaseException] = getattr(util, "TimeoutError", TimeoutError)
+    return lost, timeout

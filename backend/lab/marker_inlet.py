@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from backend.lab.lsl_names import Property, predicate
+from backend.lab.lsl_names import Property, lsl_errors, predicate
 
 log = logging.getLogger(__name__)
 
@@ -174,6 +174,9 @@ class MarkerInlet:
         import pylsl
 
         inlet = pylsl.StreamInlet(info, max_buflen=60, recover=True)
+        # pylsl 1.17 moved its exceptions (and its TimeoutError is not the built-in
+        # one): naming `pylsl.LostError` in an except clause raised AttributeError there.
+        lost_error, timeout_error = lsl_errors(pylsl)
         got_any = False
         try:
             inlet.open_stream(timeout=5.0)
@@ -192,9 +195,9 @@ class MarkerInlet:
                     self.on_marker(self.subscription_id, text, float(ts + correction))
                 except Exception:
                     log.exception("storing a marker of %s failed", self.name)
-        except pylsl.LostError:
+        except lost_error:
             log.warning("marker stream %s was lost; resolving it again", self.name)
-        except TimeoutError:
+        except timeout_error:
             log.warning("marker stream %s did not answer; resolving it again", self.name)
         finally:
             self.connected = False

@@ -64,8 +64,8 @@ def choose(streams: list[ParsedStream], stream: str | None) -> ParsedStream:
     if not chosen.nominal_srate > 0:
         raise ValueError(f"stream {_describe(chosen)} has no regular sampling rate (nominal "
                          f"{chosen.nominal_srate:g} Hz); EMG needs one")
-    if len(chosen.channels) != chosen.channel_count:
-        raise ValueError(f"stream {_describe(chosen)} labels {len(chosen.channels)} of its "
+    if chosen.labelled_channels != chosen.channel_count:
+        raise ValueError(f"stream {_describe(chosen)} labels {chosen.labelled_channels} of its "
                          f"{chosen.channel_count} channels; the montage maps channels by "
                          "label")
     return chosen
@@ -81,14 +81,15 @@ def import_file(engine: Engine, db: Session, settings: Settings, session_id: int
                           settings.xdf_parse_seconds) as streams:
         s = choose(streams, stream)
         assert s.emg is not None
-        cols = recordings.map_channels(montage, list(s.channels), ignore_labels)
-        units = list(s.units) + [""] * (s.channel_count - len(s.units))
+        labels, units = xdf_child.channel_labels(s)
+        cols = recordings.map_channels(montage, labels, ignore_labels)
+        units += [""] * (s.channel_count - len(units))
         factors = []
         for i in cols:
             try:
                 factors.append(recordings.volts_per_unit(units[i]))
             except ValueError as exc:
-                raise ValueError(f"stream {_describe(s)}, channel {s.channels[i]!r}: "
+                raise ValueError(f"stream {_describe(s)}, channel {labels[i]!r}: "
                                  f"{exc}") from exc
         shift = xdf_import.clock_shift(engine, db, session_id, streams)
         if shift is None:

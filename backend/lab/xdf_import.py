@@ -10,12 +10,20 @@ sequence number, so each can be matched with the stored tick and its LSL time (t
 tick's read time plus the clock offset recorded with the trial's start marker).
 Every stream's span, moved onto our clock, is then compared with the trials' spans
 (start to stop markers) to say which trials it covers.
+
+What is stored passes one check first (`storable`): every number in it finite, and the
+whole within `xdf_max_summary_bytes`, so the JSON column holds standard JSON on SQLite
+and PostgreSQL and a listing of a session's files stays small (issue 28: an offset of
+1.7e308 s stored as Infinity; 25 MB of channel labels stored per file).
 """
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,19 +49,49 @@ def limits(settings: Settings) -> XdfLimits:
                      max_chunks=settings.xdf_max_chunks,
                      max_samples=settings.xdf_max_samples,
                      max_clock_offsets=settings.xdf_max_clock_offsets,
-                     max_decoded_bytes=settings.xdf_max_decoded_bytes)
+                     max_decoded_bytes=settings.xdf_max_decoded_bytes,
+                     max_channels=settings.xdf_max_channels,
+                     max_header_bytes=settings.xdf_max_header_bytes)
 
 
 def import_file(engine: Engine, db: Session, session_id: int, data: bytes,
-                settings: Settings) -> list[XdfStreamSummary]:
-    """The aligned summary of the XDF file `data` for the session; `XdfError` (a
-    ValueError) says what is wrong with the file."""
+                settings: Settings) -> list[dict[str, Any]]:
+    """The aligned summary of the XDF file `data` for the session, as it is stored;
+    `XdfError` (a ValueError) says what is wrong with the file."""
     with xdf_child.parsed(data, limits(settings), settings.xdf_work_dir,
-                          settings.xdf_parse_seconds) as streams:
+                          settings.xdf_parse_seconds, settings.xdf_summary_channels
+                          ) as streams:
         # A file cut short early (a LabRecorder killed mid-write) may hold headers only.
         if not any(s.samples for s in streams):
             raise XdfError("no stream in the XDF file holds samples (empty or damaged file)")
-        return align(engine, db, session_id, streams)
+        return storable(align(engine, db, session_id, streams),
+                        settings.xdf_max_summary_bytes)
+
+
+def _numbers(value: Any) -> Iterator[float]:
+    """The floats in a summary's value (lists opened)."""
+    if isinstance(value, float):
+        yield value
+    elif isinstance(value, list | tuple):
+        for item in value:
+            yield from _numbers(item)
+
+
+def storable(summary: list[XdfStreamSummary], max_bytes: int) -> list[dict[str, Any]]:
+    """The summary as stored, after the one check at the storage boundary: XdfError
+    unless every number in it is finite and its JSON takes at most `max_bytes`."""
+    rows = [s.model_dump() for s in summary]
+    for row in rows:
+        for key, value in row.items():
+            bad = next((x for x in _numbers(value) if not math.isfinite(x)), None)
+            if bad is not None:
+                raise XdfError(f"stream {row['stream_id']}: {key} is {bad}, not a finite "
+                               "number; nothing of the file was stored")
+    size = len(json.dumps(rows, allow_nan=False))
+    if size > max_bytes:
+        raise XdfError(f"the summary of the file's {len(rows)} streams takes {size} bytes, "
+                       f"more than {max_bytes} bytes (the server's xdf_max_summary_bytes)")
+    return rows
 
 
 def _trial_spans(db: Session, session_id: int) -> dict[int, tuple[float, float, int]]:
@@ -161,7 +199,7 @@ def align(engine: Engine, db: Session, session_id: int, streams: list[ParsedStre
             stream_id=s.stream_id, name=s.name, type=s.type,
             channel_count=s.channel_count, nominal_srate=s.nominal_srate,
             samples=s.samples, first_time=s.first_time, last_time=s.last_time,
-            channels=s.channels,
+            channels=s.channels, labelled_channels=s.labelled_channels,
             exostudy=s.type == xdf_child.TICK_STREAM_TYPE or s.name.startswith("ExoStudy"),
             trial_ids=covered,
             offset_ms=own_offsets[k] * 1000.0 if k in own_offsets else None))

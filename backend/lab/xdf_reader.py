@@ -43,12 +43,15 @@ _TAG_NAMES = {1: "FileHeader", 2: "StreamHeader", 3: "Samples", 4: "ClockOffset"
 FORMATS: dict[str, str | None] = {"double64": "<f8", "float32": "<f4", "int64": "<i8",
                                   "int32": "<i4", "int16": "<i2", "int8": "i1",
                                   "string": None}
-#: Most channels a stream may declare: high-density EMG or EEG has a few hundred, a
-#: motion capture stream of 100 markers 300; 65 536 leaves room for anything real.
+#: Ceiling of `XdfLimits.max_channels` (and of the xdf_max_channels setting).
 MAX_CHANNELS = 65_536
-#: Largest stream header (bytes of XML). A header with a label, unit and type for each
-#: of 65 536 channels is about 6 MB; the XML parser takes several times that in memory.
+#: Ceiling of `XdfLimits.max_header_bytes`: a header with a label, unit and type for
+#: each of 65 536 channels is about 6 MB; the XML parser takes several times that.
 MAX_HEADER_BYTES = 16 * 1024**2
+#: Largest time (s, either sign) a time stamp or a clock offset may hold. LSL clocks
+#: count from boot, and outlets that stamp with Unix time are near 1.7e9; 1e10 s is 317
+#: years. Within it, every difference, median or x 1000 built from them stays finite.
+MAX_TIME = 1e10
 #: Memory a decoded string value costs beyond its text (a str object and its list slot),
 #: and a decoded string sample beyond its values (its list): CPython 3.11, 64-bit.
 _STRING_VALUE_COST = 8 + 50
@@ -70,6 +73,10 @@ class XdfLimits:
     max_samples: int = 20_000_000
     max_clock_offsets: int = 50_000
     max_decoded_bytes: int = 1024**3
+    #: Channels one stream may declare (at most MAX_CHANNELS).
+    max_channels: int = 4096
+    #: Bytes of one stream header's XML (at most MAX_HEADER_BYTES).
+    max_header_bytes: int = 1024**2
 
 
 @dataclass(frozen=True)
@@ -149,11 +156,12 @@ def _text(root: ElementTree.Element, path: str) -> str:
     return (root.findtext(path) or "").strip()
 
 
-def _stream_info(sid: int, xml: bytes, where: str) -> StreamInfo:
+def _stream_info(sid: int, xml: bytes, where: str, limits: XdfLimits) -> StreamInfo:
     """The checked fields of a stream header's XML."""
-    if len(xml) > MAX_HEADER_BYTES:
+    most_bytes = min(limits.max_header_bytes, MAX_HEADER_BYTES)
+    if len(xml) > most_bytes:
         raise XdfError(f"{where}: a stream header of {len(xml)} bytes (at most "
-                       f"{MAX_HEADER_BYTES})")
+                       f"{most_bytes}, the server's xdf_max_header_bytes)")
     if _DOCTYPE.search(xml):
         raise XdfError(f"{where}: the stream header declares a document type or entities, "
                        "which stream headers never need")
@@ -162,9 +170,10 @@ def _stream_info(sid: int, xml: bytes, where: str) -> StreamInfo:
     except ElementTree.ParseError as exc:
         raise XdfError(f"{where}: the stream header is not XML ({exc})") from exc
     count = _text(root, "channel_count")
-    if not _DIGITS.fullmatch(count) or not 1 <= int(count) <= MAX_CHANNELS:
+    most = min(limits.max_channels, MAX_CHANNELS)
+    if not _DIGITS.fullmatch(count) or not 1 <= int(count) <= most:
         raise XdfError(f"{where}: channel_count {count[:20]!r} must be a whole number "
-                       f"from 1 to {MAX_CHANNELS}")
+                       f"from 1 to {most} (the server's xdf_max_channels)")
     fmt = _text(root, "channel_format")
     if fmt not in FORMATS:
         raise XdfError(f"{where}: channel_format {fmt[:20]!r} is not one of "
@@ -251,7 +260,7 @@ def _walk(data: bytes, limits: XdfLimits, decode_strings: bool
                 if len(streams) >= limits.max_streams:
                     raise XdfError(f"{where}: more than {limits.max_streams} streams "
                                    "(the server's xdf_max_streams)")
-                info = _stream_info(sid, data[body:end], where)
+                info = _stream_info(sid, data[body:end], where, limits)
                 fmt = FORMATS[info.channel_format]
                 streams[sid] = _Pending(info, None if fmt is None else np.dtype(fmt))
             elif stream is None:
@@ -291,9 +300,10 @@ def _walk(data: bytes, limits: XdfLimits, decode_strings: bool
                     raise XdfError(f"{where}: more than {limits.max_clock_offsets} clock "
                                    "offsets in the file (the server's xdf_max_clock_offsets)")
                 collected, value = unpack_from("<dd", data, body)
-                if not (math.isfinite(collected) and math.isfinite(value)):
+                if not (abs(collected) < MAX_TIME and abs(value) < MAX_TIME):
                     raise XdfError(f"{where}: a clock offset ({collected}, {value}) that "
-                                   "is not a finite number")
+                                   f"is not a finite number of seconds within "
+                                   f"±{MAX_TIME:g} s")
                 stream.clock_times.append(collected)
                 stream.clock_values.append(value)
                 decoded += 16
@@ -428,11 +438,12 @@ def read(data: bytes, limits: XdfLimits | None = None, *, decode_strings: bool =
                 last = _decode_strings(data, stream, stamps[done:done + n], values, last,
                                        chunk)
             done += n
-        bad = np.flatnonzero(~np.isfinite(stamps))
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.abs(stamps) < MAX_TIME))  # NaN included
         if bad.size:
             raise XdfError(f"stream {stream.info.stream_id} ({stream.info.name[:100]!r}): "
                            f"sample {int(bad[0])} has the time stamp {stamps[bad[0]]}, "
-                           "not a finite number")
+                           f"not a finite number of seconds within ±{MAX_TIME:g} s")
         out.append(XdfStream(stream.info, stamps, values,
                              np.frombuffer(stream.clock_times, dtype=np.float64).copy(),
                              np.frombuffer(stream.clock_values, dtype=np.float64).copy()))

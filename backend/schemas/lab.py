@@ -124,7 +124,9 @@ class XdfStreamSummary(BaseModel):
     samples: int
     first_time: float | None
     last_time: float | None
-    channels: list[str]
+    channels: list[str] = Field(description="the first channel labels (at most the "
+                                "server's xdf_summary_channels, each cut to 64 characters)")
+    labelled_channels: int = Field(description="how many channels the stream's header labels")
     exostudy: bool = Field(description="the stream is one of ExoStudy's own outlets")
     trial_ids: list[int] = Field(description="trials of the session whose ticks it overlaps")
     offset_ms: float | None = Field(

@@ -90,8 +90,7 @@ class PacketType(enum.IntEnum):
 #: names (firmware/core), so statistics of the two devices compare key by key.
 VALIDATION_REASONS = ("short", "magic", "length", "auth", "version", "type", "flags",
                       "counts", "status", "reserved", "truth", "identity")
-STATE_REASONS = ("foreign", "flood", "replay", "stale_echo", "unexpected",
-                 "challenge_limited")
+STATE_REASONS = ("foreign", "flood", "replay", "stale_echo", "unexpected")
 
 
 class ProtocolError(ValueError):

@@ -4,8 +4,11 @@ It behaves like the firmware would, so the host cannot tell the difference: samp
 100 Hz on an absolute schedule, datagrams only from the configured host IP and at most
 8 tag checks per sample period, a host session only through a JOIN that answers the
 device's current single-use challenge, commands only of that session, with a later
-sequence number and answering a sample sent less than 100 ms earlier, the 100 ms
-watchdog that drops the solenoids, and a count of every packet sent late or dropped.
+sequence number and answering a sample sent less than 100 ms earlier, the watchdog
+that drops the solenoids 100 ms after the time of the sample the last applied command
+echoed (its `t` on the device clock, at or just before it was sent; not 100 ms after the
+command arrived: a command held back on the path gets a shorter life, never a longer
+one), and a count of every packet sent late or dropped.
 It also models the board's hardware release: the firmware toggles a heartbeat output
 once per period, an external monostable keeps the solenoid drivers enabled for 30 ms
 after each edge, and the simulated mechanism is energised only where the firmware
@@ -59,7 +62,7 @@ from controller.device.protocol import (
 )
 from controller.stop_flag import SignalSafeFlag
 
-WATCHDOG_S = 0.100  # no valid command for this long: solenoids off, WATCHDOG_RELEASED
+WATCHDOG_S = 0.100  # this long after the echoed sample's time: solenoids off, WATCHDOG_RELEASED
 FRESH_S = 0.100  # a command must answer a sample sent at most this long ago
 LATE_S = 0.002  # a sample sent more than this after its due time counts as late
 RESYNC_S = 0.25  # further behind than this (process stalled): rebase the schedule, no burst
@@ -67,7 +70,6 @@ SENT_RING = 16  # send times of the last samples, for freshness and round trips
 AUTH_BUDGET = 8  # datagrams from the host IP handled per sample period; the rest: flood
 CHALLENGE_REDRAW_S = 0.5  # a HELLO draws a new challenge when the current one is older
 CHALLENGE_LIFETIME_S = CHALLENGE_LIFETIME_MS / 1000
-CHALLENGE_GAP_S = 0.05  # at most one CHALLENGE per this long
 VERSION_GAP_S = 1.0  # at most one VERSION reply per this long
 HEARTBEAT_HOLD_S = 0.030  # the drivers' monostable holds the enable this long per edge
 DRAIN_MAX = 64  # datagrams read per wake-up at most, so a flood cannot starve the sample
@@ -120,7 +122,7 @@ class ServerStats:
     joins: int = 0  # JOINs accepted
     versions_sent: int = 0  # VERSION answers to authentic packets of another version
     #: Every dropped datagram by reason: the validation reasons and the state drops
-    #: (foreign, flood, replay, stale_echo, unexpected, challenge_limited), the names
+    #: (foreign, flood, replay, stale_echo, unexpected), the names
     #: `controller.device.protocol` and the C core share.
     drops: Counter[str] = field(default_factory=Counter)
     watchdog_releases: int = 0  # transitions from commanded to released
@@ -162,7 +164,6 @@ class ServerStats:
             "stale_commands": d["stale_echo"],
             "hellos": self.hellos,
             "challenges": self.challenges,
-            "challenge_limited": d["challenge_limited"],
             "joins": self.joins,
             "versions_sent": self.versions_sent,
             "foreign": d["foreign"],
@@ -233,15 +234,18 @@ class DeviceServer:
         self.host_session: int | None = None
         self._last_host_seq = 0
         self._challenge: _Challenge | None = None
-        self._challenge_sent_at = -math.inf
         self._version_sent_at = -math.inf
         self._budget = AUTH_BUDGET
         self._locks = (False, False)
         self._stop_heartbeat = False
         self._cmd_seq = -1
-        self._last_cmd_at: float | None = None
+        #: Due time of the sample the latest applied command echoed (its `t` on this
+        #: clock): the outputs stay on until WATCHDOG_S after it (None: released).
+        self._alive_from: float | None = None
         self._released = True
-        self._sent: deque[tuple[int, float]] = deque(maxlen=SENT_RING)  # (wire seq, at)
+        #: (wire seq, sent at, due at) of the latest samples: freshness and round trips
+        #: count from the send time, the watchdog from the due time (never later).
+        self._sent: deque[tuple[int, float, float]] = deque(maxlen=SENT_RING)
         # The heartbeat output and the monostable on the drivers' enable: off at boot.
         self._heartbeat = 0
         self._last_edge = -math.inf
@@ -303,7 +307,7 @@ class DeviceServer:
         what the mechanism gets, and send the sample."""
         self._budget = AUTH_BUDGET
         now = time.monotonic()
-        alive = self._last_cmd_at is not None and now - self._last_cmd_at <= WATCHDOG_S
+        alive = self._alive_from is not None and now - self._alive_from <= WATCHDOG_S
         if alive:
             left, right = self._locks
             self._released = False
@@ -343,7 +347,7 @@ class DeviceServer:
             # host sees the missing sequence number as a gap.
             self.stats.send_errors += 1
         sent = time.monotonic()
-        self._sent.append((k % SEQ_MODULUS, sent))
+        self._sent.append((k % SEQ_MODULUS, sent, min(due, sent)))
         lateness = sent - due
         self.stats.samples_sent += 1
         self.stats.lateness_s.append(lateness)
@@ -410,14 +414,13 @@ class DeviceServer:
 
     def _on_hello(self, packet: HelloPacket, sender: int, ip: str, port: int,
                   now: float) -> None:
+        # Every authentic HELLO within the budget is answered: the budget bounds the
+        # work, the answer goes to the host's IP only, and a limit shared by all sources
+        # would let replayed HELLOs take every answer and keep the host from joining.
         self.stats.hellos += 1
         c = self._challenge
         if c is None or c.spent or now - c.drawn_at > CHALLENGE_REDRAW_S:
             c = self._challenge = _Challenge(secrets.token_bytes(CHALLENGE_BYTES), now)
-        if now - self._challenge_sent_at < CHALLENGE_GAP_S:
-            self.stats.drops["challenge_limited"] += 1
-            return
-        self._challenge_sent_at = now
         answer = ChallengePacket(hello_seq=packet.host_seq, challenge=c.value,
                                  unique_id=self.unique_id, firmware=FIRMWARE)
         self._send(encode_challenge(answer, self.key, self.session, sender), ip, port)
@@ -442,7 +445,7 @@ class DeviceServer:
         # A new session inherits no lock: released, the watchdog starts released.
         self._locks = (False, False)
         self._stop_heartbeat = False
-        self._last_cmd_at = None
+        self._alive_from = None
         self._sent.clear()
 
     def _on_command(self, packet: CommandPacket, sender: int, receiver: int,
@@ -452,15 +455,17 @@ class DeviceServer:
                 or seq_diff(packet.host_seq, self._last_host_seq) <= 0):
             drops["replay"] += 1
             return
-        sent_at = next((at for seq, at in self._sent if seq == packet.echo_seq), None)
-        if sent_at is None or now - sent_at > FRESH_S:
+        echoed = next((s for s in self._sent if s[0] == packet.echo_seq), None)
+        if echoed is None or now - echoed[1] > FRESH_S:
             drops["stale_echo"] += 1
             return
+        _, sent_at, due_at = echoed
         self._last_host_seq = packet.host_seq
         self._locks = (packet.lock_left, packet.lock_right)
         self._stop_heartbeat = packet.stop_heartbeat
         self._cmd_seq = packet.host_seq
-        self._last_cmd_at = now
+        # The watchdog counts from the echoed sample's time, not from this arrival.
+        self._alive_from = due_at
         self.stats.commands += 1
         self.stats.rtt_s.append(now - sent_at)
 

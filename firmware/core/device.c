@@ -103,7 +103,10 @@ static void answer_version(exo_device *dev, exo_endpoint from, uint64_t now)
     dev->stats.versions_sent++;
 }
 
-/* HELLO: changes nothing about the host; draws a challenge if needed, answers it. */
+/* HELLO: changes nothing about the host; draws a challenge if needed, answers it.
+ * Every authentic HELLO gets its CHALLENGE: the tag-check budget already bounds the
+ * work, and the answer goes to the host's IP only. A rate limit shared by all sources
+ * would let replayed HELLOs take every answer and keep the host from joining. */
 static void on_hello(exo_device *dev, const exo_packet *pkt, exo_endpoint from, uint64_t now)
 {
     exo_stats *st = &dev->stats;
@@ -120,10 +123,6 @@ static void on_hello(exo_device *dev, const exo_packet *pkt, exo_endpoint from, 
         c->spent = 0;
         c->drawn_us = now;
     }
-    if (dev->challenge_sent && now - dev->last_challenge_us < EXO_CHALLENGE_INTERVAL_US) {
-        st->challenge_limited++;
-        return;
-    }
     exo_challenge_fields f;
     f.hello_seq = pkt->host_seq;
     f.lifetime_ms = EXO_CHALLENGE_LIFETIME_MS;
@@ -132,8 +131,6 @@ static void on_hello(exo_device *dev, const exo_packet *pkt, exo_endpoint from, 
     memcpy(f.firmware, dev->firmware, EXO_FIRMWARE_BYTES);
     size_t len = exo_wire_encode_challenge(&dev->key, &f, dev->session, pkt->sender, dev->tx,
                                            sizeof dev->tx);
-    dev->challenge_sent = 1;
-    dev->last_challenge_us = now;
     send_to(dev, len, from);
     st->challenges++;
 }
@@ -175,7 +172,8 @@ static void on_join(exo_device *dev, const exo_packet *pkt, exo_endpoint from, u
 }
 
 /* COMMAND: of this boot and the current host session, later than the last applied
- * one, answering a sample sent at most 100 ms ago. */
+ * one, answering a sample sent at most 100 ms ago; it holds the outputs until 100 ms
+ * after that sample was sent. */
 static void on_command(exo_device *dev, const exo_packet *pkt, uint64_t now)
 {
     exo_stats *st = &dev->stats;
@@ -192,7 +190,10 @@ static void on_command(exo_device *dev, const exo_packet *pkt, uint64_t now)
     dev->host.last_host_seq = pkt->host_seq;
     dev->locks = pkt->locks;
     dev->stop_heartbeat = pkt->stop_heartbeat;
-    exo_watchdog_feed(&dev->watchdog, now);
+    /* The watchdog counts from the echoed sample's time (its due time, at or just
+     * before its send time), not from this arrival: a command held back on the path
+     * gets the shorter life, never a longer one. */
+    exo_watchdog_feed(&dev->watchdog, dev->sent.due_us[slot]);
     st->commands++;
     ring_push(st->rtt_us, &st->rtt_n, &st->rtt_max_us, now - dev->sent.sent_us[slot]);
 }
@@ -325,7 +326,7 @@ static void tick(exo_device *dev, uint64_t due)
     send_to(dev, len, dev->host.addr);
 
     uint64_t sent = b->now_us(b->ctx);
-    exo_sent_note(&dev->sent, s.seq, sent);
+    exo_sent_note(&dev->sent, s.seq, sent, due);
 
     uint64_t lateness = sent > due ? sent - due : 0;
     st->samples_sent++;

@@ -34,7 +34,7 @@
  * port can print the same summary. Counters are 64-bit and never wrap in practice.
  * Every datagram the board hands over is counted exactly once: as foreign, flood,
  * malformed[reason], unexpected, replayed, stale_echo, or as a hello, join or
- * command (challenge_limited and the sends are counted besides).
+ * command (the sends are counted besides).
  *
  * Percentiles: the core keeps the latest EXO_STATS_RING lateness and round-trip
  * values in rings. `*_n` counts every value ever written; value j (0-based, j < n)
@@ -51,10 +51,9 @@ typedef struct {
     uint32_t rtt_max_us;
     uint32_t rtt_us[EXO_STATS_RING]; /* sample sent -> COMMAND echoing it received */
     uint64_t commands;   /* valid commands applied */
-    uint64_t hellos;     /* authentic HELLOs (answered or not) */
+    uint64_t hellos;     /* authentic HELLOs within the budget (each one answered) */
     uint64_t joins;      /* JOINs accepted */
     uint64_t challenges; /* CHALLENGEs sent */
-    uint64_t challenge_limited; /* HELLOs not answered: a CHALLENGE went out < 50 ms ago */
     uint64_t versions_sent;     /* VERSION answers sent */
     uint64_t foreign;    /* datagrams from any IP but the configured host */
     uint64_t flood;      /* from the host IP, over the period's tag-check budget: unread */
@@ -94,8 +93,6 @@ typedef struct exo_device_s {
 
     exo_host host;           /* H, its last host_seq and address */
     exo_challenge challenge; /* the one challenge */
-    int challenge_sent;      /* a CHALLENGE has gone out (last_challenge_us valid) */
-    uint64_t last_challenge_us;
     int version_sent;        /* a VERSION has gone out (last_version_us valid) */
     uint64_t last_version_us;
     unsigned auth_checks;    /* datagrams from the host IP this period (budget

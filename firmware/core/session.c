@@ -30,11 +30,12 @@ int exo_challenge_accepts(const exo_challenge *c, const uint8_t answer[EXO_CHALL
 
 void exo_sent_clear(exo_sent_ring *r) { memset(r, 0, sizeof *r); }
 
-void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us)
+void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us, uint64_t due_us)
 {
     uint32_t slot = seq % EXO_SENT_RING;
     r->seq[slot] = seq;
     r->sent_us[slot] = sent_us;
+    r->due_us[slot] = due_us <= sent_us ? due_us : sent_us;
     r->valid[slot] = 1;
 }
 

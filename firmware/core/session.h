@@ -15,7 +15,6 @@
 #define EXO_FRESH_US 100000u              /* a COMMAND must echo a sample this recent */
 #define EXO_CHALLENGE_LIFETIME_MS 1000u   /* a JOIN must answer a challenge this recent */
 #define EXO_CHALLENGE_REDRAW_US 500000u   /* a HELLO redraws a challenge older than this */
-#define EXO_CHALLENGE_INTERVAL_US 50000u  /* at most one CHALLENGE per this */
 
 /* Signed distance from `old` to `new` in uint32 serial arithmetic (RFC 1982): > 0 if
  * `new` is later, < 0 if earlier, also across the wrap. A distance of exactly 2^31 is
@@ -39,15 +38,19 @@ int exo_challenge_stale(const exo_challenge *c, uint64_t now_us);
 int exo_challenge_accepts(const exo_challenge *c, const uint8_t answer[EXO_CHALLENGE_BYTES],
                           uint64_t now_us);
 
-/* Send times of the latest EXO_SENT_RING samples of the current host session. */
+/* Send and due times of the latest EXO_SENT_RING samples of the current host session.
+ * The send time decides freshness and the round trip; the due time (the sample's
+ * `t_us` on the device clock, at or before its send time) starts the 100 ms for which
+ * a command echoing it may hold the outputs. */
 typedef struct {
     uint32_t seq[EXO_SENT_RING];
     uint64_t sent_us[EXO_SENT_RING];
+    uint64_t due_us[EXO_SENT_RING];
     uint8_t valid[EXO_SENT_RING];
 } exo_sent_ring;
 
 void exo_sent_clear(exo_sent_ring *r);
-void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us);
+void exo_sent_note(exo_sent_ring *r, uint32_t seq, uint64_t sent_us, uint64_t due_us);
 /* The slot of sample `seq` if it is in the ring and was sent at most EXO_FRESH_US
  * before `now_us`, else -1. */
 int exo_sent_fresh(const exo_sent_ring *r, uint32_t seq, uint64_t now_us);

@@ -1,6 +1,7 @@
 /*
- * watchdog.c - see watchdog.h. "Alive" means a command arrived at most 100 ms ago,
- * the same comparison as the reference device (now - last <= WATCHDOG_S).
+ * watchdog.c - see watchdog.h. "Alive" means the sample the latest command echoed was
+ * sent at most 100 ms ago, the same comparison as the reference device
+ * (now - sent_at(echo) <= WATCHDOG_S).
  */
 #include "watchdog.h"
 
@@ -12,10 +13,10 @@ void exo_watchdog_init(exo_watchdog *w)
     w->releases = 0;
 }
 
-void exo_watchdog_feed(exo_watchdog *w, uint64_t now_us)
+void exo_watchdog_feed(exo_watchdog *w, uint64_t sample_sent_us)
 {
     w->fed = 1;
-    w->last_cmd_us = now_us;
+    w->last_cmd_us = sample_sent_us;
 }
 
 void exo_watchdog_release(exo_watchdog *w) { w->fed = 0; }

@@ -17,15 +17,16 @@
  *   accepted only after 8 datagrams in the current period or the one before);
  * - a solenoid output on requires an authentic COMMAND of the current joined session,
  *   later than every applied host_seq, applied within 100 ms of the send time of the
- *   sample it echoes, and no JOIN since; the outputs follow the latest applied command
- *   while it is younger than 100 ms, and both are off once 100 ms + one period have
- *   passed since it;
+ *   sample it echoes, and no JOIN since; the outputs are set on only while that sample
+ *   was sent at most 100 ms ago (however late the command arrived), follow the latest
+ *   applied command while its sample is younger than 100 ms, and both are off once
+ *   100 ms + one period have passed since that sample was sent;
  * - a HELLO never changes the session, sequence, destination or outputs: only a JOIN
  *   moves where samples go;
  * - every packet the device sends is valid under the key: SAMPLEs (seq +1 each, to the
  *   latest JOIN's source and session, status matching the outputs, drop counters as
- *   counted), CHALLENGEs (to the HELLO's source, at most one per 50 ms, bytes redrawn
- *   when the document says), VERSION (only after an authentic other-version datagram,
+ *   counted), CHALLENGEs (one to the source of every authentic HELLO within the
+ *   budget, none otherwise, bytes redrawn when the document says), VERSION (only after an authentic other-version datagram,
  *   at most one per second);
  * - the heartbeat toggles, and does not while an applied STOP_HEARTBEAT is in force.
  * On a violation the harness prints the step and the datagram and aborts (libFuzzer
@@ -106,7 +107,6 @@ static const char *step_name;
  * (sample sent, heartbeat edge, watchdog kick), and tag checks since the latest. */
 static unsigned host_rx_cur, host_rx_prev, tag_checks_cur;
 static int last_was_boundary;
-static uint64_t limited_delta; /* challenge_limited's change in this poll */
 static uint32_t poll_wait;     /* what the last poll returned */
 /* The command in force when the outputs were last set (the outputs change only at
  * set_solenoids, once per sample period): what justifies them until the next call. */
@@ -115,7 +115,7 @@ static int sol_applied;
 static unsigned long join_left_on;
 static int trace; /* FZ_TRACE=1 in the environment: print each step (for reading a seed) */
 static unsigned sol_locks;
-static uint64_t sol_applied_at;
+static uint64_t sol_echo_at;
 
 static void dump(const char *what, const uint8_t *d, size_t n)
 {
@@ -287,9 +287,9 @@ static void boundary(void)
 }
 
 /* The outputs the document allows at `now`, given the command in force (applied,
- * locks, applied_at). */
+ * locks, and echo_at: the send time of the sample it echoed). */
 static void check_outputs_by(int left, int right, uint64_t now, const char *when, int applied,
-                             unsigned locks, uint64_t applied_at)
+                             unsigned locks, uint64_t echo_at)
 {
     if (!left && !right)
         return;
@@ -299,14 +299,14 @@ static void check_outputs_by(int left, int right, uint64_t now, const char *when
     if (((left && !(locks & 1u)) || (right && !(locks & 2u))))
         fail("%s: output (%d, %d) not asked by the latest applied COMMAND (locks %u)", when,
              left, right, locks);
-    if (now - applied_at > FZ_FRESH_US + FZ_PERIOD_US)
-        fail("%s: output on %llu us after the last applied COMMAND", when,
-             (unsigned long long)(now - applied_at));
+    if (now - echo_at > FZ_FRESH_US + FZ_PERIOD_US)
+        fail("%s: output on %llu us after the sample the last applied COMMAND echoed", when,
+             (unsigned long long)(now - echo_at));
 }
 
 static void check_outputs(int left, int right, uint64_t now, const char *when)
 {
-    check_outputs_by(left, right, now, when, M.joined && M.applied, M.locks, M.applied_at);
+    check_outputs_by(left, right, now, when, M.joined && M.applied, M.locks, M.echo_at);
 }
 
 static void check_sample(const event *e, const fz_pkt *p)
@@ -340,6 +340,16 @@ static void check_sample(const event *e, const fz_pkt *p)
         fail("SAMPLE drop counters %u/%u/%u, counted %llu/%llu/%llu", p->auth_drops,
              p->replay_drops, p->stale_drops, (unsigned long long)M.auth_drops,
              (unsigned long long)M.replay_drops, (unsigned long long)M.stale_drops);
+    /* The schedule (protocol "Timing"): sample n is due at origin + t_us, never sent
+     * before it; a device more than 250 ms behind rebases its origin instead. */
+    uint64_t due = M.origin + p->t_us;
+    if (e->at < due)
+        fail("SAMPLE t_us %llu sent %llu us before it was due", (unsigned long long)p->t_us,
+             (unsigned long long)(due - e->at));
+    if (e->at - due > FZ_RESYNC_US) {
+        M.origin = e->at - p->t_us;
+        due = e->at;
+    }
     M.any_sample = 1;
     M.next_sample_seq = p->seq + 1u;
     M.last_t_us = p->t_us;
@@ -349,6 +359,7 @@ static void check_sample(const event *e, const fz_pkt *p)
     }
     M.ring[M.ring_n].seq = p->seq;
     M.ring[M.ring_n].at = e->at;
+    M.ring[M.ring_n].due = due;
     M.ring_n++;
     boundary();
 }
@@ -396,10 +407,6 @@ static void walk(fz_count rx_count, fz_reason rx_reason)
                 if (++tag_checks_cur > FZ_BUDGET)
                     fail("more than %u tag checks in one period", FZ_BUDGET);
             answer = fz_model_apply(&M, want, want_r, &p, e->ip, e->port, e->at);
-            if (want == FZ_C_HELLO && limited_delta != (answer == FZ_ANSWER_NONE ? 1u : 0u))
-                fail("challenge_limited moved by %llu, the document says %s",
-                     (unsigned long long)limited_delta,
-                     answer == FZ_ANSWER_NONE ? "rate-limited" : "answered");
             answer_ip = e->ip;
             answer_port = e->port;
             answer_seq = p.host_seq;
@@ -417,21 +424,26 @@ static void walk(fz_count rx_count, fz_reason rx_reason)
             break;
         case EV_SOL:
             check_outputs(e->a, e->b, e->at, "set_solenoids");
+            /* Set on only while the echoed sample is at most 100 ms old: a command
+             * that arrived late (held back on the path) gets a shorter life. */
+            if ((e->a || e->b) && e->at - M.echo_at > FZ_FRESH_US)
+                fail("set_solenoids: output on %llu us after the sample the COMMAND echoed",
+                     (unsigned long long)(e->at - M.echo_at));
             sol_applied = M.joined && M.applied;
             sol_locks = M.locks;
-            sol_applied_at = M.applied_at;
+            sol_echo_at = M.echo_at;
             /* Two-sided: inside the window the outputs are what the command says. */
-            if (M.joined && M.applied && e->at - M.applied_at < FZ_FRESH_US &&
+            if (M.joined && M.applied && e->at - M.echo_at < FZ_FRESH_US &&
                 (e->a != (int)(M.locks & 1u) || e->b != (int)((M.locks >> 1) & 1u)))
-                fail("outputs (%d, %d) %llu us after a COMMAND with locks %u", e->a, e->b,
-                     (unsigned long long)(e->at - M.applied_at), M.locks);
+                fail("outputs (%d, %d) %llu us after the sample a COMMAND with locks %u echoed",
+                     e->a, e->b, (unsigned long long)(e->at - M.echo_at), M.locks);
             break;
         case EV_HB:
             if (B.hb_known && e->a == B.hb_level)
                 fail("heartbeat set to %d twice: not a toggle", e->a);
             B.hb_known = 1;
             B.hb_level = e->a;
-            if (M.applied && M.stop_heartbeat && e->at - M.applied_at < FZ_FRESH_US)
+            if (M.applied && M.stop_heartbeat && e->at - M.echo_at < FZ_FRESH_US)
                 fail("heartbeat toggled while STOP_HEARTBEAT is in force");
             boundary();
             break;
@@ -482,8 +494,6 @@ static void walk(fz_count rx_count, fz_reason rx_reason)
                 memcpy(seen_chal[1], seen_chal[0], 16);
                 memcpy(seen_chal[0], p.challenge, 16);
                 n_seen_chal++;
-                M.chal_sent_ever = 1;
-                M.chal_sent_at = e->at;
             } else if (p.type == FZ_T_VERSION) {
                 if ((answer != FZ_ANSWER_VERSION && answer != FZ_ANSWER_VERSION_MAY) || got_answer)
                     fail("VERSION sent without an authentic datagram of another version to answer");
@@ -511,12 +521,10 @@ static void poll_once(void)
     int delivered = B.pending;
     uint64_t host_ip_before = dev.stats.host.ip;
     uint16_t host_port_before = dev.stats.host.port;
-    uint64_t limited_before = dev.stats.challenge_limited;
     snapshot(&before);
     B.n_ev = 0;
     poll_wait = exo_device_poll(&dev);
     snapshot(&after);
-    limited_delta = dev.stats.challenge_limited - limited_before;
     if (B.pending)
         fail("the device left a datagram unread");
     fz_count c = FZ_C_NONE;
@@ -539,7 +547,7 @@ static void poll_once(void)
      * by the command in force then (the core applies a COMMAND, and a JOIN's release,
      * from the next period on); they must still drop 100 ms + one period after it. */
     check_outputs_by(B.left, B.right, B.fb.now, "after the step", sol_applied, sol_locks,
-                     sol_applied_at);
+                     sol_echo_at);
     if ((B.left || B.right) && c == FZ_C_JOIN)
         join_left_on++;
 }

@@ -89,9 +89,7 @@ int fz_model_apply(fz_model *m, fz_count c, fz_reason r, const fz_pkt *p, uint32
             m->chal_awaiting_draw = 1;
             m->chal_drawn_at = now;
         }
-        if (m->chal_sent_ever && now - m->chal_sent_at < FZ_CHALLENGE_GAP_US)
-            return FZ_ANSWER_NONE;
-        return FZ_ANSWER_CHALLENGE;
+        return FZ_ANSWER_CHALLENGE; /* every authentic HELLO within the budget */
     }
     case FZ_C_JOIN:
         m->chal_spent = 1;
@@ -104,6 +102,8 @@ int fz_model_apply(fz_model *m, fz_count c, fz_reason r, const fz_pkt *p, uint32
         m->locks = 0;
         m->stop_heartbeat = 0;
         m->ring_n = 0;
+        if (!m->stream_started)
+            m->origin = now; /* the first JOIN starts the stream: seq 0 at t_us 0 */
         m->stream_started = 1;
         return 0;
     case FZ_C_COMMAND:
@@ -111,7 +111,9 @@ int fz_model_apply(fz_model *m, fz_count c, fz_reason r, const fz_pkt *p, uint32
         m->applied = 1;
         m->locks = p->locks;
         m->stop_heartbeat = p->stop_heartbeat;
-        m->applied_at = now;
+        for (unsigned i = 0; i < m->ring_n; i++)
+            if (m->ring[i].seq == p->echo_seq)
+                m->echo_at = m->ring[i].due; /* predict found it, fresh */
         return 0;
     case FZ_C_REPLAY:
         m->replay_drops++;

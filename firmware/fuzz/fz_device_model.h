@@ -18,9 +18,9 @@
 #define FZ_FRESH_US (100u * FZ_MS)     /* freshness and watchdog window */
 #define FZ_LIFETIME_US (1000u * FZ_MS) /* challenge lifetime */
 #define FZ_REDRAW_US (500u * FZ_MS)    /* a HELLO redraws an older challenge */
-#define FZ_CHALLENGE_GAP_US (50u * FZ_MS)
 #define FZ_VERSION_GAP_US (1000u * FZ_MS)
 #define FZ_BUDGET 8u
+#define FZ_RESYNC_US (250u * FZ_MS) /* further behind: the schedule is rebased */
 #define FZ_RING 16u
 
 /* Where a datagram is counted (the device's counters). */
@@ -41,7 +41,8 @@ const char *fz_count_name(fz_count c, fz_reason r);
 
 typedef struct {
     uint32_t seq;
-    uint64_t at;
+    uint64_t at;  /* sent (freshness is judged by it) */
+    uint64_t due; /* its scheduled time, origin + t_us (<= at): the watchdog counts from it */
 } fz_sent_sample;
 
 typedef struct {
@@ -62,14 +63,13 @@ typedef struct {
     uint8_t chal[16];
     uint64_t chal_drawn_at;
 
-    int chal_sent_ever;
-    uint64_t chal_sent_at;
     int version_sent_ever;
     uint64_t version_sent_at;
 
     fz_sent_sample ring[FZ_RING]; /* samples sent since the last JOIN, newest at ring_n-1 */
     unsigned ring_n;
     int stream_started;
+    uint64_t origin;      /* the schedule's origin: sample n is due at origin + t_us */
     uint32_t next_sample_seq;
     uint64_t last_t_us;
     int any_sample;
@@ -77,7 +77,9 @@ typedef struct {
     int applied;          /* a COMMAND applied since the last JOIN */
     unsigned locks;
     int stop_heartbeat;
-    uint64_t applied_at;
+    uint64_t echo_at;     /* due time of the sample it echoed: the outputs it asks for
+                             may stay on until echo_at + 100 ms (+ one period), however
+                             late it arrived */
 
     uint64_t auth_drops, replay_drops, stale_drops; /* what SAMPLEs must report */
 } fz_model;

@@ -1,8 +1,8 @@
 /*
  * test_device.c - the device loop against the fake board, rule by rule of the
  * protocol's "The device's rules": start-up (solenoids released, entropy and a valid
- * identity required), source and tag-check budget (flood), HELLO -> CHALLENGE (rate
- * limit, redraw), JOIN (receiver, challenge equal / spent / expired, release, ring
+ * identity required), source and tag-check budget (flood), HELLO -> CHALLENGE (every
+ * one answered, redraw), JOIN (receiver, challenge equal / spent / expired, release, ring
  * cleared, stream start), COMMAND (replay, stale_echo, apply), VERSION answers, the
  * heartbeat and its status bits, the watchdog, the 32-bit sequence and 64-bit clock
  * wraps, timing, the rate-factor probe, ground truth, and stop.
@@ -82,17 +82,41 @@ static int last_of_type(exo_packet *p, unsigned type)
 
 static int last_sample(exo_packet *p) { return last_of_type(p, EXO_TYPE_SAMPLE); }
 
-/* seq of the latest sample sent (the one a host answers). */
-static uint32_t last_seq(void)
+/* The latest sample sent (the one a host answers), or NULL. */
+static const fake_datagram *last_sample_sent(uint32_t *seq)
 {
     for (unsigned back = 0; back < FAKE_QUEUE && back < fb.n_sent; back++) {
         const fake_datagram *d = &fb.sent[(fb.n_sent - 1u - back) % FAKE_QUEUE];
         exo_packet p;
         if (exo_wire_decode(&key, d->data, (size_t)d->len, &p) == EXO_DROP_NONE
-            && p.type == EXO_TYPE_SAMPLE)
-            return p.sample.seq;
+            && p.type == EXO_TYPE_SAMPLE) {
+            *seq = p.sample.seq;
+            return d;
+        }
     }
-    return 0xDEADBEEFu;
+    return NULL;
+}
+
+/* seq of the latest sample sent. */
+static uint32_t last_seq(void)
+{
+    uint32_t seq = 0xDEADBEEFu;
+    (void)last_sample_sent(&seq);
+    return seq;
+}
+
+/* The latest sample's time on the device clock: its t_us from the stream's origin
+ * (no resync in these tests), at or before its send time. The watchdog counts a
+ * command's 100 ms from the time of the sample it echoes. */
+static uint64_t last_sample_at(void)
+{
+    uint32_t seq;
+    const fake_datagram *d = last_sample_sent(&seq);
+    exo_packet p;
+    if (!d || exo_wire_decode(&key, d->data, (size_t)d->len, &p) != EXO_DROP_NONE)
+        return 0;
+    CHECK(dev.start_us + p.sample.t_us <= (uint64_t)d->at_us);
+    return dev.start_us + p.sample.t_us;
 }
 
 /* The host's command answering the latest sample. */
@@ -193,7 +217,9 @@ static void startup(void)
 }
 
 /* HELLO draws a challenge and changes nothing else; the CHALLENGE goes to the HELLO's
- * source; at most one per 50 ms; a challenge older than 500 ms, or spent, is redrawn. */
+ * source; every authentic HELLO within the budget is answered (no rate limit an
+ * attacker's replayed HELLOs could use up); a challenge older than 500 ms, or spent,
+ * is redrawn. */
 static void hello_and_challenge(void)
 {
     setup(1, 0);
@@ -237,22 +263,37 @@ static void hello_and_challenge(void)
     uint8_t first[16];
     memcpy(first, c.challenge.challenge, 16);
 
-    /* Another HELLO 20 ms later: counted, not answered (rate limit). */
-    fb.now = hello_at + 20000;
+    /* A replayed HELLO from another port and the host's own, 1 us later in the same
+     * period: both answered, each to its source, with the same challenge (not 500 ms
+     * old), so a replayer cannot take the host's answer away. */
+    fb.now = hello_at + 1;
+    push_hello_from(0x5555u, HOST_IP, 40002); /* any session may ask */
     push_hello_from(HOST_SESSION, HOST_IP, 40001);
     exo_device_poll(&dev);
-    CHECK_EQ(dev.stats.hellos, 2);
-    CHECK_EQ(dev.stats.challenge_limited, 1);
-    CHECK_EQ(fb.n_sent, 1);
-
-    /* 50 ms after the CHALLENGE: answered, with the same challenge (not 500 ms old). */
-    fb.now = hello_at + 50000;
-    push_hello_from(0x5555u, HOST_IP, 40002); /* any session may ask */
-    exo_device_poll(&dev);
-    CHECK_EQ(fb.n_sent, 2);
+    CHECK_EQ(dev.stats.hellos, 3);
+    CHECK_EQ(dev.stats.challenges, 3);
+    CHECK_EQ(fb.n_sent, 3);
     CHECK(last_of_type(&c, EXO_TYPE_CHALLENGE));
-    CHECK_EQ(c.receiver, 0x5555u);
+    CHECK_EQ(fake_last_sent(&fb)->peer.port, 40001);
+    CHECK_EQ(c.receiver, HOST_SESSION);
     CHECK(memcmp(c.challenge.challenge, first, 16) == 0);
+    const fake_datagram *other = &fb.sent[(fb.n_sent - 2u) % FAKE_QUEUE];
+    exo_packet o;
+    CHECK(exo_wire_decode(&key, other->data, (size_t)other->len, &o) == EXO_DROP_NONE);
+    CHECK_EQ(other->peer.port, 40002);
+    CHECK_EQ(o.receiver, 0x5555u);
+    CHECK(memcmp(o.challenge.challenge, first, 16) == 0);
+
+    /* A full period's budget of HELLOs (8): eight CHALLENGEs; the ninth is flood. */
+    run_for(PERIOD);
+    unsigned sent_before = fb.n_sent;
+    uint64_t flood_before = dev.stats.flood;
+    for (unsigned i = 0; i < EXO_AUTH_BUDGET + 1u; i++)
+        push_hello_from(0x5555u, HOST_IP, 40002);
+    exo_device_poll(&dev);
+    CHECK_EQ(fb.n_sent - sent_before, EXO_AUTH_BUDGET);
+    CHECK_EQ(dev.stats.flood - flood_before, 1);
+    CHECK_EQ(dev.stats.challenges, 3 + EXO_AUTH_BUDGET);
 
     /* 500 ms after it was drawn: still the same; 1 us later: a new one. */
     fb.now = hello_at + 500000;
@@ -410,7 +451,6 @@ static void join_rules(void)
     /* Another host session joins: the first one's commands are replays now. */
     const uint64_t other = 0x1111222233334444u;
     uint32_t old_seq = host_seq;
-    run_for(EXO_CHALLENGE_INTERVAL_US); /* the last CHALLENGE went out just now */
     CHECK(join(other, 40300));
     push_command_full(HOST_SESSION, dev.session, old_seq + 50, last_seq(), EXO_LOCK_LEFT, 0, HOST_IP, 40200);
     exo_device_poll(&dev);
@@ -517,10 +557,11 @@ static void commands_and_watchdog(void)
     CHECK_EQ(dev.stats.commands, before + (fb.now - sent_at <= EXO_FRESH_US ? 1u : 0u));
     CHECK(fb.now - sent_at == EXO_FRESH_US);
 
-    /* Watchdog: no command after this one. HELLOs keep coming; they do not feed it. */
+    /* Watchdog: no command after this one. HELLOs keep coming; they do not feed it.
+     * The release counts from the time of the sample the command echoes. */
     push_command(EXO_LOCK_LEFT | EXO_LOCK_RIGHT);
+    const uint64_t echoed_at = last_sample_at();
     exo_device_poll(&dev);
-    const uint64_t last_cmd = fb.now;
     uint64_t released_at = 0;
     unsigned released_samples = 0;
     for (unsigned ms = 1; ms <= 200; ms++) {
@@ -539,8 +580,8 @@ static void commands_and_watchdog(void)
         if (!released_at && ms >= PERIOD / 1000) /* applied from the next period on */
             CHECK(fb.left == 1 && fb.right == 1);
     }
-    CHECK(released_at > last_cmd + EXO_WATCHDOG_US);
-    CHECK(released_at <= last_cmd + EXO_WATCHDOG_US + PERIOD);
+    CHECK(released_at > echoed_at + EXO_WATCHDOG_US);
+    CHECK(released_at <= echoed_at + EXO_WATCHDOG_US + PERIOD);
     CHECK(fb.left == 0 && fb.right == 0);
     CHECK(released_samples >= 9);
 
@@ -563,17 +604,18 @@ static void commands_and_watchdog(void)
 }
 
 /* Whatever the phase of the last command within the sample period, the release comes
- * 100-110 ms after it. */
+ * 100-110 ms after the sample it echoes was sent; it does not wait for 100 ms after
+ * the command's arrival. */
 static void watchdog_phases(void)
 {
     for (unsigned phase = 0; phase < PERIOD; phase += 1250) {
         setup(0, 0);
         CHECK_EQ(start(), 0);
         CHECK(join(HOST_SESSION, HOST_PORT));
+        const uint64_t echoed_at = last_sample_at();
         fb.now += phase;
         push_command(EXO_LOCK_LEFT);
         exo_device_poll(&dev);
-        uint64_t last_cmd = fb.now;
         uint64_t off_at = 0;
         for (unsigned step = 0; step < 400 && !off_at; step++) {
             int was_on = fb.left;
@@ -582,8 +624,47 @@ static void watchdog_phases(void)
             if (was_on && !fb.left)
                 off_at = fb.now;
         }
-        CHECK(off_at > last_cmd + EXO_WATCHDOG_US);
-        CHECK(off_at <= last_cmd + EXO_WATCHDOG_US + PERIOD);
+        CHECK(off_at > echoed_at + EXO_WATCHDOG_US);
+        CHECK(off_at <= echoed_at + EXO_WATCHDOG_US + PERIOD);
+    }
+}
+
+/* A lock command held back on the path (up to the 100 ms freshness limit) and no
+ * command after it: the outputs it drives drop within 100 ms + one period of the
+ * echoed sample's send time, so the delay shortens the lock and never extends it. */
+static void delayed_command_watchdog(void)
+{
+    static const unsigned delays_ms[] = {0, 5, 50, 89, 95, 99, 100};
+    for (unsigned i = 0; i < sizeof delays_ms / sizeof delays_ms[0]; i++) {
+        setup(0, 0);
+        CHECK_EQ(start(), 0);
+        CHECK(join(HOST_SESSION, HOST_PORT));
+        uint32_t echo = last_seq();
+        const uint64_t echoed_at = last_sample_at();
+        run_for((uint64_t)delays_ms[i] * 1000u); /* samples go on; no command arrives */
+        push_command_full(HOST_SESSION, dev.session, ++host_seq, echo, EXO_LOCK_LEFT, 0,
+                          HOST_IP, HOST_PORT);
+        exo_device_poll(&dev);
+        CHECK_EQ(dev.stats.commands, 1); /* fresh: applied */
+        uint64_t last_on = 0;
+        unsigned on_samples = 0;
+        for (unsigned step = 0; step < 300; step++) {
+            fb.now += 1000;
+            unsigned n_before = fb.n_sent;
+            exo_device_poll(&dev);
+            exo_packet p;
+            if (fb.n_sent != n_before && last_sample(&p)
+                && (p.sample.status & EXO_STATUS_SOLENOID_LEFT)) {
+                last_on = fb.now;
+                on_samples++;
+            }
+        }
+        CHECK(fb.left == 0);
+        CHECK_EQ(dev.stats.watchdog_releases, on_samples ? 1u : 0u);
+        CHECK(last_on <= echoed_at + EXO_WATCHDOG_US);
+        /* Applied from the next period on, while the echoed sample is recent enough. */
+        if (delays_ms[i] + PERIOD / 1000u < EXO_WATCHDOG_US / 1000u)
+            CHECK(on_samples >= (EXO_WATCHDOG_US / 1000u - delays_ms[i]) / (PERIOD / 1000u) - 1u);
     }
 }
 
@@ -939,6 +1020,7 @@ void test_device(void)
     join_rules();
     commands_and_watchdog();
     watchdog_phases();
+    delayed_command_watchdog();
     flood_budget();
     unexpected_and_version();
     heartbeat();

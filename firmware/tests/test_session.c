@@ -60,7 +60,7 @@ static void sent_ring(void)
     const uint64_t t0 = 5000000;
     /* 20 samples across the u32 wrap: 0xFFFFFFF6 .. 0x00000009 */
     for (uint32_t i = 0; i < 20; i++)
-        exo_sent_note(&r, 0xFFFFFFF6u + i, t0 + 10000u * i);
+        exo_sent_note(&r, 0xFFFFFFF6u + i, t0 + 10000u * i, t0 + 10000u * i - 300u);
     uint64_t now = t0 + 10000u * 19;
     CHECK(exo_sent_fresh(&r, 0xFFFFFFF6u, now) == -1); /* overwritten by a later one */
     CHECK(exo_sent_fresh(&r, 0xFFFFFFF9u, now) == -1);
@@ -73,6 +73,16 @@ static void sent_ring(void)
     /* exactly 100 ms is still fresh; one microsecond more is not */
     CHECK(exo_sent_fresh(&r, 9, now + 100000) >= 0);
     CHECK(exo_sent_fresh(&r, 9, now + 100001) == -1);
+    /* Freshness is judged by the send time; the due time is kept beside it (never
+     * after the send time) for the watchdog. */
+    int slot = exo_sent_fresh(&r, 9, now);
+    CHECK(slot >= 0);
+    CHECK_EQ(r.sent_us[slot], now);
+    CHECK_EQ(r.due_us[slot], now - 300u);
+    exo_sent_note(&r, 11, now, now + 5u); /* a due time after the send: clamped */
+    slot = exo_sent_fresh(&r, 11, now);
+    CHECK(slot >= 0);
+    CHECK_EQ(r.due_us[slot], now);
     exo_sent_clear(&r);
     CHECK(exo_sent_fresh(&r, 9, now) == -1);
 }

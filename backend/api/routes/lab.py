@@ -15,7 +15,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, File, HTTPException, Path, Request, UploadFile
 from fastapi.responses import Response
 from sqlalchemy import Engine, select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, defer
 
 from backend.analysis import markers as analysis_markers
 from backend.api.deps import (
@@ -228,7 +228,7 @@ async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser
         invalid(["body", "file"], str(exc))
     att = XdfAttachment(session_id=session_id, filename=(file.filename or "recording.xdf")[:255],
                         size_bytes=len(data), sha256=hashlib.sha256(data).hexdigest(),
-                        content=data, streams=[s.model_dump() for s in summary],
+                        content=data, streams=summary,
                         created_by=user.id)
     db.add(att)
     db.flush()
@@ -242,7 +242,9 @@ async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser
 def list_xdf(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[XdfAttachment]:
     """The session's XDF files with their aligned streams."""
     one_or_404(db, StudySession, session_id, "session")
-    return list(db.scalars(select(XdfAttachment).where(XdfAttachment.session_id == session_id)
+    # The summaries only: the files, up to max_upload_bytes each, are not read.
+    return list(db.scalars(select(XdfAttachment).options(defer(XdfAttachment.content))
+                           .where(XdfAttachment.session_id == session_id)
                            .order_by(XdfAttachment.id)))
 
 

@@ -98,11 +98,11 @@ void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out)
     put_float(out, "rtt_max_ms", st->rtt_n ? st->rtt_max_us / 1000.0 : NAN);
 #define U(x) ((unsigned long long)(x))
     fprintf(out, ", \"commands\": %llu, \"stale_commands\": %llu, \"hellos\": %llu, "
-                 "\"challenges\": %llu, \"challenge_limited\": %llu, \"joins\": %llu, "
+                 "\"challenges\": %llu, \"joins\": %llu, "
                  "\"versions_sent\": %llu, \"foreign\": %llu, \"flood\": %llu, "
                  "\"unexpected\": %llu, \"malformed\": {",
             U(st->commands), U(st->stale_echo), U(st->hellos), U(st->challenges),
-            U(st->challenge_limited), U(st->joins), U(st->versions_sent), U(st->foreign),
+            U(st->joins), U(st->versions_sent), U(st->foreign),
             U(st->flood), U(st->unexpected));
     int first = 1;
     for (int r = 1; r < EXO_DROP_REASONS; r++) {
@@ -126,10 +126,10 @@ void linux_sim_stats_print(linux_sim_stats *s, const exo_device *dev, FILE *out)
     const struct {
         const char *name;
         uint64_t n;
-    } state[6] = {{"foreign", st->foreign},     {"flood", st->flood},
+    } state[5] = {{"foreign", st->foreign},     {"flood", st->flood},
                   {"replay", st->replayed},     {"stale_echo", st->stale_echo},
-                  {"unexpected", st->unexpected}, {"challenge_limited", st->challenge_limited}};
-    for (int i = 0; i < 6; i++) {
+                  {"unexpected", st->unexpected}};
+    for (int i = 0; i < 5; i++) {
         if (state[i].n == 0)
             continue;
         fprintf(out, "%s\"%s\": %llu", first ? "" : ", ", state[i].name, U(state[i].n));

@@ -70,3 +70,31 @@ def test_the_import_answers_422_with_the_row_and_column(client: TestClient) -> N
     detail = r.json()["detail"][0]
     assert detail["loc"] == ["body", "file", "row 2", "theta_rad"]
     assert detail["msg"].startswith("not a plain decimal number") and "'1_0'" in detail["msg"]
+
+
+@pytest.mark.parametrize("cell", ["9" * 5001, "1" + "0" * 4400, "0" * 5000 + "101", "1000"])
+def test_an_n_of_thousands_of_digits_is_out_of_range_naming_row_and_column(cell: str) -> None:
+    # int() raises ValueError (not CsvError) beyond 4,300 digits: the length is bounded first.
+    rows = _rows()
+    rows[4] = ",".join(rows[4].split(",")[:2] + [cell] + rows[4].split(",")[3:])
+    with pytest.raises(CsvError) as refused:
+        parse_human_data(_csv(rows), "lab")
+    assert (refused.value.row, refused.value.column) == (6, "n")
+    assert "outside 0..100" in refused.value.problem and len(refused.value.problem) < 80
+
+
+def test_leading_zeros_in_n_are_read_as_the_number_however_many() -> None:
+    rows = _rows()
+    rows[4] = rows[4].replace(",4,", "," + "0" * 5000 + "4,")
+    assert parse_human_data(_csv(rows), "lab").theta[0, 0, 4] == 0.5
+
+
+def test_an_n_of_5001_digits_answers_422_not_500(client: TestClient) -> None:
+    assert client.post("/api/studies", json={"name": "s"}).status_code == 201
+    rows = _rows()
+    rows[0] = rows[0].replace(",0,", "," + "9" * 5001 + ",")
+    r = client.post("/api/studies/1/utility-sets/import",
+                    data={"name": "lab data", "precompression_pct": "25"},
+                    files={"file": ("data.csv", _csv(rows).encode(), "text/csv")})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"][0]["loc"] == ["body", "file", "row 2", "n"]

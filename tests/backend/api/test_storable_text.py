@@ -190,3 +190,64 @@ def test_the_door_measures_nesting_as_the_parser_would(doc: Any, ascii_only: boo
     assert json_text.nesting_depth(json_text._STRING.sub(b"", text)) == _depth(doc)
     if _depth(doc) <= json_text.MAX_DEPTH:
         assert json_text.problems(text) == []
+
+
+NON_UTF8 = ["utf-16-le", "utf-16-be", "utf-16", "utf-32", "utf-32-le", "utf-32-be"]
+
+
+@pytest.mark.parametrize("encoding", NON_UTF8)
+@pytest.mark.parametrize("literal", ["NaN", "Infinity", "1e999"])
+def test_a_body_in_utf16_or_utf32_is_refused_before_the_parser_reads_it(
+        client: TestClient, encoding: str, literal: str) -> None:
+    """Python's parser reads UTF-16/32 bytes too; the door once read them as UTF-8 and let
+    `Infinity` through to be stored. Only UTF-8 is accepted."""
+    assert client.post("/api/studies", json={"name": "s"}).status_code == 201
+    body = f'{{"code": "P01", "mass_kg": {literal}}}'.encode(encoding)
+    r = client.post("/api/studies/1/participants", content=body, headers=JSON)
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert detail[0]["loc"] == ["body"] and detail[0]["type"] == "not_utf8"
+    assert "must be UTF-8" in detail[0]["msg"]
+    assert client.get("/api/studies/1/participants").json() == []  # nothing stored
+    url = "/api/studies/1/emg-settings"
+    before = client.get(url).json()
+    body = f'{{"processing": {{"lowpass_hz": {literal}, "envelope_hz": {literal}}}}}'
+    r = client.put(url, content=body.encode(encoding), headers=JSON)
+    assert r.status_code == 422 and r.json()["detail"][0]["type"] == "not_utf8", r.text
+    assert client.get(url).json() == before
+
+
+@pytest.mark.parametrize("body", [
+    b'\xef\xbb\xbf{"code": "P01"}',  # a UTF-8 byte-order mark (RFC 8259: must not be sent)
+    b'{"code": "P\xed\xa0\x80"}',  # an encoded surrogate half: not UTF-8
+    b'{"code": "P\xff01"}',  # not UTF-8 at all
+    b'\x00{\x00"code": "P01"}',  # NUL bytes: the parser would guess UTF-16
+    b'{"code": "P01"}\x00'])
+def test_what_is_not_plain_utf8_is_refused_and_plain_utf8_passes(
+        client: TestClient, body: bytes) -> None:
+    assert client.post("/api/studies", json={"name": "s"}).status_code == 201
+    r = client.post("/api/studies/1/participants", content=body, headers=JSON)
+    assert r.status_code == 422 and r.json()["detail"][0]["type"] == "not_utf8", r.text
+    assert client.get("/api/studies/1/participants").json() == []
+    r = client.post("/api/studies/1/participants", headers=JSON,
+                    content='{"code": "P01", "notes": "é ü 😀"}'.encode())
+    assert r.status_code == 201, r.text
+
+
+@given(st.binary(max_size=64))
+@settings(max_examples=300, deadline=None)
+def test_what_passes_the_encoding_check_the_parser_reads_as_utf8(body: bytes) -> None:
+    """The door and the parser cannot disagree about the text: json.loads on any body the
+    check lets through gives what json.loads on its UTF-8 decoding gives."""
+    if json_text.encoding_problem(body) is not None:
+        return
+    text = body.decode("utf-8")
+    try:
+        from_bytes: Any = json.loads(body)
+    except ValueError as exc:
+        from_bytes = type(exc)
+    try:
+        from_text: Any = json.loads(text)
+    except ValueError as exc:
+        from_text = type(exc)
+    assert from_bytes == from_text or (from_bytes != from_bytes and from_text != from_text)

@@ -116,7 +116,13 @@ def test_bad_numbers_and_characters_get_a_422_naming_the_field(
 
 @pytest.mark.parametrize("path", ["/api/participants/123456789012345678901234567890",
                                   "/api/trials/99999999999999999999/segments",
-                                  "/api/studies/-1", "/api/studies/1e3"])
+                                  "/api/studies/-1", "/api/studies/1e3",
+                                  # Beyond int()'s 4,300-digit limit (a ValueError, once a 500).
+                                  "/api/studies/" + "9" * 4301,
+                                  "/api/sessions/" + "9" * 4301 + "/xdf",
+                                  "/api/participants/" + "9" * 4301,
+                                  "/api/trials/" + "9" * 4301,
+                                  "/api/trials/" + "0" * 5000 + "1"])
 def test_ids_beyond_any_column_get_a_4xx(client: TestClient, path: str) -> None:
     r = client.get(path)
     assert 400 <= r.status_code < 500 and r.status_code != 403, (path, r.text)

@@ -133,9 +133,9 @@ def test_every_field_of_a_tick_stream_is_checked(tmp_path: Path, spoiled: dict[s
 
 
 def test_a_clock_that_overflows_is_refused(tmp_path: Path) -> None:
-    # Finite offsets whose correction is beyond the range of doubles: refused, not
-    # stored as infinity.
-    huge = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1e308, 1.7e308],
-                                [[0.0], [1.0]], clock_offsets=[(1.0, 1.7e308)])])
-    with pytest.raises(XdfError, match="out of the range of numbers"):
-        _summarize(huge, tmp_path)
+    # Time stamps and offsets within the range (1e10 s) whose fitted line carries the
+    # stamps beyond it: refused, not stored as a huge or infinite time.
+    steep = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1e9, 2e9],
+                                 [[0.0], [1.0]], clock_offsets=[(0.0, 0.0), (1e-3, 9e9)])])
+    with pytest.raises(XdfError, match=r"out of the range ±1e\+10 s"):
+        _summarize(steep, tmp_path)

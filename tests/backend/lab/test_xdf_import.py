@@ -9,6 +9,7 @@ import math
 import resource
 import struct
 import tempfile
+import tracemalloc
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import asdict
@@ -29,6 +30,8 @@ from backend.db.lab import Marker
 from backend.db.models import Participant, Run, Study, StudySession, ticks_table
 from backend.lab import xdf_import
 from backend.lab.lsl_outlets import TICK_CHANNEL_NAMES
+from backend.lab.xdf_reader import XdfError
+from backend.schemas.lab import XdfStreamSummary
 from controller.tick_record import TickRecord
 from tests.backend.lab import xdf_hostile
 from tests.backend.lab.xdf_writer import XdfStream, chunk, header_xml, write_xdf
@@ -314,7 +317,8 @@ def test_twenty_thousand_random_clock_offsets_are_read_at_once(
 
 def test_the_limits_come_from_the_settings(client_with: Callable[..., TestClient]) -> None:
     fields = {"xdf_max_streams": 2, "xdf_max_chunks": 30, "xdf_max_samples": 1000,
-              "xdf_max_clock_offsets": 7, "xdf_max_decoded_bytes": 500_000}
+              "xdf_max_clock_offsets": 7, "xdf_max_decoded_bytes": 500_000,
+              "xdf_max_channels": 16, "xdf_max_header_bytes": 100_000}
     tight = client_with(**fields)
     limits = xdf_import.limits(tight.app.state.settings)  # type: ignore[attr-defined]
     assert {f"xdf_{k}": v for k, v in asdict(limits).items()} == fields
@@ -390,3 +394,100 @@ def test_a_valid_2_mb_recording_is_accepted(client: TestClient) -> None:
     r = client.post("/api/studies", content=b'{"name": "' + b"x" * len(data) + b'"}',
                     headers={"content-type": "application/json"})
     assert r.status_code == 413
+
+
+def test_time_stamps_and_clock_offsets_stay_in_a_plausible_range(
+        client: TestClient, db_url: str) -> None:
+    # Issue 28: a tick stream stamped 1.7e308 whose seq matched stored ticks was accepted
+    # (201) and its offset_ms, 1.7e308 s x 1000, stored as Infinity. Time stamps and
+    # clock offsets beyond 1e10 s (317 years) are refused where they are read.
+    made = _session_with_two_trials(db_url)
+    sid = made["session"]
+    _refused(_post(client, sid, xdf_hostile.offset_overflow()),
+             "sample 0 has the time stamp 1.7e+308", "1e+10 s")
+    far = write_xdf([XdfStream("EMG", "EMG", ["a"], 100.0, "double64", [1.0, 2.0],
+                               [[0.0], [1.0]], clock_offsets=[(1.0, 1e300)])])
+    _refused(_post(client, sid, far), "clock offset (1.0, 1e+300)", "1e+10 s")
+    assert client.get(f"/api/sessions/{sid}/xdf").json() == []
+    # Just inside the range: stored, every number finite.
+    r = _post(client, sid, xdf_hostile.tick_stream(stamps=[9.9e9] * 20))
+    assert r.status_code == 201, r.text
+    assert r.json()["streams"][0]["offset_ms"] == pytest.approx((9.9e9 - 605.0) * 1000)
+
+
+def test_the_stored_summary_is_checked_once_before_it_is_stored() -> None:
+    # The one check at the storage boundary: whatever a later change computes, a
+    # non-finite number or a summary beyond xdf_max_summary_bytes is not stored.
+    def one(**changed: Any) -> XdfStreamSummary:
+        return XdfStreamSummary(**{
+            "stream_id": 3, "name": "ExoStudy", "type": "ExoskeletonTicks",
+            "channel_count": 1, "labelled_channels": 1, "nominal_srate": 100.0,
+            "samples": 2, "first_time": 1.0, "last_time": 2.0, "channels": ["seq"],
+            "exostudy": True, "trial_ids": [], **changed})
+    assert xdf_import.storable([one(offset_ms=5.0)], 10_000)[0]["offset_ms"] == 5.0
+    for field_name in ("offset_ms", "first_time", "nominal_srate"):
+        with pytest.raises(XdfError, match=f"stream 3: {field_name} is inf"):
+            xdf_import.storable([one(**{field_name: math.inf})], 10_000)
+    with pytest.raises(XdfError, match=r"more than 300 bytes .*xdf_max_summary_bytes"):
+        xdf_import.storable([one()] * 2, 300)
+
+
+#: What the summary of a stream may take stored, as JSON: its name, type and source id
+#: (200 characters each), xdf_summary_channels labels of 64 characters, and numbers.
+_STREAM_JSON_BYTES = 3 * 200 + 64 * 68 + 400
+
+
+def test_a_flood_of_channel_labels_keeps_the_summary_small(client: TestClient) -> None:
+    # Issue 28: 96 headers of 65,536 labelled channels (63 MB) were accepted with a 25 MB
+    # summary stored, 19 MB a GET, and the server 400 MB larger while reading it. Here
+    # 24 headers of 2,048 labels (2.6 MB; 1.4 MB of summary before): the summary keeps
+    # 64 labels a stream and the count.
+    data = xdf_hostile.label_flood(24, 2048)
+    sid = _session(client)
+    r = _post(client, sid, data)
+    assert r.status_code == 201, r.text
+    assert len(r.content) < 25 * _STREAM_JSON_BYTES, len(r.content)
+    flood = [s for s in r.json()["streams"] if s["stream_id"] >= 100]
+    assert len(flood) == 24
+    for s in flood:
+        assert s["channel_count"] == s["labelled_channels"] == 2048
+        assert s["channels"] == [f"channel-label-{c}" for c in range(64)]
+    for _ in range(2):
+        assert _post(client, sid, data).status_code == 201
+    # Listing three such files reads neither the files nor more than their summaries.
+    tracemalloc.start()
+    try:
+        listing = client.get(f"/api/sessions/{sid}/xdf")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert listing.status_code == 200 and len(listing.json()) == 3
+    assert len(listing.content) < 3 * 25 * _STREAM_JSON_BYTES, len(listing.content)
+    assert peak < 4_000_000, peak
+
+
+def test_channels_headers_and_the_summary_are_bounded_by_settings(
+        client: TestClient, client_with: Callable[..., TestClient]) -> None:
+    # The review's stream shape, 65,536 channels, is beyond the default channel limit.
+    wide = write_xdf([xdf_hostile.small_stream()]) + chunk(2, struct.pack("<I", 9) + header_xml(
+        "wide", "EEG", 65_536, 0, "int8"))
+    _refused(_post(client, _session(client), wide), "channel_count '65536'",
+             "xdf_max_channels")
+    tight = client_with(xdf_max_channels=8, xdf_max_header_bytes=4096,
+                        xdf_max_summary_bytes=4096, xdf_summary_channels=2)
+    sid = _session(tight)
+
+    def stream(labels: list[str], name: str = "EMG") -> XdfStream:
+        return XdfStream(name, "EMG", labels, 100.0, "double64", [1.0, 2.0],
+                         [[0.0] * len(labels)] * 2)
+    _refused(_post(tight, sid, write_xdf([stream([f"c{i}" for i in range(9)])])),
+             "channel_count '9'", "from 1 to 8", "xdf_max_channels")
+    _refused(_post(tight, sid, write_xdf([stream(["a", "b" * 5000])])),
+             "stream header of 5", "at most 4096", "xdf_max_header_bytes")
+    many = write_xdf([stream(["a"], f"s{i}-" + "n" * 150) for i in range(20)])
+    _refused(_post(tight, sid, many), "more than 4096 bytes", "xdf_max_summary_bytes")
+    assert tight.get(f"/api/sessions/{sid}/xdf").json() == []
+    r = _post(tight, sid, write_xdf([stream(["x" * 100, "b", "c"])]))
+    assert r.status_code == 201, r.text
+    (s,) = r.json()["streams"]
+    assert s["channels"] == ["x" * 64, "b"] and s["labelled_channels"] == 3

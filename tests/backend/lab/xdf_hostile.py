@@ -98,3 +98,22 @@ def tick_stream(n: int = 20, *, fmt: str = "double64", labels: list[str] | None 
     body = chunk(3, s.samples(1))
     xml = header_xml("ExoStudy", "ExoskeletonTicks", count, srate, fmt, labels)
     return b"XDF:" + _FILE_HEADER + _stream_header(1, xml) + body
+
+
+def label_flood(streams: int, channels: int, label: str = "channel-label-{}") -> bytes:
+    """Issue 28's label flood, scaled down: `streams` headers that each declare and label
+    `channels` int8 channels and hold no samples, then one small stream with samples
+    (the review's 63 MB file: 96 headers of 65,536 channels; its summary took 25 MB
+    stored and 19 MB a GET, and the server 400 MB more while reading it)."""
+    labels = [label.format(c) for c in range(channels)]
+    # The small stream is stream 1; the flood's are 100 on.
+    headers = b"".join(_stream_header(sid, header_xml(f"flood {sid}", "EEG", channels, 0,
+                                                      "int8", labels))
+                       for sid in range(100, 100 + streams))
+    return write_xdf([small_stream()]) + headers
+
+
+def offset_overflow(seq0: float = 1000.0, n: int = 20) -> bytes:
+    """Issue 28: a tick stream stamped 1.7e308 whose seq values match stored ticks; the
+    clock difference (about 1.7e308 s) times 1000 was stored as offset_ms Infinity."""
+    return tick_stream(n, seq=[seq0 + i for i in range(n)], stamps=[1.7e308] * n)

@@ -143,19 +143,23 @@ def test_lock_command_is_reflected(server: Running, host: UdpDevice) -> None:
     assert len(stats.rtt_s) >= 28  # round trips were measured (their size: bench/bench_udp.py)
 
 
-def test_watchdog_releases_within_100_to_130_ms(server: Running, host: UdpDevice) -> None:
+def test_watchdog_releases_100_ms_after_the_echoed_sample(server: Running,
+                                                          host: UdpDevice) -> None:
+    """The last command holds the locks until 100 ms after the sample it echoes (device
+    time), not 100 ms after it arrived: no energised sample is more than 100 ms younger
+    than that sample, and the release comes by the next period."""
     for _ in range(20):
-        _read(host)
+        echoed = _read(host)
         host.send(LOCK_BOTH)
-    last_command = time.monotonic()
     while True:
         s = _read(host)
-        waited = time.monotonic() - last_command
         if s.status & Status.WATCHDOG_RELEASED:
             break
         assert s.status & Status.SOLENOID_LEFT and s.status & Status.SOLENOID_RIGHT
-        assert waited < 0.2
-    assert 0.100 <= waited <= 0.130
+        assert s.t - echoed.t <= 0.100 + 1e-9
+    # Released by 100 ms + one period after the echoed sample; not long before it
+    # either (a tick woken late may release one period early: that is safe).
+    assert 0.080 - 1e-9 <= s.t - echoed.t <= 0.110 + 1e-9
     assert not s.status & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT)
     assert server.finish().watchdog_releases == 1
 
@@ -272,7 +276,7 @@ def test_the_device_rules_join_sequence_freshness_and_the_host_address(
 def _challenge_for(sock: socket.socket, dev: tuple[str, int], seq: int, session: int = 0xA
                    ) -> tuple[ChallengePacket, int] | None:
     """Say HELLO `seq`; the CHALLENGE answering it (and its sender), or None if none
-    came within 0.1 s (rate-limited)."""
+    came within 0.1 s."""
     sock.sendto(encode_hello(HelloPacket(seq), KEY, session), dev)
     deadline = time.monotonic() + 0.1
     while (left := deadline - time.monotonic()) > 0:
@@ -288,14 +292,17 @@ def _challenge_for(sock: socket.socket, dev: tuple[str, int], seq: int, session:
     return None
 
 
-def test_challenges_are_rate_limited_redrawn_and_single_use(server: Running) -> None:
+def test_every_hello_is_answered_challenges_redrawn_and_single_use(server: Running) -> None:
     a = _raw_host()
     dev = ("127.0.0.1", server.port)
     with a:
         a.sendto(encode_hello(HelloPacket(1), KEY, 0xA), dev)
-        a.sendto(encode_hello(HelloPacket(2), KEY, 0xA), dev)  # within 50 ms: no answer
+        a.sendto(encode_hello(HelloPacket(2), KEY, 0xA), dev)  # at once: answered too
         first = decode_frame(a.recv(2048), KEY).packet
+        second = decode_frame(a.recv(2048), KEY).packet
         assert isinstance(first, ChallengePacket) and first.hello_seq == 1
+        assert isinstance(second, ChallengePacket) and second.hello_seq == 2
+        assert second.challenge == first.challenge  # one challenge, not redrawn
         seqs = iter(range(3, 1000))
         again = wait_for(lambda: _challenge_for(a, dev, next(seqs)), 5, "a CHALLENGE")
         assert again is not None
@@ -311,8 +318,8 @@ def test_challenges_are_rate_limited_redrawn_and_single_use(server: Running) -> 
         _next_sample(a)
         _next_sample(a)
     stats = server.finish()
-    assert stats.drops["challenge_limited"] >= 1 and stats.drops["replay"] == 1
-    assert stats.joins == 1 and stats.challenges >= 3
+    assert stats.drops["replay"] == 1 and "challenge_limited" not in stats.summary()
+    assert stats.joins == 1 and stats.challenges == stats.hellos >= 4
 
 
 def test_stopped_heartbeat_cuts_the_drivers_in_the_plant(server: Running,
