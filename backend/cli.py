@@ -74,14 +74,16 @@ def _doctor(args: argparse.Namespace) -> int:
 
     settings = Settings()
     found = data_folder.exposures(settings)
-    for line in found:
+    for line in found.lines():
         print(f"warning: {line}")
     folders = ", ".join(str(f) for f in data_folder.own_folders(settings))
-    if not found:
-        print(f"ok: the data ({folders}) is readable by its owner only")
+    if not found.count:
+        print(f"ok: the data ({folders}) is readable by its owner only"
+              + (" (as far as it was looked at)" if found.walk_stopped else ""))
         return 0
-    print(f"{len(found)} warning(s); `exostudy serve` makes the data folder ({folders}) "
-          "and the database private at start")
+    print(f"{found.count} path(s) open to others; `exostudy serve` makes the data folder "
+          f"({folders}), what is directly in it and the database private at start; "
+          "deeper paths need the `chmod` shown")
     return 1
 
 

@@ -5,7 +5,8 @@ command is a client of the server's REST API (`/api/hardware/...`), never a seco
 on the link: the same refusals, the same stored profile, the same audit trail as the
 console. It logs in with a bearer token: `EXOSTUDY_TOKEN`, else `--user` with the
 password from `EXOSTUDY_PASSWORD` or a prompt; a token it got by logging in is revoked
-before it exits (a bearer token lasts 30 days, and one per command would pile up).
+before it exits (a bearer token lasts 30 days, and one per command would pile up),
+also when it is stopped by Ctrl-C, SIGTERM or SIGHUP in the middle of a step.
 Exit status: 0 the step passed, 1 it ran and failed, 2 the server refused it (the
 message says why) or could not be reached.
 """
@@ -16,10 +17,14 @@ import argparse
 import getpass
 import json
 import os
+import signal
 import sys
+import threading
 import urllib.error
 import urllib.request
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from types import FrameType
 from typing import Any
 
 DEFAULT_URL = "http://127.0.0.1:8000"
@@ -204,22 +209,66 @@ def _show(args: argparse.Namespace, out: Any) -> int:
     return 0 if out["status"] in ("complete", "draft") else 1
 
 
+#: Signals that stop the command as Ctrl-C does: through `finally`, so the token it
+#: logged in for is revoked (`kill`, a closed terminal, a supervisor stopping it).
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
+                     if hasattr(signal, name))
+
+
+class _Stop:
+    """The stop signal received (0: none) and whether the token's revocation is running,
+    during which a signal waits instead of cutting it short."""
+
+    def __init__(self) -> None:
+        self.signum = 0
+        self.cleaning = False
+
+
+@contextmanager
+def _stopping_runs_finally() -> Iterator[_Stop]:
+    """While inside: SIGTERM and SIGHUP raise SystemExit(128 + signal), so the caller's
+    `finally` (the token's revocation) runs; a signal during that cleanup (`cleaning`)
+    or a second one only records itself. The previous handlers come back after, and a
+    recorded stop then ends the command."""
+    state = _Stop()
+    if threading.current_thread() is not threading.main_thread():
+        yield state  # handlers can only be set in the main thread
+        return
+
+    def stop(signum: int, _frame: FrameType | None) -> None:
+        first = not state.signum
+        state.signum = state.signum or signum
+        if first and not state.cleaning:
+            raise SystemExit(128 + signum)
+
+    previous = {sig: signal.signal(sig, stop) for sig in STOP_SIGNALS}
+    try:
+        yield state
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if state.signum:
+        raise SystemExit(128 + state.signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `exostudy hardware`."""
     args = build_parser().parse_args(argv)
     method, path, body = _request(args)
-    try:
-        api = Api.login(args.url, args.user, None)
-    except ApiError as exc:
-        print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
-        return 2
-    try:
-        out = api.call(method, path, body)
-    except ApiError as exc:
-        print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        api.logout()
+    with _stopping_runs_finally() as stopping:
+        try:
+            api = Api.login(args.url, args.user, None)
+        except ApiError as exc:
+            print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
+            return 2
+        try:
+            out = api.call(method, path, body)
+        except ApiError as exc:
+            print(f"exostudy hardware {args.step}: refused: {exc}", file=sys.stderr)
+            return 2
+        finally:
+            stopping.cleaning = True
+            api.logout()
     return _show(args, out)
 
 

@@ -91,7 +91,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if tightened:
             log.warning("made private (group and others had access): %s",
                         "; ".join(tightened))
-        for exposed in data_folder.exposures(settings):
+        for exposed in data_folder.exposures(settings).lines():
             log.warning("data readable by others: %s", exposed)
         migrate.upgrade(settings.database_url)
         engine = make_engine(settings.database_url)

@@ -13,7 +13,7 @@ interval, treating the paper's number as exact) for the claims that are now judg
 the difference, for comparison.
 
     .venv/bin/python bench/bench_verdict_stability.py [--seeds 60] [--sizes 2,3,...]
-        [--draws 100] [--cache bench/results/verdict_stability_seeds.json]
+        [--draws 100] [--cache bench/results/verdict_stability/seeds.json]
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 from bench.record import load_average, record  # noqa: E402
 from controller.evaluation.replication import CLAIMS, Claim, judge  # noqa: E402
 
-CACHE = ROOT / "bench" / "results" / "verdict_stability_seeds.json"
+CACHE = ROOT / "bench" / "results" / "verdict_stability" / "seeds.json"
 
 
 def measure(seeds: list[int], cache: Path) -> dict[int, dict[str, float]]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+from typing import TextIO
 
 #: Owner only: read, write and enter.
 PRIVATE_DIR = 0o700
@@ -55,6 +56,27 @@ def write_private(path: Path, data: str | bytes) -> None:
             view = view[os.write(fd, view):]
     finally:
         os.close(fd)
+
+
+def open_private(path: Path) -> TextIO:
+    """Open `path` for writing text with mode 0600 (truncated; a file already there is
+    made 0600 first): for a log written as it goes, which `write_private` cannot do."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0),
+                 PRIVATE_FILE)
+    try:
+        os.fchmod(fd, PRIVATE_FILE)
+    except BaseException:
+        os.close(fd)
+        raise
+    return open(fd, "w", encoding="utf-8")
+
+
+def private_folder(path: Path) -> Path:
+    """`path` as a folder only its owner may use: created 0700 (with missing parents),
+    or, already there, with every permission of the group and of others taken off."""
+    make_private_dir(path)
+    tighten(path)
+    return path
 
 
 def create_private_file(path: Path) -> bool:

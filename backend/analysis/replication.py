@@ -78,6 +78,12 @@ from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
 from controller.evaluation.timeline import controller_output_figure
 from controller.evaluation.verdicts import t_interval
 from controller.intent.motion_model import ModelSet
+from controller.private_files import (
+    make_private_dir,
+    open_private,
+    private_folder,
+    write_private,
+)
 
 Engine = Literal["study", "cohort"]
 #: One seed's evaluated trials with their ticks, and the model and utility sets used.
@@ -197,15 +203,17 @@ def run_study_seed(cfg: ReplicationConfig, seed: int, log: Callable[[str], None]
         raise ValueError(f"seed {seed}: {folder} holds an unfinished virtual study (no "
                          "summary.json): another run may be writing it; remove the folder "
                          "to run that seed again")
-    folder.parent.mkdir(parents=True, exist_ok=True)
+    private_folder(folder.parent)
     cmd = [sys.executable, "-m", "backend.cli", "virtual-study", "--seed", str(seed),
            "--participants", str(cfg.participants), "--eumc", str(cfg.eumc),
            "--data-participants", str(cfg.data_participants), "--rates", "paper-rates",
            "--no-model-evaluation", "--out", str(folder)]
     log(f"seed {seed}: running the virtual study ({' '.join(cmd[2:])})")
-    with open(cfg.out / f"seed-{seed}.log", "w") as logf:
+    # The virtual study writes a database of (simulated) participants: umask 077 makes
+    # whatever the child creates its owner's alone, like the report around it.
+    with open_private(cfg.out / f"seed-{seed}.log") as logf:
         code = subprocess.call(cmd, stdout=logf, stderr=subprocess.STDOUT,
-                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                               env={**os.environ, "PYTHONUNBUFFERED": "1"}, umask=0o077)
     if code != 0 or not (folder / "summary.json").is_file():
         # Kept for inspection, out of the way of the next attempt.
         if folder.exists():
@@ -473,7 +481,7 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
     `progress(fraction)` after each seed and each later phase."""
     report = progress or (lambda _f: None)
     t_start = time.monotonic()
-    cfg.out.mkdir(parents=True, exist_ok=True)
+    make_private_dir(cfg.out)  # new: 0700; a folder the user gave keeps its mode
     rep = Replication(cfg)
     first: tuple[list[tuple[TickData, RecordingEvaluation]], ModelSet | None] | None = None
     utilities: UtilitySet | None = None
@@ -750,15 +758,17 @@ def report_html(rep: Replication) -> str:
 
 
 def write(rep: Replication) -> list[Path]:
-    """Write the report, the figures, the JSON and the Markdown claim table."""
+    """Write the report, the figures, the JSON and the Markdown claim table: folders
+    0700 and files 0600 whatever the umask (the report sits in the private run folder,
+    and a copy of it must not be the one thing others can read)."""
     out = rep.config.out
-    figs = out / "figures"
-    figs.mkdir(parents=True, exist_ok=True)
+    make_private_dir(out)
+    figs = private_folder(out / "figures")
     paths = []
     for name, (png, svg) in rep.figures.items():
         for ext, data in (("png", png), ("svg", svg)):
             p = figs / f"{name}.{ext}"
-            p.write_bytes(data)
+            write_private(p, data)
             paths.append(p)
     doc = {"config": {k: _jsonable(v) for k, v in rep.config.__dict__.items()},
            "wall_s": rep.wall_s, "phases": rep.phases,
@@ -782,6 +792,6 @@ def write(rep: Replication) -> list[Path]:
                        ("replication.md", claims_markdown(rep)),
                        ("report.html", report_html(rep))):
         p = out / name
-        p.write_text(body)
+        write_private(p, body)
         paths.append(p)
     return paths

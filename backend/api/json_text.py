@@ -173,10 +173,11 @@ def _walk(doc: Any) -> list[tuple[tuple[str | int, ...], str]]:
 
 
 class StorableJsonText:
-    """ASGI middleware: a JSON request body that is not UTF-8, nested too deep, or with a lone surrogate or
-    NUL in any string, or a number no database stores (NaN, infinities, integers beyond
-    64 bits), is answered with 422 before the route runs; every other request passes
-    unchanged. Install it inside the body-size limit, so the body it reads is bounded."""
+    """ASGI middleware: a JSON request body that is not UTF-8, nested too deep, or with a
+    lone surrogate or NUL in any string, or a number no database stores (NaN,
+    infinities, integers beyond 64 bits), is answered with 422 before the route runs;
+    every other request passes unchanged. Install it inside the body-size limit, so the
+    body it reads is bounded."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app

@@ -7,7 +7,8 @@ local account. SQLite gives its `-wal`, `-shm` and `-journal` files the mode of 
 database file, so creating that file 0600 before SQLite first opens it is enough for all
 four. At every server start, older installations are brought to the same modes (the
 folder, the files directly in it, the database's files), and the log says what changed.
-`exostudy doctor` reports whatever is still open to others.
+`exostudy doctor` reports whatever is still open to others, down the whole tree of the
+data folder (bounded, without following symbolic links).
 
 "Ours" are the data folder (`EXOSTUDY_DATA_DIR`, `var/` in a clone) and `run_dir`:
 their modes are set. A folder chosen elsewhere for the database or the key (the home
@@ -18,6 +19,9 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from itertools import chain
 from pathlib import Path
 
 from sqlalchemy.engine import make_url
@@ -112,10 +116,59 @@ def make_private(settings: Settings) -> list[str]:
     return changed
 
 
-def exposures(settings: Settings) -> list[str]:
+#: Entries `exposures` looks at inside the data folders at most: the walk is bounded, so
+#: a data folder of millions of files cannot stall `exostudy doctor` or a server start.
+MAX_WALKED = 200_000
+#: Paths named one by one; beyond these, exposures are counted.
+MAX_LISTED = 50
+
+
+@dataclass(frozen=True)
+class Exposures:
+    """What others may read or enter: the first `MAX_LISTED` as warning lines, the count
+    of all found, and whether the walk stopped at `MAX_WALKED` entries."""
+
+    listed: list[str]
+    count: int
+    walk_stopped: bool
+
+    def lines(self) -> list[str]:
+        """The warnings to print or log, with a line for what is only counted."""
+        out = list(self.listed)
+        if self.count > len(self.listed):
+            out.append(f"... and {self.count - len(self.listed)} more paths open to others "
+                       f"({self.count} in all, the first {len(self.listed)} listed); "
+                       "`chmod -R go-rwx` on the data folder fixes them all")
+        if self.walk_stopped:
+            out.append(f"stopped looking after {MAX_WALKED} entries of the data folders: "
+                       "there may be more")
+        return out
+
+
+def _tree(folder: Path, budget: list[int]) -> Iterator[Path]:
+    """Every folder and file under `folder` (not `folder` itself), breadth first, not
+    following symbolic links, until `budget[0]` entries have been seen."""
+    pending = [folder]
+    while pending and budget[0] > 0:
+        here = pending.pop(0)
+        try:
+            with os.scandir(here) as entries:
+                for entry in entries:
+                    if budget[0] <= 0:
+                        return
+                    budget[0] -= 1
+                    yield Path(entry.path)
+                    if entry.is_dir(follow_symlinks=False):
+                        pending.append(Path(entry.path))
+        except (FileNotFoundError, NotADirectoryError, PermissionError):
+            continue  # removed meanwhile, or not ours to read
+
+
+def exposures(settings: Settings) -> Exposures:
     """What others on this machine may read or enter: each folder and file of the data
-    (the data folder, `run_dir`, the database's folder and files, the device key and
-    its folder) whose group or others have a permission, with its mode."""
+    (the data folder and `run_dir` with everything inside them, walked without following
+    symbolic links; the database's folder and files; the device key and its folder)
+    whose group or others have a permission, with its mode."""
     paths: list[Path] = []
     for folder in own_folders(settings):
         paths.append(folder)
@@ -125,15 +178,22 @@ def exposures(settings: Settings) -> list[str]:
         paths.extend(p.absolute() for p in db_files)
     key = Path(settings.device_key_file).absolute()
     paths.extend([key.parent, key])
-    found: list[str] = []
+    budget = [MAX_WALKED]
+    walked = (p for folder in own_folders(settings) if folder.is_dir()
+              for p in _tree(folder, budget))
+    listed: list[str] = []
+    count = 0
     seen: set[Path] = set()
-    for path in paths:
+    for path in chain(paths, walked):
         if path in seen:
             continue
         seen.add(path)
         mode = open_to_others(path)
-        if mode is not None:
+        if mode is None:
+            continue
+        count += 1
+        if len(listed) < MAX_LISTED:
             kind = "folder" if path.is_dir() else "file"
-            found.append(f"{path}: {kind} readable or writable by others (mode {mode:o}); "
-                         f"`chmod {'700' if kind == 'folder' else '600'} {path}`")
-    return found
+            listed.append(f"{path}: {kind} readable or writable by others (mode {mode:o}); "
+                          f"`chmod {'700' if kind == 'folder' else '600'} {path}`")
+    return Exposures(listed, count, walk_stopped=budget[0] <= 0)

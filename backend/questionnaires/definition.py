@@ -10,6 +10,7 @@ cannot produce).
 from __future__ import annotations
 
 import math
+import unicodedata
 from collections import Counter
 from typing import Literal
 
@@ -22,6 +23,12 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 #: that took two minutes to show.
 MAX_SCALE_POINTS = 101
 MAX_FORM_CHOICES = 5_000
+#: Items an instrument may have (any instrument: the format's own limit).
+MAX_ITEMS = 200
+#: Subscales an imported instrument may have; each holds at most every item once, and
+#: `reverse_scored` names each item at most once: lists longer than the instrument
+#: cannot mean anything, and thousands of entries only cost time to check and show.
+MAX_SUBSCALES = 50
 
 KEY_PATTERN = r"^[a-z][a-z0-9_-]{0,63}$"
 VERSION_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,31}$"
@@ -123,7 +130,7 @@ class InstrumentDefinition(_Strict):
     version: str = Field(pattern=VERSION_PATTERN, description="e.g. 1.0")
     title: str = Field(min_length=1, max_length=200)
     instructions: str = Field(default="", max_length=4000)
-    items: list[Item] = Field(min_length=1, max_length=200)
+    items: list[Item] = Field(min_length=1, max_length=MAX_ITEMS)
     scale: ResponseScale
     reverse_scored: list[str] = Field(default_factory=list)
     aggregation: Aggregation
@@ -177,6 +184,21 @@ class InstrumentDefinition(_Strict):
         return (self.scale.min + self.scale.max) / 2
 
 
+def label_words(label: str) -> str:
+    """The words of a label as a reader sees them, for telling two labels apart:
+    compatibility-normalised (NFKC: full-width letters and decomposed accents become the
+    usual ones), without invisible format characters (category Cf: zero-width spaces,
+    joiners, direction marks), case-folded, runs of whitespace made one space."""
+    text = unicodedata.normalize("NFKC", label)
+    text = "".join(ch for ch in text if unicodedata.category(ch) != "Cf")
+    text = unicodedata.normalize("NFKC", text.casefold())
+    return " ".join(text.split())
+
+
+def _repeated(values: list[str]) -> list[str]:
+    return sorted(v for v, n in Counter(values).items() if n > 1)
+
+
 class ImportedScale(ResponseScale):
     """The scale of an imported instrument: at most `MAX_SCALE_POINTS` points, and at
     most one label per point, each with its own words."""
@@ -193,10 +215,29 @@ class ImportedScale(ResponseScale):
                        if n > 1)
         if twice:
             raise ValueError(f"labels: more than one label for value(s) {twice[:10]}")
-        words = Counter(lab.label.strip().casefold() for lab in self.labels)
-        same = sorted(w for w, n in words.items() if n > 1)
+        words = [label_words(lab.label) for lab in self.labels]
+        blank = [lab.value for lab, w in zip(self.labels, words, strict=True) if not w]
+        if blank:
+            raise ValueError(f"labels: the label at value(s) {blank[:10]} shows no words "
+                             "(only spaces or invisible characters)")
+        same = _repeated(words)
         if same:
-            raise ValueError(f"labels: the same words at several values: {same[:5]}")
+            raise ValueError(f"labels: the same words at several values: {same[:5]} "
+                             "(compared ignoring case, spacing, invisible characters and "
+                             "character width)")
+        return self
+
+
+class ImportedSubscale(Subscale):
+    """A subscale of an imported instrument: each item at most once."""
+
+    items: list[str] = Field(min_length=1, max_length=MAX_ITEMS)
+
+    @model_validator(mode="after")
+    def _once_each(self) -> ImportedSubscale:
+        twice = _repeated(self.items)
+        if twice:
+            raise ValueError(f"items: listed more than once {twice[:10]}")
         return self
 
 
@@ -206,6 +247,20 @@ class ImportedInstrument(InstrumentDefinition):
     stored before these limits are read as `InstrumentDefinition`, unchanged."""
 
     scale: ImportedScale
+    reverse_scored: list[str] = Field(default_factory=list, max_length=MAX_ITEMS)
+    # A narrower item type than the base's list[Subscale]: pydantic validates by it; mypy
+    # sees list invariance (nothing appends a plain Subscale to an imported instrument).
+    subscales: list[ImportedSubscale] = Field(  # type: ignore[assignment]
+        default_factory=list, max_length=MAX_SUBSCALES)
+
+    @model_validator(mode="after")
+    def _lists_within_the_items(self) -> ImportedInstrument:
+        # Each id at most once and (the format's check) each a known item: no list is
+        # longer than the instrument's item count.
+        twice = _repeated(self.reverse_scored)
+        if twice:
+            raise ValueError(f"reverse_scored: listed more than once {twice[:10]}")
+        return self
 
     @model_validator(mode="after")
     def _form_size(self) -> ImportedInstrument:

@@ -58,6 +58,9 @@ class _Step:
         self.t0 = time.monotonic()
         self.samples: list[RawSample] = []
         self.last_command_s = math.nan
+        #: Device time of the sample the last command answered (UdpDevice echoes the
+        #: latest sample it read): the device's watchdog counts from it.
+        self.last_echo_t = math.nan
         self._seq = 0
         self.energised_s = 0.0  # commanded-on time of closed intervals
         self._on_since: float | None = None
@@ -78,6 +81,8 @@ class _Step:
         # Stamped before the send: a pause between the two can only make the measured
         # watchdog delay longer (pessimistic), never shorter.
         now = self.last_command_s = self.now()
+        if self.samples:
+            self.last_echo_t = self.samples[-1][2]
         if (left or right) and self._on_since is None:
             self._on_since = now
         elif not (left or right):
@@ -267,10 +272,15 @@ def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
         st = Status(sample.status)
         if st & Status.WATCHDOG_RELEASED and not st & SOLENOIDS:
             release_s = step.samples[-1][0] - last
-            device_s = sample.t - step.device_time(last)
+            # The watchdog counts from the sample the last command answered (protocol
+            # version 3, safety rule 1), both times on the device's own clock.
+            echoed = step.last_echo_t
+            device_s = sample.t - (echoed if not math.isnan(echoed)
+                                   else step.device_time(last))
             return step.result(cmd.request_id, True, f"released {1000 * device_s:.1f} ms "
-                               f"after the last command (device clock; "
-                               f"{1000 * release_s:.1f} ms to the worker)",
+                               f"after the sample the last command answered (device "
+                               f"clock; {1000 * release_s:.1f} ms after the last command "
+                               f"to the worker)",
                                solenoid_seen=True, released_seen=True, release_s=release_s,
                                release_device_s=device_s)
     return step.result(cmd.request_id, False, f"the device did not release within "

@@ -11,7 +11,7 @@ import pytest
 from backend.core.config import Settings
 from tests.browser.login_page import log_in_through
 from tests.live_server import running_server
-from tests.polling import free_udp_port
+from tests.polling import free_udp_port, wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -59,8 +59,16 @@ def test_zero_pulse_and_watchdog_from_the_page(udp_server: str, page: Any,
     page.check("#nobody-wearing")
     pulse = _run(page, "pulse_left")
     assert pulse.startswith("passed") and "SOLENOID_LEFT came on and went off" in pulse
+    # The pulse's coil cools down first (duty cycle at most 25 %: off three times its
+    # on-time); the server would answer 409 to an early run.
+    def cooled() -> bool:
+        waits = page.evaluate("fetch('/api/hardware').then(r => r.json())"
+                              ".then(h => Object.values(h.cooldown_s))")
+        return not any(s > 0 for s in waits)
+
+    wait_for(cooled, 10, "the left coil to cool down")
     dog = _run(page, "watchdog")
-    assert "released" in dog and "after the last command (device clock" in dog
+    assert "released" in dog and "after the sample the last command answered (device" in dog
     dog_values = page.text_content("#step-table tr[data-step='watchdog'] .values") or ""
     assert "release_ms:" in dog_values and "solenoid_seen: true" in dog_values
     assert failed == []

@@ -76,7 +76,7 @@ def test_the_import_answers_422_with_the_row_and_column(client: TestClient) -> N
 def test_an_n_of_thousands_of_digits_is_out_of_range_naming_row_and_column(cell: str) -> None:
     # int() raises ValueError (not CsvError) beyond 4,300 digits: the length is bounded first.
     rows = _rows()
-    rows[4] = ",".join(rows[4].split(",")[:2] + [cell] + rows[4].split(",")[3:])
+    rows[4] = ",".join([*rows[4].split(",")[:2], cell, *rows[4].split(",")[3:]])
     with pytest.raises(CsvError) as refused:
         parse_human_data(_csv(rows), "lab")
     assert (refused.value.row, refused.value.column) == (6, "n")

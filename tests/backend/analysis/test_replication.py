@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import stat
 import subprocess
 from pathlib import Path
 
@@ -86,3 +88,39 @@ def test_bad_arguments_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["replicate", "--out", str(tmp_path), "--from-db",
                  str(tmp_path / "missing.db")]) == 2
     assert "--from-db" in capsys.readouterr().err
+
+
+def test_the_report_and_its_figures_are_private_whatever_the_umask(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Inside the 0700 run folder the report was written 0644 and figures/ 0755."""
+    out = tmp_path / "run"
+    old = os.umask(0o022)
+    try:
+        (out / "figures").mkdir(parents=True)  # left 0755 by an earlier run
+        os.chmod(out, 0o700)
+        rep = replication.Replication(ReplicationConfig(out=out, seeds=2))
+        rep.figures = {"peak_torques": (b"\x89PNG", b"<svg/>")}
+        written = replication.write(rep)
+        modes = {p.relative_to(out).as_posix(): oct(stat.S_IMODE(p.stat().st_mode))
+                 for p in [out / "figures", *written]}
+        assert modes == {
+            "figures": "0o700", "figures/peak_torques.png": "0o600",
+            "figures/peak_torques.svg": "0o600", "replication.json": "0o600",
+            "replication.md": "0o600", "report.html": "0o600"}
+        assert (out / "figures" / "peak_torques.svg").read_bytes() == b"<svg/>"
+        # A seed's log is private, and the virtual study it runs writes with umask 077.
+        seen: dict[str, object] = {}
+
+        def failing_study(cmd: list[str], **kwargs: object) -> int:
+            seen.update(kwargs)
+            return 1
+
+        monkeypatch.setattr(subprocess, "call", failing_study)
+        with pytest.raises(RuntimeError, match="the virtual study failed"):
+            run_study_seed(ReplicationConfig(out=out, seeds=2), 1, lambda _m: None)
+    finally:
+        os.umask(old)
+    assert seen["umask"] == 0o077
+    log = out / "seed-1.log"
+    studies = replication.study_seed_folder(out, 1).parent
+    assert [oct(stat.S_IMODE(p.stat().st_mode)) for p in (log, studies)] == ["0o600", "0o700"]

@@ -391,7 +391,8 @@ def _sized(items: int, lo: int, hi: int, labels: list[dict[str, Any]] | None = N
     (_sized(5, 1, 7, [{"value": 1, "label": "never"}, {"value": 1, "label": "rarely"}]),
      ["body", "scale"], "labels: more than one label for value(s) [1]"),
     (_sized(5, 1, 7, [{"value": 1, "label": "Never"}, {"value": 7, "label": "never "}]),
-     ["body", "scale"], "labels: the same words at several values: ['never']"),
+     ["body", "scale"], "labels: the same words at several values: ['never'] (compared "
+     "ignoring case, spacing, invisible characters and character width)"),
     (_sized(5, 1, 7, [{"value": 1, "label": "x" * 201}]), ["body", "scale", "labels", 0,
                                                            "label"],
      "String should have at most 200 characters"),
@@ -405,6 +406,68 @@ def test_an_imported_scale_keeps_its_form_usable(client: TestClient, definition:
     found = [(d["loc"], d["msg"].removeprefix("Value error, ")) for d in r.json()["detail"]]
     assert (where, problem) in found, found
     assert client.get(url).json() == [i for i in client.get(url).json() if i["built_in"]]
+
+
+def _with(definition: dict[str, Any], **changes: Any) -> dict[str, Any]:
+    return {**definition, **changes}
+
+
+#: Labels that read the same (or show nothing), and the refusal each pair gets.
+SAME_OR_BLANK_LABELS = [
+    (["never", "ne\u200bver"], "labels: the same words at several values: ['never']"),
+    (["Never", "\uff2e\uff45\uff56\uff45\uff52"],  # full-width letters
+     "labels: the same words at several values: ['never']"),
+    (["tr\u00e8s souvent", "tre\u0300s  souvent"],  # composed, decomposed, two spaces
+     "labels: the same words at several values: ['tr\u00e8s souvent']"),
+    (["\u2060 \u200d", "often"], "labels: the label at value(s) [1] shows no words"),
+    (["   ", "often"], "labels: the label at value(s) [1] shows no words"),
+]
+
+
+def test_labels_are_compared_as_a_reader_sees_them(client: TestClient) -> None:
+    """Zero-width spaces, full-width letters and decomposed accents once made the same
+    words count as different labels; a label of spaces only was accepted."""
+    url = f"/api/studies/{_study(client)}/instruments"
+    for labels, problem in SAME_OR_BLANK_LABELS:
+        definition = _sized(5, 1, 7, [{"value": v, "label": t}
+                                      for v, t in zip((1, 7), labels, strict=True)])
+        r = client.post(url, json=definition)
+        assert r.status_code == 422, (labels, r.text[:300])
+        msgs = [d["msg"].removeprefix("Value error, ") for d in r.json()["detail"]]
+        assert any(m.startswith(problem) for m in msgs), (labels, msgs)
+    assert [i for i in client.get(url).json() if not i["built_in"]] == []
+
+
+#: Lists beyond the items, and where and how each is refused.
+OVERLONG_LISTS: list[tuple[dict[str, Any], list[str | int], str]] = [
+    ({"reverse_scored": ["q1"] * 201}, ["body", "reverse_scored"],
+     "List should have at most 200 items after validation, not 201"),
+    ({"reverse_scored": ["q1", "q2", "q1"]}, ["body"],
+     "reverse_scored: listed more than once ['q1']"),
+    ({"subscales": [{"id": f"s{i}", "title": "t", "items": ["q1"]} for i in range(51)]},
+     ["body", "subscales"], "List should have at most 50 items after validation, not 51"),
+    ({"subscales": [{"id": "s", "title": "t", "items": ["q1"] * 201}]},
+     ["body", "subscales", 0, "items"],
+     "List should have at most 200 items after validation, not 201"),
+    ({"subscales": [{"id": "s", "title": "t", "items": ["q1", "q2", "q2"]}]},
+     ["body", "subscales", 0], "items: listed more than once ['q2']"),
+]
+
+
+def test_reversed_items_and_subscales_are_bounded_by_the_items(client: TestClient) -> None:
+    url = f"/api/studies/{_study(client)}/instruments"
+    for changes, where, problem in OVERLONG_LISTS:
+        r = client.post(url, json={**_sized(5, 1, 7), **changes})
+        assert r.status_code == 422, (where, r.text[:300])
+        found = [(d["loc"], d["msg"].removeprefix("Value error, "))
+                 for d in r.json()["detail"]]
+        assert (where, problem) in found, found
+    assert [i for i in client.get(url).json() if not i["built_in"]] == []
+    # Each item once in each list, 50 subscales: accepted.
+    ok = {**_sized(5, 1, 7), "reverse_scored": ["q0", "q1"], "subscales": [
+        {"id": f"s{i}", "title": "t", "items": ["q0", "q1", "q2", "q3", "q4"]}
+        for i in range(50)]}
+    assert client.post(url, json=ok).status_code == 201, client.post(url, json=ok).text[:300]
 
 
 def test_the_widest_scale_and_largest_form_allowed_are_imported(client: TestClient) -> None:

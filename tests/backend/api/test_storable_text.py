@@ -195,8 +195,8 @@ def test_the_door_measures_nesting_as_the_parser_would(doc: Any, ascii_only: boo
 NON_UTF8 = ["utf-16-le", "utf-16-be", "utf-16", "utf-32", "utf-32-le", "utf-32-be"]
 
 
-@pytest.mark.parametrize("encoding", NON_UTF8)
-@pytest.mark.parametrize("literal", ["NaN", "Infinity", "1e999"])
+@pytest.mark.parametrize(("encoding", "literal"), zip(NON_UTF8, ["NaN", "Infinity", "1e999"] * 2,
+                                                       strict=True))
 def test_a_body_in_utf16_or_utf32_is_refused_before_the_parser_reads_it(
         client: TestClient, encoding: str, literal: str) -> None:
     """Python's parser reads UTF-16/32 bytes too; the door once read them as UTF-8 and let
@@ -211,8 +211,8 @@ def test_a_body_in_utf16_or_utf32_is_refused_before_the_parser_reads_it(
     assert client.get("/api/studies/1/participants").json() == []  # nothing stored
     url = "/api/studies/1/emg-settings"
     before = client.get(url).json()
-    body = f'{{"processing": {{"lowpass_hz": {literal}, "envelope_hz": {literal}}}}}'
-    r = client.put(url, content=body.encode(encoding), headers=JSON)
+    text = f'{{"processing": {{"lowpass_hz": {literal}, "envelope_hz": {literal}}}}}'
+    r = client.put(url, content=text.encode(encoding), headers=JSON)
     assert r.status_code == 422 and r.json()["detail"][0]["type"] == "not_utf8", r.text
     assert client.get(url).json() == before
 

@@ -132,6 +132,65 @@ def test_doctor_warns_about_a_data_folder_others_can_read(
     assert capsys.readouterr().out.startswith("ok: ")
 
 
+def test_doctor_walks_the_whole_data_folder_without_following_links(
+        data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Folders and files deep inside the data folder count too (models/ 777 and a model
+    file 666 once went unreported); a symbolic link is not followed out of the tree."""
+    monkeypatch.chdir(tmp_path)
+    for name in ("DATABASE_URL", "RUN_DIR", "DEVICE_KEY_FILE"):
+        monkeypatch.delenv(f"EXOSTUDY_{name}", raising=False)
+    monkeypatch.setenv("EXOSTUDY_DATABASE_URL", f"sqlite:///{data / 'exostudy.db'}")
+    monkeypatch.setenv("EXOSTUDY_RUN_DIR", str(data))
+    monkeypatch.setenv("EXOSTUDY_DEVICE_KEY_FILE", str(data / "device.key"))
+    prepare_sqlite(f"sqlite:///{data / 'exostudy.db'}")
+    models = data / "models"
+    deep = data / "runs" / "r1" / "figures"
+    deep.mkdir(parents=True)  # 0755 each under umask 022
+    models.mkdir()
+    (models / "sim-default.json").write_text("{}")  # 0644
+    (deep / "fig.svg").write_text("<svg/>")
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    (outside / "open.txt").write_text("x")
+    (data / "link").symlink_to(outside)
+    for p in (data / "runs", data / "runs" / "r1", deep):
+        os.chmod(p, 0o700)
+    os.chmod(models, 0o777)
+    os.chmod(models / "sim-default.json", 0o666)
+    assert main(["doctor"]) == 1
+    out = capsys.readouterr().out
+    assert f"warning: {models}: folder readable or writable by others (mode 777)" in out
+    assert f"warning: {models / 'sim-default.json'}: file readable or writable by others " \
+           "(mode 666)" in out
+    assert f"warning: {deep / 'fig.svg'}: file readable or writable by others (mode 644)" in out
+    assert str(outside) not in out
+    assert "3 path(s) open to others" in out
+    for p in (models, models / "sim-default.json", deep / "fig.svg"):
+        os.chmod(p, 0o700 if p.is_dir() else 0o600)
+    assert main(["doctor"]) == 0
+    assert capsys.readouterr().out.startswith("ok: ")
+
+
+def test_doctor_names_the_first_paths_and_counts_the_rest(
+        data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from backend.core import data_folder
+
+    monkeypatch.setattr(data_folder, "MAX_LISTED", 3)
+    monkeypatch.setattr(data_folder, "MAX_WALKED", 8)
+    data.mkdir(parents=True, mode=0o700)
+    os.chmod(data, 0o700)
+    for i in range(10):
+        (data / f"f{i}").write_text("x")  # 0644
+    found = data_folder.exposures(Settings(  # type: ignore[call-arg]
+        database_url=f"sqlite:///{data / 'exostudy.db'}", run_dir=data,
+        device_key_file=data / "device.key", _env_file=None))
+    assert (len(found.listed), found.count, found.walk_stopped) == (3, 8, True)
+    lines = found.lines()
+    assert lines[3].startswith("... and 5 more paths open to others (8 in all")
+    assert lines[4].startswith("stopped looking after 8 entries")
+
+
 def test_exports_on_disk_are_private(client: TestClient, db_url: str, tmp_path: Path) -> None:
     make_study(client, db_url)
     bids, results = tmp_path / "bids", tmp_path / "results"
