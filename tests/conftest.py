@@ -40,17 +40,24 @@ DATABASE_FACING = {
 }
 
 
-#: The modules that take longest (`pytest --durations=0`, a fresh clone on this 2-core
-#: machine under `make test`: the API fuzzing ~110 s in 450 tests, the virtual study and
-#: the wheel ~80 s each, the console in Chromium ~65 s, the rest 40-55 s), longest first.
+#: The modules that take longest (the slowest-files list that `make test` prints, a fresh
+#: clone on this 2-core machine, 2026-11-26: the API fuzzing ~220 s, the wheel ~150 s,
+#: the questionnaires ~115 s, the virtual study ~100 s, the two link fault modules ~95 s
+#: each, the console ~90 s, the rest 60-80 s), longest first.
 LONGEST_MODULES = [
     "tests/backend/api/test_api_fuzz.py",
-    "tests/backend/analysis/test_virtual_study.py",
     "tests/packaging/test_wheel.py",
-    "tests/browser/test_console.py",
+    "tests/backend/api/test_questionnaires.py",
+    "tests/backend/analysis/test_virtual_study.py",
     "tests/faults/test_protocol_faults.py",
+    "tests/faults/test_link_attacks.py",
+    "tests/browser/test_console.py",
+    "tests/faults/test_job_faults.py",
     "tests/controller/controllers/test_worked_example.py",
-    "tests/backend/api/test_study_workflow.py",
+    "tests/backend/api/test_storable_text.py",
+    "tests/faults/test_process_faults.py",
+    "tests/backend/api/test_roles.py",
+    "tests/faults/test_worker_state_faults.py",
     "tests/backend/analysis/test_virtual_study_load.py",
 ]
 

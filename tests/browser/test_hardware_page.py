@@ -43,8 +43,15 @@ def test_zero_pulse_and_watchdog_from_the_page(udp_server: str, page: Any,
     assert "udp-sim (simulated)" in (page.text_content("#device") or "")
     assert "not run" in (page.text_content("#step-table tr[data-step='zero'] .result") or "")
 
-    page.wait_for_function(
-        "fetch('/api/health').then(r => r.json()).then(h => h.status === 'ok')")
+    # The steps belong to the device on the link: they wait until it has proved its
+    # identity (a CHALLENGE answered), which can come after the health turns ok.
+    def joined() -> bool:
+        return bool(page.evaluate("fetch('/api/health').then(r => r.json())"
+                                  ".then(h => h.status === 'ok' && !!h.device.identity)"))
+
+    wait_for(joined, 60, "the device to prove its identity")
+    page.reload()
+    page.wait_for_selector("body[data-ready='true']")
     zero = _run(page, "zero")
     assert zero.startswith("passed") and "zeroed over 200 still samples" in zero
     values = page.text_content("#step-table tr[data-step='zero'] .values") or ""

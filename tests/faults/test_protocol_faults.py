@@ -64,7 +64,8 @@ def _seq(sample_packet: bytes) -> int:
 def test_forged_and_replayed_samples_and_forged_commands_change_nothing(
         key_file: Path, device_implementation: str) -> None:
     port = free_udp_port()
-    with device_process(port, key_file, "walking", implementation=device_implementation), \
+    with device_process(port, key_file, "walking",
+                        implementation=device_implementation) as dev, \
             Proxy(port) as proxy, \
             Worker(proxy.port, key_file, "pec") as worker:
         walking = worker.wait_ticks(200)
@@ -104,13 +105,19 @@ def test_forged_and_replayed_samples_and_forged_commands_change_nothing(
 
         wait_for(lambda: worker.link_drops().get("auth") == 1500, 30,
                  "the worker to count 1,500 forged samples")
-        wait_for(lambda: worker.link_drops().get("device_auth") == 301, 30,
-                 "the device to report 301 forged commands")
+        # The device reports its tag failures in every sample; on a busy machine part of
+        # a burst can instead meet its per-period authentication budget (`flood`, in its
+        # statistics line only). Wait until the count settles.
+        settled = SettledCount(lambda: worker.link_drops().get("device_auth", 0))
+        wait_for(lambda: settled.reached(301), 30, "the device to report 301 forged commands")
         after = worker.wait_ticks(100)
         drops = worker.link_drops()
         ticks = worker.ticks()
+        stats = stop_and_read_stats(dev)
 
-    assert drops["auth"] == 1500 and drops["device_auth"] == 301
+    flood = stats["drops"].get("flood", 0)
+    assert drops["auth"] == 1500
+    assert drops["device_auth"] <= 301 <= drops["device_auth"] + flood, stats
     # A recorded sample of the live session is older than the ones used: stale (a
     # duplicate if it was the latest), never a new session.
     assert drops["replay"] + drops["stale"] == 30 and drops["device_restarts"] == 0
