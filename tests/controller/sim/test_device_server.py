@@ -194,14 +194,19 @@ def test_foreign_forged_and_malformed_commands_are_ignored(
     assert all(st & Status.WATCHDOG_RELEASED for st in statuses)
     assert not any(st & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT) for st in statuses)
     # The device reports its drops in its samples: wait until the last forged one shows.
+    # On a busy machine a stalled device reads a burst at once, and past its budget of 8
+    # datagrams a period it counts them as `flood` (statistics only), so the wait ends
+    # at the deadline then, and the counts are checked with the budget's share.
     deadline = time.monotonic() + 5.0
     while host.link_counters()["device_auth"] < 20 and time.monotonic() < deadline:
         _read(host)
-    assert host.link_counters()["device_auth"] == 20
+    reported = host.link_counters()["device_auth"]
     stats = server.finish()
+    flood = stats.drops.get("flood", 0)
     assert stats.drops["foreign"] == 20
-    assert stats.malformed["auth"] == 20 and stats.summary()["unknown_version"] == 20
-    assert stats.summary()["auth_failures"] == 20
+    auth, version = stats.malformed["auth"], stats.summary()["unknown_version"]
+    assert auth <= 20 and version <= 20 and auth + version + flood == 40, stats.summary()
+    assert reported == auth == stats.summary()["auth_failures"]
     assert stats.commands == 0 and stats.host_changes == 0
     # Answered with VERSION at most once per second; the host reads it (3..3: no problem).
     assert 1 <= stats.versions_sent <= 2 and host.stats.versions == stats.versions_sent
