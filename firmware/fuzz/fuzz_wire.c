@@ -87,9 +87,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     }
 #ifdef FZ_TOLERATE_SAMPLE_ORDER
-    /* Finding 1 of /work/notes/fuzz-findings.md, tolerated only when built on purpose
-     * (make FZ_TOLERATE=1) to look past it: the core checks a SAMPLE's counts and
-     * status before its payload size. */
+    /* A disagreement the harness found once (fixed in the core since): a SAMPLE's
+     * counts and status checked before its payload size. Tolerated only when built on
+     * purpose (make FZ_TOLERATE=1), to look past it in an older core. */
     if (want == FZ_LENGTH && size > 3 && d[3] == FZ_T_SAMPLE &&
         (strcmp(got, "counts") == 0 || strcmp(got, "status") == 0))
         got = "length";
