@@ -149,6 +149,10 @@ class Proxy:
         self.worker: tuple[str, int] | None = None
         self.to_worker: list[bytes] = []  # every datagram the device sent
         self.to_device: list[bytes] = []  # every datagram the worker sent
+        #: Decides per worker datagram whether it is held back (True) instead of
+        #: forwarded; held ones are kept in `held` (recorded in `to_device` either way).
+        self.hold: Callable[[bytes], bool] = lambda d: False
+        self.held: list[bytes] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="proxy", daemon=True)
 
@@ -156,14 +160,20 @@ class Proxy:
         while not self._stop.is_set():
             ready, _, _ = select.select([self.front, self.back], [], [], 0.05)
             for sock in ready:
-                data, addr = sock.recvfrom(4096)
-                if sock is self.front:
-                    self.worker = (str(addr[0]), int(addr[1]))
-                    self.to_device.append(data)
-                    self.back.sendto(data, self.device)
-                elif self.worker is not None:
-                    self.to_worker.append(data)
-                    self.front.sendto(data, self.worker)
+                try:
+                    data, addr = sock.recvfrom(4096)
+                    if sock is self.front:
+                        self.worker = (str(addr[0]), int(addr[1]))
+                        self.to_device.append(data)
+                        if self.hold(data):
+                            self.held.append(data)
+                        else:
+                            self.back.sendto(data, self.device)
+                    elif self.worker is not None:
+                        self.to_worker.append(data)
+                        self.front.sendto(data, self.worker)
+                except OSError:
+                    continue  # the worker has gone (ICMP port unreachable): keep going
 
     def send_to_worker(self, data: bytes) -> None:
         """Inject a datagram that the worker sees as coming from the device."""

@@ -14,7 +14,6 @@ what the device reports: a solenoid it drives (SOLENOID_*) while its drivers are
 
 from __future__ import annotations
 
-import select
 import socket
 import threading
 from collections.abc import Callable, Iterator
@@ -43,7 +42,7 @@ from controller.device.protocol import (
 )
 from controller.device.udp import UdpDevice
 from tests import c_device
-from tests.faults.device_rig import device_process, stop_and_read_stats
+from tests.faults.device_rig import Proxy, device_process, stop_and_read_stats
 from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
@@ -108,58 +107,17 @@ def shared_device(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SharedDe
         yield get
 
 
-class LinkProxy:
-    """The attacker on the path: the host talks to `port`, which forwards to the device
-    and back. `hold(datagram)` decides per host datagram whether it is held back
-    (True) instead of forwarded; every datagram either way is recorded."""
+class LinkProxy(Proxy):
+    """The attacker on the path (`device_rig.Proxy`), named as this module's host sees
+    it: `to_host` is what the device sent, `deliver` injects towards the device."""
 
-    def __init__(self, device_port: int) -> None:
-        self.device = ("127.0.0.1", device_port)
-        self.front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # faces the host
-        self.front.bind(("127.0.0.1", 0))
-        self.port = int(self.front.getsockname()[1])
-        self.back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # faces the device
-        self.back.bind(("127.0.0.1", 0))
-        self.host: tuple[str, int] | None = None
-        self.to_device: list[bytes] = []  # every datagram the host sent
-        self.to_host: list[bytes] = []  # every datagram the device sent
-        self.held: list[bytes] = []
-        self.hold: Callable[[bytes], bool] = lambda d: False
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="link-proxy", daemon=True)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self.front, self.back], [], [], 0.05)
-            for sock in ready:
-                try:
-                    data, addr = sock.recvfrom(4096)
-                    if sock is self.front:
-                        self.host = (str(addr[0]), int(addr[1]))
-                        self.to_device.append(data)
-                        if self.hold(data):
-                            self.held.append(data)
-                        else:
-                            self.back.sendto(data, self.device)
-                    elif self.host is not None:
-                        self.to_host.append(data)
-                        self.front.sendto(data, self.host)
-                except OSError:
-                    continue  # the host has gone (ICMP port unreachable): keep going
+    @property
+    def to_host(self) -> list[bytes]:
+        return self.to_worker
 
     def deliver(self, data: bytes) -> None:
         """Send a datagram to the device from the host-facing address of the path."""
-        self.back.sendto(data, self.device)
-
-    def __enter__(self) -> LinkProxy:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(2)
-        self.front.close()
-        self.back.close()
+        self.send_to_device(data)
 
 
 class Host:
