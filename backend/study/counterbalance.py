@@ -22,12 +22,15 @@ from controller.controllers import registry
 LABELS = tuple(string.ascii_uppercase)
 
 
-def controller_order(position: int, include_optional: bool = True) -> list[str]:
+def controller_order(position: int, include_optional: bool = True,
+                     include_baselines: bool = False) -> list[str]:
     """Controllers in the order participant number `position` (0-based) evaluates them;
-    `include_optional`: with the controllers registered as optional in a plan."""
+    `include_optional`: with the controllers registered as optional in a plan;
+    `include_baselines`: with the baseline conditions, rotated with the counterbalanced
+    controllers so that they are blinded and balanced like them."""
     if position < 0:
         raise ValueError("position must be >= 0")
-    planned = [r for r in registry.planned()
+    planned = [r for r in registry.planned(include_baselines)
                if r.plan is not None and (include_optional or not r.plan.optional)]
     rotated = [r.name for r in planned if r.plan is not None and r.plan.counterbalanced]
     k = position % len(rotated) if rotated else 0

@@ -26,7 +26,8 @@ Builder = Callable[["ControllerSpec"], "Controller"]
 
 #: The modules of the controllers that ship with ExoStudy.
 BUILTIN_MODULES = ("controller.controllers.passthrough", "controller.controllers.umc",
-                   "controller.controllers.eumc", "controller.controllers.pec")
+                   "controller.controllers.eumc", "controller.controllers.pec",
+                   "controller.controllers.baselines")
 #: Environment variable naming more controller modules to import (comma-separated).
 ENV_MODULES = "EXOSTUDY_CONTROLLERS"
 _NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
@@ -46,6 +47,10 @@ class PlanPlace:
     rank: int
     counterbalanced: bool = True
     optional: bool = False
+    #: A baseline condition (no exoskeleton, springs never locked): planned only when a
+    #: plan asks for baselines, then counterbalanced and blinded like the controllers,
+    #: and the reference that muscle-activity reductions are measured against.
+    baseline: bool = False
 
 
 @dataclass(frozen=True)
@@ -68,6 +73,9 @@ class Registration:
         plan: where it enters a counterbalanced trial plan; None: never planned.
         idle: the resting controller that never locks: the worker starts with it and
             returns to it (exactly one registration is idle).
+        exoskeleton_worn: False for the "no exoskeleton" baseline: the wearer does not
+            wear the device, so it gives no torque (the simulation removes it; in a lab
+            its lifts come from the experimenter's markers, not the device's angles).
     """
 
     name: str
@@ -80,6 +88,7 @@ class Registration:
     marker: str = ""
     plan: PlanPlace | None = None
     idle: bool = False
+    exoskeleton_worn: bool = True
 
     @property
     def shown(self) -> str:
@@ -93,8 +102,8 @@ _loaded = False
 
 def register(name: str, *, needs_models: bool = False, needs_calibration: bool = False,
              estimates_intent: bool = False, label: str = "", colour: str = "",
-             marker: str = "", plan: PlanPlace | None = None, idle: bool = False
-             ) -> Callable[[Builder], Builder]:
+             marker: str = "", plan: PlanPlace | None = None, idle: bool = False,
+             exoskeleton_worn: bool = True) -> Callable[[Builder], Builder]:
     """Decorator: register the decorated builder as the controller `name`, with what it
     declares about itself (`Registration`).
 
@@ -114,7 +123,8 @@ def register(name: str, *, needs_models: bool = False, needs_calibration: bool =
         if idle and any(r.idle and r.name != name for r in _REGISTRY.values()):
             raise ValueError(f"controller {name!r}: another controller is already idle")
         _REGISTRY[name] = Registration(name, build, needs_models, needs_calibration,
-                                       estimates_intent, label, colour, marker, plan, idle)
+                                       estimates_intent, label, colour, marker, plan, idle,
+                                       exoskeleton_worn)
         return build
 
     return add
@@ -191,16 +201,30 @@ def idle() -> str:
     return found[0]
 
 
-def planned() -> tuple[Registration, ...]:
-    """The controllers that enter a trial plan, by their plan rank (then name)."""
+def planned(include_baselines: bool = False) -> tuple[Registration, ...]:
+    """The controllers that enter a trial plan, by their plan rank (then name); the
+    baseline conditions only if asked for."""
     _load()
-    regs = [r for r in _REGISTRY.values() if r.plan is not None]
+    regs = [r for r in _REGISTRY.values() if r.plan is not None
+            and (include_baselines or not r.plan.baseline)]
     return tuple(sorted(regs, key=lambda r: (r.plan.rank if r.plan else 0, r.name)))
 
 
 def display_order() -> tuple[str, ...]:
     """Every name in the order pages and tables list them: the planned controllers by
     rank, then the others by name, the idle one last."""
-    plan = [r.name for r in planned()]
+    plan = [r.name for r in planned(include_baselines=True)]
     rest = sorted(n for n in names() if n not in plan)
     return (*plan, *sorted(rest, key=lambda n: (_REGISTRY[n].idle, n)))
+
+
+def baselines() -> tuple[str, ...]:
+    """The baseline conditions' names, in plan rank order."""
+    return tuple(r.name for r in planned(include_baselines=True)
+                 if r.plan is not None and r.plan.baseline)
+
+
+def exoskeleton_worn(name: str) -> bool:
+    """Whether the wearer wears the exoskeleton under `name` (True for unknown names)."""
+    reg = lookup(name)
+    return reg is None or reg.exoskeleton_worn
