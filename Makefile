@@ -12,7 +12,7 @@ NODE_STAMP := frontend/node_modules/.package-lock.json
 GUIDE_STAMP := site/index.html
 export NO_MKDOCS_2_WARNING := 1
 
-.PHONY: run test static-checks test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware fuzz
+.PHONY: run test static-checks test-js install lint bench clean-db system-npm system-chromium system-postgresql system-gcc FORCE firmware-check system-firmware fuzz docs-images
 
 run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
@@ -132,6 +132,11 @@ test-js: install
 
 bench: install
 	$(BIN)/python bench/run_all.py
+
+# The docs' screenshots that browser tests take (docs/img/): the test asserts on the
+# page, then saves its picture when EXOSTUDY_DOCS_IMAGES is set.
+docs-images: install system-chromium
+	EXOSTUDY_DOCS_IMAGES=1 $(BIN)/python -m pytest tests/browser/test_wearer_page.py -q -p no:randomly -n 0
 
 clean-db:
 	rm -f var/exostudy.db var/exostudy.db-wal var/exostudy.db-shm

@@ -13,6 +13,8 @@
     exostudy user grant-device|revoke-device NAME  give/take the lab's device grant
     exostudy virtual-study --participants 8 --seed S --out DIR   the protocol, simulated
     exostudy cohort --participants N --seed S --out DIR   power and sample size, simulated
+    exostudy personalisation --participants N --out DIR   personal models, learned priors
+    exostudy emg-sweep --participants N --out DIR   spring settings vs muscle activity (prediction)
     exostudy results --study ID --out DIR [--db URL]   a study's tables and figures
     exostudy export --study ID --bids DIR [--db URL]   a study as a BIDS-motion dataset
     exostudy replicate --out DIR [--seeds N] [--from-db PATHS...]   the paper, claim by claim
@@ -120,10 +122,10 @@ def _user(args: argparse.Namespace) -> int:
     from sqlalchemy import select
 
     from backend.core.config import Settings
-    from backend.db import migrate
+    from backend.db import audit, migrate
     from backend.db.engine import make_engine, make_session_factory
     from backend.db.models import User
-    from backend.study import accounts, audit
+    from backend.study import accounts
 
     url = Settings().database_url
     migrate.upgrade(url)
@@ -210,7 +212,7 @@ def _cohort(args: argparse.Namespace) -> int:
     cfg = CohortConfig(participants=args.participants, seed=args.seed,
                        controllers=tuple(c.strip() for c in args.controllers.split(",")
                                          if c.strip()),
-                       rate_hz=args.rate)
+                       rate_hz=args.rate, emg=args.emg)
     models = ModelSet.load(Path(args.models)) if args.models else None
     utilities = UtilitySet.load(Path(args.utilities)) if args.utilities else None
     t0 = time.monotonic()
@@ -222,6 +224,34 @@ def _cohort(args: argparse.Namespace) -> int:
     print(f"cohort of {cfg.participants} simulated in {t1 - t0:.1f} s, statistics and files "
           f"in {time.monotonic() - t1:.1f} s; wrote {len(paths)} files to {args.out} "
           "(see README.md there)")
+    return 0
+
+
+def _floats(text: str, what: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ValueError(f"{what}: comma-separated numbers, got {text!r}") from None
+
+
+def _emg_sweep(args: argparse.Namespace) -> int:
+    import time
+
+    from controller.evaluation.emg_sweep import SweepConfig, run_sweep, write_outputs
+    from controller.intent.motion_model import ModelSet
+
+    cfg = SweepConfig(participants=args.participants, seed=args.seed,
+                      controllers=tuple(c.strip() for c in args.controllers.split(",")
+                                        if c.strip()),
+                      precompressions=_floats(args.precompressions, "--precompressions"),
+                      stiffness_factors=_floats(args.stiffness, "--stiffness"))
+    models = ModelSet.load(Path(args.models)) if args.models else None
+    t0 = time.monotonic()
+    rows = run_sweep(cfg, models, log=lambda m: print(m, flush=True))
+    wall = time.monotonic() - t0
+    paths = write_outputs(cfg, rows, Path(args.out), wall)
+    print(f"sweep of {len(rows)} settings x controllers in {wall:.0f} s; wrote {len(paths)} "
+          f"files to {args.out} (a model prediction; see README.md there)")
     return 0
 
 
@@ -394,8 +424,33 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--processes", type=int, default=1,
                    help="spread the participants over this many processes (default 1: "
                    "bench/bench_cohort.py found one process faster up to 100 participants)")
+    c.add_argument("--emg", action="store_true",
+                   help="also simulate muscle activity: sEMG of every lift trial, an MVC, "
+                   "and the baseline conditions springs_free and no_exoskeleton (about "
+                   "0.6 s per trial more; docs/muscle-activity.md)")
     c.add_argument("--out", required=True)
     c.set_defaults(func=_cohort)
+
+    from backend import personalisation_cli
+
+    personalisation_cli.add_parser(sub)
+
+    w = sub.add_parser("emg-sweep", help="predict, over spring precompression and "
+                       "stiffness, each controller's peak support torque and reduction of "
+                       "muscle activation on a virtual cohort (a model prediction)")
+    w.add_argument("--participants", type=int, default=10)
+    w.add_argument("--seed", type=int, default=1)
+    w.add_argument("--controllers", default="umc,eumc,pec",
+                   help="comma-separated: umc, eumc, pec")
+    w.add_argument("--precompressions", default="0,10,25,50",
+                   help="comma-separated precompressions, %% of the 22 mm spring travel")
+    w.add_argument("--stiffness", default="0.5,1,1.5,2",
+                   help="comma-separated spring stiffness as factors of the prototype's "
+                   "2 x 33.6 N/mm")
+    w.add_argument("--models", default=None, help="model set JSON (default: fitted from the "
+                   "simulated data collection)")
+    w.add_argument("--out", required=True)
+    w.set_defaults(func=_emg_sweep)
 
     r = sub.add_parser("results", help="write a study's tables (CSV, Markdown), figures "
                        "(PNG, SVG) and trial timelines from an existing database")

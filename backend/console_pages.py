@@ -150,6 +150,8 @@ PAGES: tuple[tuple[str, str, str], ...] = (
     ("/admin", "admin.html", "Accounts: one's password and logins; for an admin, every account."),
     ("/console", "console.html", "Studies: list and create."),
     ("/console/studies/{id}", "study.html", "A study: participants and their sessions."),
+    ("/console/studies/{id}/model-sets", "model_sets.html",
+     "A study's model sets (population and personal, with provenance) and prior sets."),
     ("/console/studies/{id}/results", "results.html",
      "A study's results: tables, figures, trials, what-if replay, model evaluation."),
     ("/console/cohorts", "cohorts.html",
@@ -157,6 +159,9 @@ PAGES: tuple[tuple[str, str, str], ...] = (
     ("/console/replication", "replication.html",
      "The paper replicated claim by claim: the newest report, or start one."),
     ("/console/sessions/{id}", "session.html", "A session: the protocol step by step."),
+    ("/console/participants/{id}/progress", "wearer.html",
+     "A wearer's long use: start and stop the controller, mark events, and the learning "
+     "curves over sessions."),
     ("/hardware", "hardware.html",
      "Hardware bring-up: encoder zero, directions, offset, pulse, watchdog, link, profile."),
 )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import logging
 from collections.abc import AsyncIterator
@@ -10,6 +11,7 @@ from contextlib import asynccontextmanager
 from fastapi import Depends, FastAPI
 from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend import console_pages
@@ -31,6 +33,7 @@ from backend.api.routes import (
     model_sets,
     participant_forms,
     participants,
+    personalisation,
     preferences,
     questionnaires,
     recordings,
@@ -41,6 +44,7 @@ from backend.api.routes import (
     trial_segments,
     trials,
     vocabulary,
+    wearers,
     worker,
 )
 from backend.api.socket_logins import SocketLogins
@@ -49,9 +53,12 @@ from backend.core.config import Settings, get_settings
 from backend.core.resources import version
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
+from backend.emg.live import EmgLab
+from backend.lab.hub import Lab
+from backend.live.parts import StudyHooks
 from backend.live.runtime import Runtime
 from backend.questionnaires.catalog import ensure_built_ins
-from backend.study import accounts, activity
+from backend.study import accounts, activity, demo
 
 log = logging.getLogger(__name__)
 
@@ -75,6 +82,38 @@ def refuse_published_passwords(settings: Settings, sessions: sessionmaker[Sessio
             "or disable the account (`exostudy user disable NAME`) first")
     log.warning("account(s) %s still have the published demo password: change it before "
                 "serving beyond this machine", ", ".join(names))
+
+
+def attach_to_live_path(app: FastAPI, runtime: Runtime, settings: Settings,
+                        engine: Engine) -> None:
+    """Give the live path what sits above it, so that it imports none of it: the lab's
+    LSL streams and markers (fed every tick batch), the EMG inlets (both started and
+    stopped with it) and the study's running trials and recordings (closed as
+    interrupted when the worker dies). Routes reach the lab and the EMG inlets through
+    `app.state` (`deps.LabDep`, `deps.EmgLabDep`)."""
+    broadcast = runtime.stream.broadcast_json
+    lab_hub = Lab(settings.lsl_enabled, settings.lsl_name, engine, broadcast)
+    emg_inlets = EmgLab(settings.lsl_enabled, engine, settings, publish=broadcast)
+    runtime.parts += [lab_hub, emg_inlets]
+    runtime.listeners.append(lab_hub)
+    app.state.lab, app.state.emg = lab_hub, emg_inlets
+    sessions: sessionmaker[Session] = app.state.sessions
+
+    def running() -> str | None:
+        with sessions() as db:
+            return activity.running(db)
+
+    runtime.study = StudyHooks(
+        running=running,
+        interrupt_running=lambda reason: activity.interrupt_running(engine, reason))
+
+
+def create_demo(runtime: Runtime, settings: Settings, sessions: sessionmaker[Session]) -> None:
+    """The demo study in an empty database, from the default sets the live path built
+    (when the demo is on)."""
+    if settings.demo and runtime.defaults is not None:
+        with sessions() as db:
+            demo.ensure_demo(db, *runtime.defaults, settings.precompression_pct)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -111,10 +150,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if interrupted:
             log.warning("interrupted by the restart: %s", ", ".join(interrupted))
         runtime = Runtime(settings, engine)
+        attach_to_live_path(app, runtime, settings, engine)
         app.state.runtime = runtime
         app.state.jobs = jobs.JobRunner(app.state.sessions)
         await runtime.start()
         try:
+            await asyncio.to_thread(create_demo, runtime, settings, app.state.sessions)
             refuse_published_passwords(settings, app.state.sessions)
             yield
         finally:
@@ -163,11 +204,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(audit.router)
     app.include_router(recordings.router)
     app.include_router(model_sets.router)
+    app.include_router(personalisation.router)
     app.include_router(trials.router)
     app.include_router(trial_segments.router)
     app.include_router(lab.router)
     app.include_router(emg.router)
     app.include_router(results.router)
+    app.include_router(wearers.router)
     app.include_router(cohorts.router)
     app.include_router(replication.router)
     app.include_router(vocabulary.router)

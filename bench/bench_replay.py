@@ -102,7 +102,7 @@ def main() -> int:
     base = {"models_path": str(folder / "models.json"),
             "utilities_path": str(folder / "utilities.json")}
     rec = ten_minutes()
-    start = np.mean([m.mean[0] for m in load_models(base).ordered()], axis=0)
+    start = load_models(base).start_posture()
     cal = calibrate(rec.q[:200], start)
     configs: dict[str, tuple[str, dict[str, Any]]] = {
         "UMC @ 100 Hz": ("umc", {"umc_rate_hz": 100}),

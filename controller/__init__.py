@@ -4,63 +4,18 @@ quasi-passive hip exoskeleton.
 This package has no web or database code. It is used by the backend's worker process, by
 offline replay and by the simulator; everything here runs without hardware.
 
-The names below are the package's public API, imported on first use so that a light
-user (the device simulator process) does not load the compiled controllers:
+A bare package: it holds no code (tests/test_import_directions.py), so importing one part
+(the device simulator process imports `controller.sim`) loads nothing else. Import each
+name from the module that defines it:
 
-- choosing and building a controller: `ControllerConfig`, `ControllerSpec`,
-  `SettingError`, `make_controller`, `make_from_spec`, `controller_names`;
-- writing one (`docs/adding-a-controller.md`): `Controller`, `KernelController`,
-  `Kernel`, `register`;
-- running one: `ControlLoop`, `Sample`, `LockCommand`, `TickRecord`, and offline
-  `AngleRecording`, `replay_columns`.
+- choosing and building a controller: `controller.config` (`ControllerConfig`,
+  `SettingError`), `controller.controllers.spec` (`ControllerSpec`),
+  `controller.controllers.factory` (`make_controller`, `make_from_spec`,
+  `controller_names`);
+- writing one (`docs/adding-a-controller.md`): `controller.interface` (`Controller`),
+  `controller.kernel` (`Kernel`, `KernelController`), `controller.controllers.registry`
+  (`register`);
+- running one: `controller.runner.loop` (`ControlLoop`), `controller.device.base`
+  (`Sample`, `LockCommand`), `controller.tick_record` (`TickRecord`), and offline
+  `controller.runner.replay` (`AngleRecording`, `replay_columns`).
 """
-
-from __future__ import annotations
-
-import importlib
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from controller.config import ControllerConfig, SettingError
-    from controller.controllers.factory import controller_names, make_controller, make_from_spec
-    from controller.controllers.registry import register
-    from controller.controllers.spec import ControllerSpec
-    from controller.device.base import LockCommand, Sample
-    from controller.interface import Controller
-    from controller.kernel import Kernel, KernelController
-    from controller.runner.loop import ControlLoop
-    from controller.runner.replay import AngleRecording, replay_columns
-    from controller.tick_record import TickRecord
-
-_WHERE = {
-    "Controller": "controller.interface",
-    "ControllerConfig": "controller.config",
-    "SettingError": "controller.config",
-    "LockCommand": "controller.device.base",
-    "Sample": "controller.device.base",
-    "controller_names": "controller.controllers.factory",
-    "make_controller": "controller.controllers.factory",
-    "make_from_spec": "controller.controllers.factory",
-    "Kernel": "controller.kernel",
-    "KernelController": "controller.kernel",
-    "ControlLoop": "controller.runner.loop",
-    "register": "controller.controllers.registry",
-    "AngleRecording": "controller.runner.replay",
-    "replay_columns": "controller.runner.replay",
-    "ControllerSpec": "controller.controllers.spec",
-    "TickRecord": "controller.tick_record",
-}
-
-__all__ = [
-    "AngleRecording", "ControlLoop", "Controller", "ControllerConfig", "ControllerSpec",
-    "Kernel", "KernelController", "LockCommand", "Sample", "SettingError", "TickRecord",
-    "controller_names", "make_controller", "make_from_spec", "register", "replay_columns",
-]
-assert sorted(__all__) == sorted(_WHERE)
-
-
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'controller' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)

@@ -3,7 +3,9 @@
 The rules are read from the document, not restated here: its mermaid diagram (which
 package may import which) and its exceptions table (one module, one more import, by full
 path). Imports are read from the source with `ast`, so the rules hold for code that is
-imported lazily inside a function as well.
+imported lazily inside a function as well. Beyond the rules: the imports the source
+really makes (exceptions included) form no cycle between the backend's parts, and the
+bare packages hold no code.
 """
 
 from __future__ import annotations
@@ -93,7 +95,7 @@ def _is_module(name: str) -> bool:
 
 def _imports(path: Path) -> set[str]:
     """Every module `path` imports (absolute imports). `from a import b` imports `a.b`
-    when that is a module of this tree (`from backend.study import audit` imports the
+    when that is a module of this tree (`from backend.db import audit` imports the
     audit module, not the whole package), else `a`."""
     found: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
@@ -131,9 +133,8 @@ def violations(graph: dict[str, set[str]], rules: Rules) -> tuple[list[str], set
     exceptions that were used."""
     bad, used = [], set()
     for mod, imported in sorted(graph.items()):
-        if mod in ROOTS:
-            continue
-        here = rules.node_of(mod)
+        # A bare package is a node without arrows: it may import nothing.
+        here = mod if mod in ROOTS else rules.node_of(mod)
         if here is None:
             bad.append(f"{mod} (not in the document's diagram)")
             continue
@@ -177,6 +178,54 @@ def _acyclic(rules: Rules) -> list[str]:
     return cyclic
 
 
+def node_imports(graph: dict[str, set[str]], rules: Rules, within: str
+                 ) -> dict[str, set[str]]:
+    """Which node imports which, from the imports the source really makes (exceptions
+    included), between the nodes under `within` (`backend`)."""
+    edges: dict[str, set[str]] = {}
+    for mod, imported in graph.items():
+        here = rules.node_of(mod)
+        if here is None or not _under(mod, (within,)):
+            continue
+        for target in imported:
+            there = rules.node_of(target) if _under(target, (within,)) else None
+            if there is not None and there != here:
+                edges.setdefault(here, set()).add(there)
+    return edges
+
+
+def cycle(edges: dict[str, set[str]]) -> list[str]:
+    """One cycle of `edges` as the nodes along it, first one repeated at the end
+    (`["lab", "live", "lab"]`); [] if there is none."""
+    state: dict[str, int] = {}
+    path: list[str] = []
+
+    def visit(n: str) -> list[str]:
+        state[n] = 1
+        path.append(n)
+        for m in sorted(edges.get(n, ())):
+            if state.get(m) == 1:
+                return [*path[path.index(m):], m]
+            if m not in state and (found := visit(m)):
+                return found
+        state[n] = 2
+        path.pop()
+        return []
+
+    for n in sorted(edges):
+        if n not in state and (found := visit(n)):
+            return found
+    return []
+
+
+def code_in(init: Path) -> list[str]:
+    """The statements of a package's `__init__.py` besides its docstring."""
+    body = ast.parse(init.read_text(encoding="utf-8")).body
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+        body = body[1:]
+    return [ast.unparse(node).splitlines()[0] for node in body]
+
+
 def test_the_tree_keeps_the_documents_import_directions() -> None:
     rules = read_rules(DOC.read_text(encoding="utf-8"))
     graph = _modules("controller") | _modules("backend")
@@ -184,6 +233,72 @@ def test_the_tree_keeps_the_documents_import_directions() -> None:
     bad, used = violations(graph, rules)
     assert bad == []
     assert sorted(rules.exceptions - used) == [], "exceptions no import needs any more"
+
+
+def test_the_backend_imports_in_one_order() -> None:
+    """No two parts of the backend import each other, directly or round a loop: the
+    exceptions bend the arrows, never into a cycle."""
+    rules = read_rules(DOC.read_text(encoding="utf-8"))
+    edges = node_imports(_modules("backend"), rules, "backend")
+    assert {"study", "lab", "emgrec", "analysis", "live", "schemas", "lsl"} <= set(edges) | {
+        b for bs in edges.values() for b in bs}
+    assert cycle(edges) == []
+
+
+def read_order(text: str, rules: Rules) -> list[set[str]]:
+    """The document's package order: its nodes, rank by rank, top first (packages of
+    one rank are separated by commas)."""
+    found = re.search(r"^(`backend/\w+/` >.*?)\n\n", text, re.S | re.M)
+    assert found, "docs/architecture.md states no package order"
+    ranks = []
+    for rank in found.group(1).replace("\n", " ").split(">"):
+        names = re.findall(r"`(backend/\w+)/`", rank)
+        ranks.append({rules.node_of(_path_module(n)) or n for n in names})
+    return ranks
+
+
+def downward(edges: dict[str, set[str]], ranks: list[set[str]]) -> list[str]:
+    """The imports between ranked nodes that do not go down the order."""
+    rank = {node: i for i, nodes in enumerate(ranks) for node in nodes}
+    return sorted(f"{a} --> {b}" for a, bs in edges.items() for b in bs
+                  if a in rank and b in rank and rank[a] >= rank[b])
+
+
+def test_the_document_states_the_order_the_packages_import_in() -> None:
+    text = DOC.read_text(encoding="utf-8")
+    rules = read_rules(text)
+    ranks = read_order(text, rules)
+    backend_packages = {p.name for p in (ROOT / "backend").iterdir()
+                        if (p / "__init__.py").is_file()}
+    assert {rules.node_of(f"backend.{p}") for p in backend_packages} == set().union(*ranks)
+    assert downward(node_imports(_modules("backend"), rules, "backend"), ranks) == []
+    assert downward({"lab": {"live"}, "live": {"lab"}}, [{"lab"}, {"live"}]) == [
+        "live --> lab"]
+
+
+def test_the_bare_packages_hold_no_code() -> None:
+    for root in ROOTS:
+        assert code_in(ROOT / root / "__init__.py") == [], root
+
+
+def test_the_cycle_and_code_checks_can_fail(tmp_path: Path) -> None:
+    edges = {"lab": {"live", "db"}, "live": {"worker"}, "worker": {"lab"}, "db": set()}
+    assert cycle(edges) == ["lab", "live", "worker", "lab"]
+    assert cycle({"lab": {"live"}, "live": {"db"}}) == []
+    rules = read_rules(TOY)
+    graph = {"backend.api.routes.trials": {"backend.study.trials"},
+             "backend.study.trials": {"backend.api.errors", "backend.db.models"}}
+    assert cycle(node_imports(graph, rules, "backend")) == ["api", "study", "api"]
+    init = tmp_path / "__init__.py"
+    init.write_text('"""Only words."""\n')
+    assert code_in(init) == []
+    init.write_text('"""Words."""\nfrom __future__ import annotations\nX = 1\n')
+    assert code_in(init) == ["from __future__ import annotations", "X = 1"]
+    real = read_rules(DOC.read_text(encoding="utf-8"))
+    bad, _ = violations({"controller": {"controller.config"}, "backend": {"backend.main"}},
+                        real)
+    assert bad == ["backend -> backend.main (no arrow backend --> main)",
+                   "controller -> controller.config (no arrow controller --> common)"]
 
 
 def test_the_document_draws_a_layering() -> None:

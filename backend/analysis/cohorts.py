@@ -18,10 +18,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
 from backend.core.errors import ConflictError
+from backend.db import audit
 from backend.db.cohorts import CohortRecord
 from backend.db.models import User
 from backend.schemas.cohorts import CohortIn, CohortOut
-from backend.study import audit
 from controller.evaluation.cohort import CohortConfig
 
 

@@ -34,7 +34,7 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
     }),
     "study_sessions": ("One row per visit: data collection (demonstrations) or evaluation.", {
         "participant_id": ("", "participant id"),
-        "kind": ("", "data_collection or evaluation"),
+        "kind": ("", "data_collection, evaluation or long_use (use outside a trial plan)"),
         "precompression_pct": ("% of 22 mm", "spring precompression of the exoskeleton"),
         "started_at": ("ISO 8601 UTC", "start of the session"),
     }),
@@ -81,6 +81,24 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "params": ("JSON", "fit parameters: latent dimension, explained variance, counts"),
         "segment_ids": ("JSON list", "segments the models were fitted from"),
         "error": ("", "why fitting failed, if it did"),
+        "kind": ("", "population (a study's demonstrations) or personal (one participant's)"),
+        "method": ("", "ppca (fitted from the demonstrations alone) or map (the population "
+                   "set base_model_set_id adapted to the participant's demonstrations)"),
+        "participant_id": ("", "wearer of a personal model set; empty for a population set"),
+        "base_model_set_id": ("", "population model set a personal set adapts or was "
+                              "planned beside"),
+    }),
+    "prior_sets": ("Each participant's versioned priors, learned from use and kept inside "
+                   "the safety bound of a utility set; documents in prior_sets/<id>.json.", {
+        "study_id": ("", "study id"),
+        "participant_id": ("", "participant id"),
+        "version": ("", "1, 2, ... per participant, in the order made"),
+        "method": ("", "dirichlet (confirmed motions), label-shift-em (unconfirmed use), "
+                   "equal or import"),
+        "utility_set_id": ("", "utility set whose safety bound the values satisfy"),
+        "previous_id": ("", "prior set whose counts this one continued"),
+        "params": ("JSON", "learning parameters: floor, pseudo-count, forgetting, motions"),
+        "error": ("", "why learning failed, if it did"),
     }),
     "utility_sets": ("Utility tables per precompression; the tables are in "
                      "utility_sets/<id>.json.", {
@@ -98,7 +116,15 @@ TABLES: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "model_set_id": ("", "model set used (UMC, E-UMC)"),
         "utility_set_id": ("", "utility set used (UMC, E-UMC)"),
         "run_id": ("", "worker run that produced the ticks"),
-        "config_snapshot": ("JSON", "the exact controller configuration the trial ran with"),
+        "config_snapshot": ("JSON", "the exact controller configuration the trial ran with "
+                            "(settings with the priors, model set with a personal set's "
+                            "provenance, prior set, condition)"),
+        "condition": ("", "blinding key of the condition, e.g. umc+personal; empty: the "
+                      "controller's name (population models, equal priors)"),
+        "models": ("", "population or personal models"),
+        "prior_set_id": ("", "prior set the condition ran with; empty: equal priors"),
+        "demonstrations": ("JSON", "a demonstration block's demonstrations asked for, per "
+                           "motion; empty for other trials"),
         "started_at": ("ISO 8601 UTC", "start"),
         "ended_at": ("ISO 8601 UTC", "end"),
         "end_reason": ("", "reason given when it ended, or why it was interrupted (its "

@@ -11,7 +11,7 @@ import zipfile
 from datetime import date, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import Engine, Table, select
+from sqlalchemy import Engine, Table, or_, select
 
 from backend.analysis import data_dictionary, tick_queries
 from backend.core.resources import version
@@ -23,7 +23,8 @@ from controller import spreadsheet
 _OMIT = {"document", "human_data", "content", "date_shift_days"}
 
 _TABLE_ORDER = ("participants", "study_sessions", "condition_labels", "recordings",
-                "lift_segments", "model_sets", "utility_sets", "trials", "trial_segments",
+                "lift_segments", "model_sets", "utility_sets", "prior_sets", "trials",
+                "trial_segments",
                 "lock_events", "questionnaire_responses", "preferences", "markers",
                 "xdf_attachments")
 
@@ -136,6 +137,7 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
             "lift_segments": ("recording_id", recordings),
             "model_sets": ("study_id", [study_id]),
             "utility_sets": ("study_id", [study_id]),
+            "prior_sets": ("participant_id", participants),
             "trials": ("session_id", sessions),
             "trial_segments": ("trial_id", trials),
             "lock_events": ("trial_id", trials),
@@ -153,7 +155,7 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
             w.writerow(cols)
             if keys:
                 q = select(*(t.c[c] for c in cols), t.c[column]).where(
-                    t.c[column].in_(keys)).order_by(t.c.id)
+                    t.c[column].in_(keys), *_of_included(t, participants)).order_by(t.c.id)
                 for *row, key in conn.execute(q):
                     if deidentified:
                         row = _deidentify(name, cols, row, key, column, parents, shift,
@@ -162,10 +164,11 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
                         row[cols.index("controller")] = None
                     w.writerow([_cell(v) for v in row])
             zf.writestr(f"{name}.csv", out.getvalue())
-        for name in ("model_sets", "utility_sets"):
+        for name in ("model_sets", "utility_sets", "prior_sets"):
             t = _table(name)
             for rid, doc in conn.execute(select(t.c.id, t.c.document)
-                                         .where(t.c.study_id == study_id)):
+                                         .where(t.c.study_id == study_id,
+                                                *_of_included(t, participants))):
                 if doc is not None:
                     zf.writestr(f"{name}/{rid}.json", json.dumps(doc, indent=1))
         runs = [("trial", r[0], r[1], None, None) for r in conn.execute(
@@ -188,7 +191,35 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
                       "each column (column `deidentified`).\n\n" + readme)
         zf.writestr("README.md", readme + f"\nExported by ExoStudy {version()}.\n")
         zf.writestr("data_dictionary.csv", _dictionary_csv(deidentified))
+        if unblind and not deidentified:  # muscle tables name controllers and codes
+            for name, text in _muscle_files(engine, study_id, site):
+                zf.writestr(f"muscle_activity/{name}", text)
     return buf.getvalue()
+
+
+def _muscle_files(engine: Engine, study_id: int, site: str | None) -> list[tuple[str, str]]:
+    """The study's muscle-activity tables from its stored EMG, with the method; a study
+    whose EMG cannot be read gets a note saying why instead (the export never fails on
+    it)."""
+    from sqlalchemy.orm import Session
+
+    from backend.analysis import muscle_results
+    from backend.lab.bids_export import emg_folder
+
+    try:
+        with Session(engine) as db:
+            res = muscle_results.CACHE.get(engine, db, emg_folder(engine), study_id, site)
+            return list(muscle_results.iter_export(res))
+    except Exception as exc:  # a note in the archive, never a failed export
+        return [("README.txt", f"muscle activity not computed: {exc}\n")]
+
+
+def _of_included(t: Table, participants: list[int]) -> list[Any]:
+    """Extra conditions on a study-wide table whose rows may belong to one participant
+    (personal model sets, prior sets): only those of the exported participants."""
+    if "participant_id" not in t.c:
+        return []
+    return [or_(t.c.participant_id.is_(None), t.c.participant_id.in_(participants or [-1]))]
 
 
 def _marker_buttons(conn: Any, study_id: int) -> frozenset[str]:

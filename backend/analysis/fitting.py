@@ -19,10 +19,10 @@ from sqlalchemy.orm import Session, sessionmaker
 from backend.analysis import tick_queries
 from backend.analysis.jobs import JobRunner
 from backend.core.errors import InvalidError
+from backend.db import audit
 from backend.db.evidence_tables import LiftSegment, ModelSetRecord, Recording, UtilitySetRecord
 from backend.db.models import Participant, StudySession, User
 from backend.schemas.evidence import ModelSetIn, ModelSetOut, UtilitySetOut
-from backend.study import audit
 from controller.decision.utility_function import compute_utilities
 from controller.human_data import HumanMotionData
 from controller.intent.motion_model import fit_model_set as fit_models

@@ -48,6 +48,7 @@ from scipy import stats
 from sqlalchemy import text
 
 from controller.decision.utility_function import UtilitySet
+from controller.evaluation import muscle_report
 from controller.evaluation.columns import TickData
 from controller.evaluation.figures import peak_torque_figure
 from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
@@ -286,7 +287,7 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     from controller.controllers import registry
     from controller.controllers.factory import make_from_spec, needs_models
     from controller.controllers.spec import ControllerSpec
-    from controller.evaluation.cohort import _calibrated, default_utilities, trial_recording
+    from controller.evaluation.cohort import calibrated, default_utilities, trial_recording
     from controller.runner.replay import replay_columns
     from controller.sim.demonstrations import simulated_model_set
     from controller.sim.participant import VirtualParticipant
@@ -296,7 +297,7 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
     utilities = default_utilities(25.0)
     docs = (models.to_json(), utilities.to_json())
     settings = ControllerConfig(precompression_pct=25.0)
-    start = np.mean([m.mean[0] for m in models.ordered()], axis=0)
+    start = models.start_posture()
     out: list[tuple[TickData, RecordingEvaluation]] = []
     for j in range(cfg.participants):
         pseed = seed * 100 + 1 + j
@@ -304,7 +305,7 @@ def cohort_seed(cfg: ReplicationConfig, seed: int
         ctls = [*PAPER_CONTROLLERS, *([PAPER_EXTRA] if j < cfg.eumc else [])]
         for i, name in enumerate(ctls):
             rec = trial_recording(p, pseed, "paper-evaluation", repetition=i)
-            s = (_calibrated(settings, rec, start)[0] if registry.needs_calibration(name)
+            s = (calibrated(settings, rec, start)[0] if registry.needs_calibration(name)
                  else settings)
             sets = needs_models(name)
             spec = ControllerSpec(name, s, models=docs[0] if sets else None,
@@ -542,6 +543,9 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
                                         o["slope"], o["intercept"], label))
         rep.figures[f"offsets_{name}"] = (r.png, r.svg)
     rep.phases["offsets"] = round(time.monotonic() - t0, 1)
+    rep.first_tables["muscle_activity"] = muscle_report.replication_section(
+        rep.figures, cfg.participants, cfg.first_seed, first[1] if first else None,
+        utilities, log)
     report((steps - 1) / steps)
     t0 = time.monotonic()
     rep.stairs = stair_kinematics(cfg.stair_participants, cfg.first_seed)

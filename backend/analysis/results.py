@@ -53,6 +53,7 @@ from backend.db.models import (
 )
 from backend.live import trial_quality
 from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfOut
+from backend.schemas.wearers import LONG_USE_TASK
 from controller.config import ControllerConfig, SettingError
 from controller.controllers import registry
 from controller.controllers.factory import make_from_spec, needs_models
@@ -359,6 +360,10 @@ def study_results(engine: Engine, db: Session, study_id: int,
                             .where(StudySession.participant_id == p.id)
                             .order_by(StudySession.id, Trial.planned_order))
         for t in trials:
+            if t.task == LONG_USE_TASK:  # no plan's condition: the per-wearer page's
+                out.skipped.append({"trial_id": t.id, "status": t.status,
+                                    "reason": "long use (see the participant's progress)"})
+                continue
             if t.status != "completed" or t.run_id is None:
                 out.skipped.append({"trial_id": t.id, "status": t.status,
                                     "reason": f"trial is {t.status}"})

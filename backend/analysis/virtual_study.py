@@ -37,12 +37,26 @@ Protocol (paper, "User study set-up"), and the choices made here:
   device-time gaps are reported.
 - Questionnaires are left out: a virtual participant has no opinion, and invented
   answers would only look like data. The outputs say so.
+- Muscle activity (`emg`, on by default): the first rate setting's study also plans the
+  two baseline conditions (springs free, no exoskeleton), counterbalanced and blinded
+  with the controllers, each one repetition of the `lift-evaluation` script (the lifts
+  of the paper's evaluation: baselines are measured in lifts only). The simulator
+  publishes the wearer's EMG on LSL as a 16-channel 2 kHz amplifier
+  (`controller.sim.emg_amplifier`); each participant's session of that study
+  subscribes to the stream (12 muscles by the study's montage, 4 spare inputs ignored)
+  for its trials and records it through the server's inlet into the EMG store, and the
+  results read it back (`backend.analysis.muscle_results`), normalised to the task peak
+  (a virtual participant performs no MVC). The simulation runs faster than real time,
+  so the stream's timestamps are closer together than 2 kHz: every recording carries
+  the `rate_mismatch` flag, which says exactly that; samples are processed at the
+  amplifier's nominal rate.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import secrets
 import time
 from collections.abc import Callable
@@ -61,6 +75,11 @@ from controller.controllers import registry
 from controller.device.base import MAX_SPEED, SAMPLE_PERIOD_S
 
 RATE_SETTINGS: dict[str, float | None] = {"paper-rates": None, "100hz": 100.0}
+#: liblsl's configuration for the virtual study (written into its folder): streams are
+#: found on this machine only, by multicast on the machine scope and unicast to the
+#: loopback address, so the simulated amplifier and the server need no network.
+LSL_CONFIG = ("[ports]\nIPv6 = disable\n\n[multicast]\nResolveScope = machine\n\n"
+              "[lab]\nKnownPeers = {127.0.0.1}\n")
 #: A wait on the worker fails only after this many seconds without progress (ticks,
 #: job progress): a loaded machine makes the study slower, never wrong.
 STALL_S = 120.0
@@ -77,6 +96,15 @@ DATASET_INFO: dict[str, Any] = {
 #: Tables written per rate setting (questionnaires are left out, see the docstring).
 WRITTEN_TABLES = ("performance", "performance_by_kind", "false_positives", "onset_to_lock",
                   "lifts")
+#: See `VirtualStudyConfig.emg_speed`.
+EMG_SPEED = 15.0
+#: The simulated amplifier's stream (`SimulatedDevice` with `emg_lsl`) and its spare inputs.
+EMG_STREAM = "ExoStudy-SimEMG"
+EMG_SPARE = ("spare_1", "spare_2", "spare_3", "spare_4")
+#: The EMG study's settings: the project's chain with a 50 Hz notch (the simulated
+#: amplifier hums at 50 Hz), normalised to the task peak (no MVC in a simulation).
+EMG_SETTINGS: dict[str, Any] = {"processing": {"notch_hz": 50}, "normalisation": "task_peak",
+                                "mains_hz": 50}
 QUESTIONNAIRE_NOTE = ("Questionnaires (SUS, EUS, preference) are not part of a virtual "
                       "study: virtual participants give no answers, and none are invented.")
 
@@ -98,6 +126,14 @@ class VirtualStudyConfig:
     rates: tuple[str, ...] = tuple(RATE_SETTINGS)
     margin_s: float = 6.0
     model_evaluation: bool = True
+    #: EMG on LSL and the baseline conditions in the first rate setting's study.
+    emg: bool = True
+    baseline_script: str = "lift-evaluation"
+    #: Simulator speed-up while a session records EMG: 2 kHz x 16 channels at this
+    #: multiple of real time through LSL, the server's inlet and the store (which also
+    #: checks quality and draws the live strip); more and a loaded machine's inlet falls
+    #: behind LSL's buffer and samples are lost (flagged, never hidden).
+    emg_speed: float = EMG_SPEED
 
     def __post_init__(self) -> None:
         if self.participants < 1:
@@ -313,15 +349,18 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
         seed = cfg.eval_seed(j)
         code = f"P{j + 1:02d}"
         plans: list[tuple[str, list[dict[str, Any]]]] = []
+        sessions: dict[str, int] = {}
         for label, study_id in studies.items():
             p = _ok(d.c.post(f"/api/studies/{study_id}/participants",
                              json=_participant_body(seed, code)), 201)
             sess = _ok(d.c.post(f"/api/participants/{p['id']}/sessions",
                                 json={"kind": "evaluation", "precompression_pct": 25}), 201)
-            plan = _ok(d.c.post(f"/api/sessions/{sess['id']}/trials/plan",
-                                json={"tasks": [cfg.eval_script], "model_set_id": ms_id,
-                                      "utility_set_id": us_id,
-                                      "include_eumc": j < cfg.eumc}), 201)
+            body: dict[str, Any] = {"tasks": [cfg.eval_script], "model_set_id": ms_id,
+                                    "utility_set_id": us_id, "include_eumc": j < cfg.eumc}
+            if cfg.emg and label == cfg.rates[0]:
+                body.update(include_baselines=True, baseline_tasks=[cfg.baseline_script])
+                sessions[label] = sess["id"]
+            plan = _ok(d.c.post(f"/api/sessions/{sess['id']}/trials/plan", json=body), 201)
             plans.append((label, plan))
         d.simulate(seed, cfg.eval_script, cfg.speed)
         # One calibration per participant, as per donning: the runtime keeps it for
@@ -329,12 +368,19 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
         calibrating = any(registry.needs_calibration(t["controller"])
                           for _, plan in plans for t in plan)
         attempts = d.calibrate() if calibrating else 0
-        trial_s = _script_s(seed, cfg.eval_script) + cfg.margin_s
+        script = cfg.eval_script
         for label, plan in plans:
             rate = RATE_SETTINGS[label]
+            sub = _subscribe_emg(d, sessions[label]) if label in sessions else None
+            speed = cfg.emg_speed if sub is not None else cfg.speed
             for trial in plan:
+                if trial["task"] != script or speed != d.speed:
+                    # a baseline's lifts, back to the protocol, or the EMG's pace
+                    script = trial["task"]
+                    d.simulate(seed, script, speed)
+                trial_s = _script_s(seed, script) + cfg.margin_s
                 t0 = time.monotonic()
-                body: dict[str, Any] = {"duration_s": trial_s}
+                body = {"duration_s": trial_s}
                 if rate is not None:
                     body["rate_hz"] = rate
                 started = _ok(d.c.post(f"/api/trials/{trial['id']}/start", json=body))
@@ -347,7 +393,54 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
                                                  round(wall, 2), n, round(n / wall, 1), gaps,
                                                  attempts if registry.needs_calibration(
                                                      trial["controller"]) else 0))
+            if sub is not None:
+                _ok(d.c.request("DELETE",
+                                f"/api/sessions/{sessions[label]}/emg-streams/{sub}"))
         d.log(f"evaluation: {code} done ({sum(len(p) for _, p in plans)} trials)")
+
+
+def _subscribe_emg(d: _Driver, session_id: int) -> int:
+    """Record the simulated amplifier with the session (as an experimenter subscribes
+    the lab's amplifier); the subscription's id. The stream appears once the simulator
+    runs; a subscription is refused (409) until it is visible."""
+    deadline = time.monotonic() + STALL_S
+    while True:
+        r = d.c.post(f"/api/sessions/{session_id}/emg-streams",
+                     json={"name": EMG_STREAM, "ignore_labels": list(EMG_SPARE)})
+        if r.status_code == 201:
+            sub = int(r.json()["id"])
+            break
+        if r.status_code != 409 or time.monotonic() > deadline:
+            _ok(r, 201)
+        time.sleep(0.2)
+    # Until the inlet records (its first samples make the recording), so no trial
+    # starts before its EMG does.
+    while time.monotonic() < deadline:
+        streams = _ok(d.c.get(f"/api/sessions/{session_id}/emg-streams"))
+        if any(s["id"] == sub and s.get("connected") for s in streams):
+            return sub
+        time.sleep(0.05)
+    raise VirtualStudyError(f"the EMG stream of session {session_id} never connected")
+
+
+def _setup_emg(d: _Driver, study_id: int) -> None:
+    """The EMG study's montage (the simulated amplifier's 12 muscle channels, SENIAM
+    where SENIAM has the muscle) and its processing settings."""
+    from controller.sim.emg_amplifier import (
+        ELECTRODE,
+        INTER_ELECTRODE_MM,
+        PLACEMENT,
+        REFERENCE,
+    )
+    from controller.sim.muscles import CHANNELS, channel_label
+
+    channels = [{"label": channel_label(m, side), "muscle": m, "side": side,
+                 "placement": PLACEMENT[m], "electrode_type": ELECTRODE,
+                 "inter_electrode_distance_mm": INTER_ELECTRODE_MM, "reference": REFERENCE}
+                for m, side in CHANNELS]
+    _ok(d.c.request("PUT", f"/api/studies/{study_id}/emg-montage", json_body={
+        "placement_scheme": "SENIAM where available", "channels": channels}))
+    _ok(d.c.request("PUT", f"/api/studies/{study_id}/emg-settings", json_body=EMG_SETTINGS))
 
 
 def _write(path: Path, data: bytes | str, report: VirtualStudyReport) -> None:
@@ -378,6 +471,8 @@ def _outputs(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id
             for fmt in ("png", "svg"):
                 r = d.c.get(f"/api/studies/{sid}/figures/{fig}.{fmt}")
                 _write(folder / f"{fig}.{fmt}", _ok_bytes(r), report)
+        if cfg.emg and label == cfg.rates[0]:
+            _muscle_outputs(d, sid, folder, report)
         first = next((t for t in report.trials
                       if t.study == label and registry.estimates_intent(t.controller)), None)
         if first is not None:
@@ -390,6 +485,22 @@ def _outputs(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id
                            params={"model_set_id": ms_id, "utility_set_id": us_id}))
         _write(out / "model_evaluation.json", json.dumps(lopo, indent=1), report)
         _write(out / "model_evaluation.md", lopo_markdown(lopo), report)
+
+
+def _muscle_outputs(d: _Driver, sid: int, folder: Path, report: VirtualStudyReport) -> None:
+    """The muscle-activity results of the EMG study: JSON, every table as CSV, the
+    reductions as Markdown, both figures."""
+    doc = _ok(d.c.get(f"/api/studies/{sid}/muscle-results"))
+    _write(folder / "muscle_results.json", json.dumps(doc, indent=1), report)
+    for table in ("lifts", "summary", "reductions", "repeated_measures"):
+        r = d.c.get(f"/api/studies/{sid}/muscle-results/{table}.csv")
+        _write(folder / f"muscle_{table}.csv", _ok_text(r), report)
+    r = d.c.get(f"/api/studies/{sid}/muscle-results/reductions.md")
+    _write(folder / "muscle_reductions.md", _ok_text(r), report)
+    for fig in ("muscle_envelopes", "muscle_reduction"):
+        for fmt in ("png", "svg"):
+            r = d.c.get(f"/api/studies/{sid}/muscle-figures/{fig}.{fmt}")
+            _write(folder / f"{fig}.{fmt}", _ok_bytes(r), report)
 
 
 def _ok_text(r: Response) -> str:
@@ -458,6 +569,18 @@ def _readme(cfg: VirtualStudyConfig, report: VirtualStudyReport) -> str:
             p = cfg.out / label / f"{table}.md"
             if p.is_file():
                 lines += [p.read_text(), ""]
+        p = cfg.out / label / "muscle_reductions.md"
+        if p.is_file():
+            lines += ["### Muscle activity", "",
+                      "EMG of the simulated wearer's muscles, published on LSL by the "
+                      "simulated amplifier and recorded through the server; the "
+                      "reduction of each muscle's mean envelope over the lifts against "
+                      "each baseline condition (figures `muscle_reduction.png`, "
+                      "`muscle_envelopes.png`; every lift in `muscle_lifts.csv`). The "
+                      "simulation does not model the device's mass or straps, so the two "
+                      "baselines differ only by chance. The stream is sped up with the "
+                      "simulation, so its recordings carry `rate_mismatch`.", "",
+                      p.read_text(), ""]
     if (cfg.out / "model_evaluation.md").is_file():
         lines += ["## Motion models, leave one participant out", "",
                   (cfg.out / "model_evaluation.md").read_text()]
@@ -473,7 +596,12 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
     from backend.study import accounts
 
     t_start = time.monotonic()
+    # liblsl reads this at its first call: the simulated amplifier and its inlet find
+    # each other on this machine only (no network, no other computer's streams).
     cfg.out.mkdir(parents=True, exist_ok=True)
+    if cfg.emg and "LSLAPICFG" not in os.environ:
+        (cfg.out / "lsl_api.cfg").write_text(LSL_CONFIG)
+        os.environ["LSLAPICFG"] = str((cfg.out / "lsl_api.cfg").resolve())
     db_path = cfg.out.resolve() / "study.db"
     if db_path.exists():
         raise ValueError(f"out: {db_path} exists; choose an empty folder")
@@ -486,7 +614,8 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
         s.commit()
     settings = Settings(  # type: ignore[call-arg]
         database_url=url, start_worker=True, device_kind="sim", device_speed=cfg.speed,
-        device_seed=cfg.data_seed(0), device_script=cfg.data_scripts[0], _env_file=None)
+        device_seed=cfg.data_seed(0), device_script=cfg.data_scripts[0],
+        device_emg_lsl=cfg.emg, _env_file=None)
     report = VirtualStudyReport(out=cfg.out)
     report.notes.append(QUESTIONNAIRE_NOTE)
     try:
@@ -507,6 +636,8 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
                     "name": name, "description": desc, "dataset_info": DATASET_INFO}),
                     201)["id"]
             report.studies = studies
+            if cfg.emg:
+                _setup_emg(d, studies[cfg.rates[0]])
             first = next(iter(studies.values()))
             t0 = time.monotonic()
             segment_ids = _collect(d, cfg, first)

@@ -22,6 +22,8 @@ from backend.api.params import path_id
 from backend.api.socket_logins import SocketLogins
 from backend.core.config import Settings
 from backend.db.models import AuthToken, User
+from backend.emg.live import EmgLab
+from backend.lab.hub import Lab
 from backend.live.runtime import Runtime
 from backend.study import access as access_rules
 from backend.study import device_grants
@@ -44,6 +46,26 @@ def get_runtime(conn: HTTPConnection) -> Runtime:
 
 
 RuntimeDep = Annotated[Runtime, Depends(get_runtime)]
+
+
+def get_lab(conn: HTTPConnection) -> Lab:
+    """The lab's LSL outlets, marker inlets and markers (created by the lifespan and
+    attached to the live path, which feeds it)."""
+    lab: Lab = conn.app.state.lab
+    return lab
+
+
+LabDep = Annotated[Lab, Depends(get_lab)]
+
+
+def get_emg_lab(conn: HTTPConnection) -> EmgLab:
+    """The EMG inlets (created by the lifespan, started and stopped with the live
+    path)."""
+    emg: EmgLab = conn.app.state.emg
+    return emg
+
+
+EmgLabDep = Annotated[EmgLab, Depends(get_emg_lab)]
 
 
 def get_db(request: Request) -> Iterator[Session]:

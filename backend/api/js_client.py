@@ -30,11 +30,12 @@ from pydantic.json_schema import models_json_schema
 
 from backend.core import resources
 from backend.schemas.lab import LiveMarker
-from backend.schemas.live import LiveStatus, LiveTicks
+from backend.schemas.live import LiveEmg, LiveStatus, LiveTicks
 
 #: Every message `/ws/live` sends, by its `type` (backend/live/stream.py sends the
-#: ticks, backend/api/routes/live.py the status, backend/lab/hub.py the markers).
-LIVE_MESSAGES: tuple[type[BaseModel], ...] = (LiveTicks, LiveStatus, LiveMarker)
+#: ticks, backend/api/routes/live.py the status, backend/lab/hub.py the markers,
+#: backend/emg/live_envelope.py the EMG envelopes).
+LIVE_MESSAGES: tuple[type[BaseModel], ...] = (LiveTicks, LiveStatus, LiveMarker, LiveEmg)
 
 #: The file the pages import, `/static/api_client.js`.
 CLIENT_FILE = "api_client.js"

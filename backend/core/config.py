@@ -51,6 +51,9 @@ class Settings(BaseSettings):
     precompression_pct: float = Field(default=25.0, ge=0.0, le=100.0)
     #: With `sim`: run the simulated wearer this many times faster than real time.
     device_speed: float = Field(default=1.0, ge=0.1, le=MAX_SPEED)
+    #: With `sim`: the simulated wearer's muscles on LSL as a 16-channel EMG amplifier
+    #: (type EMG, 2 kHz), generated only while an inlet records it (docs/muscle-activity.md).
+    device_emg_lsl: bool = False
 
     #: Controller the worker starts with: none, umc, eumc or pec.
     controller: str = "none"

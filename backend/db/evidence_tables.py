@@ -104,6 +104,19 @@ class ModelSetRecord(Base):
     error: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    #: population (from a study's demonstrations) or personal (one participant's).
+    kind: Mapped[str] = mapped_column(String(16), default="population",
+                                      server_default="population")
+    #: ppca (fitted from the segments alone) or map (the population set `base_model_set_id`
+    #: adapted to the participant's demonstrations).
+    method: Mapped[str] = mapped_column(String(32), default="ppca", server_default="ppca")
+    #: The wearer of a personal set (withdrawal takes it with them).
+    participant_id: Mapped[int | None] = mapped_column(ForeignKey(
+        "participants.id", ondelete="CASCADE", name="fk_model_sets_participant_id"),
+        index=True)
+    #: The population set a personal set was adapted from (or compared with).
+    base_model_set_id: Mapped[int | None] = mapped_column(ForeignKey(
+        "model_sets.id", ondelete="SET NULL", name="fk_model_sets_base_model_set_id"))
 
 
 class UtilitySetRecord(Base):
@@ -184,6 +197,19 @@ class Trial(Base):
     #: The hardware profile in effect when the trial started (backend/db/hardware.py).
     hardware_profile_id: Mapped[int | None] = mapped_column(ForeignKey(
         "hardware_profiles.id", ondelete="SET NULL", name="fk_trials_hardware_profile_id"))
+    #: The blinding key of the trial's condition (`backend.study.conditions`), e.g.
+    #: "umc+personal"; "" means the controller's own name (population models, equal
+    #: priors: every trial planned before conditions existed).
+    condition: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    #: Which models the condition runs: population or personal (the participant's
+    #: personal set, fixed at plan time or resolved when the trial starts).
+    models: Mapped[str] = mapped_column(String(16), default="population",
+                                        server_default="population")
+    #: The participant's prior set the condition runs with (None: equal priors).
+    prior_set_id: Mapped[int | None] = mapped_column(ForeignKey(
+        "prior_sets.id", ondelete="SET NULL", name="fk_trials_prior_set_id"))
+    #: A demonstration block: how many demonstrations of each motion it asks for.
+    demonstrations: Mapped[dict[str, Any] | None] = mapped_column(JSON)
 
     # At most one trial runs: the database refuses a second (see Recording).
     __table_args__ = (

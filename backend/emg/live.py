@@ -15,6 +15,12 @@ closed with the reason). A stream that is lost ends its recording (flag `stream_
 when it comes back a new recording starts (flag `stream_restarted`). NaN samples,
 clipping, flat channels, gaps and a rate that disagrees with the timestamps are flagged
 in the recording's quality, never dropped.
+
+The live page's strip: each pulled block also goes through `LiveEnvelope` (causal
+envelope, decimated, with per-channel flags), whose messages reach the consoles over the
+live WebSocket. A pull waits for the first sample (up to `_PULL_TIMEOUT_S`) and then
+takes what has arrived without waiting: liblsl's `pull_chunk` with a timeout waits
+until its buffer is full or the timeout ends, which would hold every block for 0.2 s.
 """
 
 from __future__ import annotations
@@ -29,11 +35,14 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
-from backend.db.emg import EmgMontage, EmgStream
+from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgStream
 from backend.emg import recordings
+from backend.emg.live_envelope import LiveEnvelope, Publish
 from backend.emg.quality_summary import STREAM_LOST, STREAM_RESTARTED
-from backend.lab.lsl_names import Property, lsl_errors, predicate
-from backend.lab.marker_inlet import backoff_delays
+from backend.lab.markers import study_of_session
+from backend.lsl.backoff import backoff_delays
+from backend.lsl.names import Property, lsl_errors, predicate
+from controller.emg.processing import EmgProcessing, EmgSettingsError
 
 log = logging.getLogger(__name__)
 
@@ -130,13 +139,37 @@ def resolve_described(name: str, source_id: str) -> Any:
     return None if info is None else full_info(info)
 
 
+def study_processing(db: Session, session_id: int) -> EmgProcessing:
+    """The processing chain of the session's study (defaults when unset or unusable)."""
+    sid = study_of_session(db, session_id)
+    row = db.get(EmgAnalysisSettings, sid) if sid is not None else None
+    try:
+        return EmgProcessing.from_dict(row.processing) if row is not None else EmgProcessing()
+    except (EmgSettingsError, TypeError):
+        return EmgProcessing()
+
+
+def _pull(inlet: Any) -> tuple[list[Any], list[float]]:
+    """Wait up to `_PULL_TIMEOUT_S` for a sample, then take what else has arrived."""
+    first, ts0 = inlet.pull_sample(timeout=_PULL_TIMEOUT_S)
+    if ts0 is None:
+        return [], []
+    chunk, ts = inlet.pull_chunk(timeout=0.0, max_samples=_MAX_PULL - 1)
+    return [first, *chunk], [ts0, *ts]
+
+
 class EmgInlet:
     """Records one EMG subscription until stopped."""
 
-    def __init__(self, engine: Engine, settings: Settings, subscription_id: int) -> None:
+    def __init__(self, engine: Engine, settings: Settings, subscription_id: int,
+                 publish: Publish | None = None) -> None:
         self.engine = engine
         self.settings = settings
         self.subscription_id = subscription_id
+        #: Where the live envelope's messages go (the consoles' WebSocket); None: nowhere.
+        self.publish = publish
+        #: The strip's envelope of the current connection (None while not connected).
+        self.envelope: LiveEnvelope | None = None
         self.connected = False
         self.samples = 0
         self.recordings: list[int] = []
@@ -219,23 +252,34 @@ class EmgInlet:
                 rec.quality.flag(STREAM_RESTARTED)
             cols = np.asarray(layout.columns)
             volts = np.asarray(layout.volts)
+            envelope = LiveEnvelope(layout.fs, [c["label"] for c in montage.channels],
+                                    sub.session_id, sub.id,
+                                    study_processing(db, sub.session_id), self.publish)
+            envelope.recording_id = rec.row.id
+            self.envelope = envelope
             self.connected = True
             try:
                 correction = inlet.time_correction(timeout=5.0)
                 while not self._stop.is_set():
-                    chunk, ts = inlet.pull_chunk(timeout=_PULL_TIMEOUT_S,
-                                                 max_samples=_MAX_PULL)
+                    chunk, ts = _pull(inlet)
                     if not ts:
                         continue
                     correction = inlet.time_correction(timeout=1.0)
                     x = np.asarray(chunk, dtype=np.float64)[:, cols] * volts
-                    rec.append(np.asarray(ts, dtype=np.float64) + correction, x)
+                    t = np.asarray(ts, dtype=np.float64) + correction
+                    rec.append(t, x)
                     self.samples += len(ts)
+                    try:
+                        envelope.clock_correction_s = float(correction)
+                        envelope.push(t, x)
+                    except Exception as exc:  # the strip must never stop the recording
+                        log.warning("EMG strip of stream %d: %s", self.subscription_id, exc)
             except (*lsl_errors(pylsl), TimeoutError):
                 log.warning("EMG stream %s was lost; resolving it again", info.name())
                 rec.quality.flag(STREAM_LOST)
             finally:
                 self.connected = False
+                self.envelope = None
                 try:
                     inlet.close_stream()
                 except Exception:
@@ -250,10 +294,13 @@ class EmgInlet:
 class EmgLab:
     """The EMG inlets of one server."""
 
-    def __init__(self, enabled: bool, engine: Engine, settings: Settings) -> None:
+    def __init__(self, enabled: bool, engine: Engine, settings: Settings,
+                 publish: Publish | None = None) -> None:
         self.enabled = enabled
         self.engine = engine
         self.settings = settings
+        #: Where every inlet sends its live envelope (`LiveStream.broadcast_json`).
+        self.publish = publish
         self.inlets: dict[int, EmgInlet] = {}
 
     def start(self) -> None:
@@ -278,7 +325,7 @@ class EmgLab:
         """Start recording subscription `sub_id`."""
         if not self.enabled or sub_id in self.inlets:
             return
-        inlet = EmgInlet(self.engine, self.settings, sub_id)
+        inlet = EmgInlet(self.engine, self.settings, sub_id, self.publish)
         self.inlets[sub_id] = inlet
         inlet.start()
 

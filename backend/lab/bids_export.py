@@ -312,9 +312,10 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
         cols = tick_queries.columns(engine, trial.run_id)
         if cols["t"].size == 0:
             continue
-        blinded_label = blinded.get(trial.controller)
+        condition = trial.condition or trial.controller  # e.g. umc+personal
+        blinded_label = blinded.get(condition)
         task = label(trial.task)
-        acq = label(trial.controller if unblind else blinded_label or "unlabelled")
+        acq = label(condition if unblind else blinded_label or "unlabelled")
         counts[(task, acq)] = k = counts.get((task, acq), 0) + 1
         # BIDS' entity order: task, tracksys, acq, run.
         folder = f"sub-{sub}/{ses}/motion/"

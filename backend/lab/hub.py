@@ -2,7 +2,10 @@
 stored, streamed to consoles and sent on LSL at once.
 
 The runtime feeds it the worker's tick batches and run starts (one more consumer beside
-the recorder and the live stream); routes call it for console markers and trial events.
+the recorder and the live stream, attached by the app factory: `backend.live.parts`);
+routes call it for console markers and trial events. Markers reach the consoles through
+the `broadcast` it is given (the live stream's), so the lab imports nothing of the live
+path.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
+from collections.abc import Callable
 from typing import Any
 
 from sqlalchemy import Engine, select
@@ -17,10 +21,10 @@ from sqlalchemy.orm import Session
 
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream
-from backend.lab import lsl_names, markers
+from backend.lab import markers
 from backend.lab.lsl_outlets import LabOutlets, TickTime, marker_text
 from backend.lab.marker_inlet import MarkerInlet
-from backend.live.stream import LiveStream
+from backend.lsl import names as lsl_names
 from backend.schemas.lab import LiveMarker, MarkerOut
 from backend.worker.messages import TickBatch
 
@@ -30,10 +34,12 @@ log = logging.getLogger(__name__)
 class Lab:
     """Outlets, inlets and markers for one server."""
 
-    def __init__(self, enabled: bool, name: str, engine: Engine, stream: LiveStream) -> None:
+    def __init__(self, enabled: bool, name: str, engine: Engine,
+                 broadcast: Callable[[dict[str, Any]], None]) -> None:
         self.outlets = LabOutlets(enabled, name)
         self.engine = engine
-        self.stream = stream
+        #: Sends a JSON message to every console (`LiveStream.broadcast_json`).
+        self.broadcast = broadcast
         self.inlets: dict[int, MarkerInlet] = {}
         self._first: dict[int, TickTime] = {}
         self._last: dict[int, TickTime] = {}
@@ -114,7 +120,7 @@ class Lab:
         """Send a stored marker on LSL (unless `send` is off) and to the consoles."""
         if send:
             self._send(marker, extra)
-        self.stream.broadcast_json(
+        self.broadcast(
             LiveMarker(marker=MarkerOut.model_validate(marker)).model_dump(mode="json"))
 
     def console_marker(self, db: Session, session_id: int, label: str, note: str,

@@ -11,11 +11,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from backend.lab.lsl_names import Property, lsl_errors, predicate
+from backend.lsl.backoff import backoff_delays
+from backend.lsl.names import Property, lsl_errors, predicate
 
 log = logging.getLogger(__name__)
 
@@ -54,23 +55,9 @@ OnFailed = Callable[[int, str], None]
 
 #: Seconds one resolve round waits for the stream to appear.
 _RESOLVE_TIMEOUT_S = 1.0
-#: Waits after a round that ended without a stream sooner than it should (liblsl
-#: refused the query, or the network layer failed), and between reconnections: doubled
-#: each time from 1 s, at most 30 s (an assumption: a restarted sender is back within
-#: seconds, and a check every 30 s costs nothing).
-BACKOFF_FIRST_S = 1.0
-BACKOFF_MAX_S = 30.0
 #: Consecutive failed connection attempts (the stream was found but could not be
 #: opened, or the reader failed) after which the subscription is closed as failed.
 MAX_FAILURES = 8
-
-
-def backoff_delays() -> Iterator[float]:
-    """1, 2, 4, ... seconds, then `BACKOFF_MAX_S` for ever."""
-    delay = BACKOFF_FIRST_S
-    while True:
-        yield delay
-        delay = min(BACKOFF_MAX_S, delay * 2)
 
 
 class MarkerInlet:

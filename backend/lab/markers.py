@@ -64,7 +64,7 @@ def trial_fields(db: Session, trial: Trial) -> dict[str, Any]:
                                .where(StudySession.id == trial.session_id))
     label = db.scalar(select(ConditionLabel.label).where(
         ConditionLabel.participant_id == participant_id,
-        ConditionLabel.controller == trial.controller))
+        ConditionLabel.controller == (trial.condition or trial.controller)))
     return {"trial_id": trial.id, "task": trial.task, "controller": trial.controller,
             "blinded_label": label}
 

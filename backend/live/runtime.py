@@ -1,6 +1,8 @@
 """The live path on the server: worker supervisor -> tick recorder and live stream.
 
-Created by the app's lifespan; one per server process.
+Created by the app's lifespan; one per server process. The lifespan also attaches what
+sits above the live path (the lab's LSL streams, the EMG inlets, the study's running
+trials: `backend.live.parts`), so this module imports none of them.
 """
 
 from __future__ import annotations
@@ -18,10 +20,9 @@ from sqlalchemy import Engine
 from backend import bootstrap
 from backend.core.config import Settings
 from backend.core.resources import version
-from backend.emg.live import EmgLab
-from backend.lab.hub import Lab
 from backend.live import device_process
 from backend.live.device_binding import BoundDevice, mismatch
+from backend.live.parts import LivePart, StudyHooks, TickListener
 from backend.live.recorder import TickRecorder
 from backend.live.solenoid_duty import SolenoidDuty
 from backend.live.stream import LiveStream
@@ -33,7 +34,6 @@ from backend.schemas.live import (
     LoopReport,
     WorkerHealth,
 )
-from backend.study import activity
 from backend.worker.device_gate import DeviceGate
 from backend.worker.messages import (
     BringupCommand,
@@ -49,8 +49,10 @@ from controller.config import ControllerConfig
 from controller.controllers import registry
 from controller.controllers.factory import needs_models
 from controller.controllers.spec import ControllerSpec
+from controller.decision.utility_function import UtilitySet
 from controller.device.auth import load_or_create_key
 from controller.device.base import DeviceIdentity
+from controller.intent.motion_model import ModelSet
 from controller.lowlevel.encoders import EncoderLayout
 
 log = logging.getLogger(__name__)
@@ -99,6 +101,7 @@ class Runtime:
             device_key_file=str(settings.device_key_file),
             precompression_pct=settings.precompression_pct,
             device_speed=settings.device_speed,
+            device_emg_lsl=settings.device_emg_lsl,
             models_path=str(settings.models_path),
         )
         self.recorder = TickRecorder(engine, settings.db_flush_interval,
@@ -108,9 +111,16 @@ class Runtime:
         #: a time, so "is anything running?" and "start it" are one step.
         self.activity = asyncio.Lock()
         self.stream = LiveStream(settings.stream_rate, settings.stream_queue)
-        # LSL outlets and event markers: one more consumer of the tick batches.
-        self.lab = Lab(settings.lsl_enabled, settings.lsl_name, engine, self.stream)
-        self.emg = EmgLab(settings.lsl_enabled, engine, settings)
+        #: Started and stopped with the live path (the lab's LSL streams, the EMG
+        #: inlets), attached by the app factory.
+        self.parts: list[LivePart] = []
+        #: More consumers of the tick batches, runs and calibrations (the lab's LSL
+        #: outlets and event markers), attached by the app factory.
+        self.listeners: list[TickListener] = []
+        #: The study this live path serves (the app factory's; none by default).
+        self.study = StudyHooks()
+        #: The default model and utility sets, once `start` has made sure they exist.
+        self.defaults: tuple[ModelSet, UtilitySet] | None = None
         self.supervisor = WorkerSupervisor(
             self.worker_config,
             WorkerCallbacks(
@@ -208,19 +218,13 @@ class Runtime:
         return bootstrap.utilities_path(self.settings.utilities_dir,
                                         self.settings.precompression_pct)
 
-    def prepare_defaults(self) -> None:
-        """Build the default model and utility sets if they are missing (first start),
-        and the demo study in an empty database when the demo is on."""
+    def prepare_defaults(self) -> tuple[ModelSet, UtilitySet]:
+        """Build the default model and utility sets if they are missing (first start);
+        the sets (the app factory builds the demo study from them)."""
         models = bootstrap.ensure_models(self.settings.models_path)
         utilities = bootstrap.ensure_utilities(self.utilities_path(),
                                                self.settings.precompression_pct)
-        if self.settings.demo:
-            from sqlalchemy.orm import Session
-
-            from backend.study.demo import ensure_demo
-
-            with Session(self.recorder.engine) as db:
-                ensure_demo(db, models, utilities, self.settings.precompression_pct)
+        return models, utilities
 
     def controller_spec(
         self, name: str, overrides: dict[str, Any] | None = None
@@ -444,7 +448,8 @@ class Runtime:
         self.stream.call_soon(resolve)
 
     def _on_calibration(self, result: CalibrationResult) -> None:
-        self.lab.on_calibration(result.ok, result.message)
+        for listener in self.listeners:
+            listener.on_calibration(result.ok, result.message)
         if result.ok:
             self.calibration = result
 
@@ -457,7 +462,7 @@ class Runtime:
 
     async def start(self) -> None:
         """Start recording, streaming and (if configured) the device simulator and worker."""
-        await asyncio.to_thread(self.prepare_defaults)
+        self.defaults = await asyncio.to_thread(self.prepare_defaults)
         await asyncio.to_thread(self.load_hardware_layout)
         self.worker_config = replace(
             self.worker_config,
@@ -466,8 +471,8 @@ class Runtime:
         self.supervisor.config = self.worker_config
         self.recorder.start()
         await self.stream.start()
-        self.lab.start()
-        self.emg.start()
+        for part in self.parts:
+            part.start()
         if self.settings.device_kind == "udp":
             # First start: a new link key, private to this user (mode 0600).
             load_or_create_key(self.settings.device_key_file)
@@ -510,11 +515,8 @@ class Runtime:
         self._seen_device = seen
         if self.hardware_profile is None:
             return  # nothing to re-resolve: the default layout applies to any device
-        from sqlalchemy.orm import Session
-
         async with self.activity:
-            with Session(self.recorder.engine) as db:
-                busy = activity.running(db)
+            busy = self.study.running()
             if busy is None and self.supervisor.config.controller == registry.idle():
                 await self.idle()
 
@@ -526,8 +528,8 @@ class Runtime:
         self.recorder.worker_exited("server shutdown")
         self.recorder.stop()
         await self.stream.stop()
-        self.emg.stop()
-        self.lab.stop()
+        for part in reversed(self.parts):
+            part.stop()
         if self.device_process is not None:
             device_process.stop(self.device_process, self._device_pid_file())
 
@@ -561,7 +563,8 @@ class Runtime:
     def _on_ticks(self, batch: TickBatch) -> None:
         self.recorder.add(batch)
         self.stream.push(batch.ticks)
-        self.lab.on_ticks(batch)
+        for listener in self.listeners:
+            listener.on_ticks(batch)
         if self.supervisor.config.device_speed > 1.0:
             self._wait_for_recorder()
 
@@ -579,7 +582,8 @@ class Runtime:
 
     def _on_run_started(self, msg: RunStarted) -> None:
         run_id = self.recorder.run_started(msg, msg.device_kind)
-        self.lab.on_run_started(msg.run_token, run_id)
+        for listener in self.listeners:
+            listener.on_run_started(msg.run_token, run_id)
         self.stream.run_id = run_id
         self._run_ids[msg.run_token] = run_id
         self._runs_started += 1
@@ -594,8 +598,7 @@ class Runtime:
         except Exception:
             log.exception("closing the run of the exited worker failed")
         try:
-            closed = activity.interrupt_running(self.recorder.engine,
-                                                f"the worker stopped: {reason}")
+            closed = self.study.interrupt_running(f"the worker stopped: {reason}")
         except Exception:
             log.exception("closing what the exited worker ran failed")
             return

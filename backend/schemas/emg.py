@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from backend.lab.lsl_names import LSL_TEXT_PATTERN
+from backend.lsl.names import LSL_TEXT_PATTERN
 from backend.schemas.fields import UtcDatetime
 
 MuscleId = Literal["erector_spinae_lumbar", "erector_spinae_thoracic", "gluteus_maximus",
@@ -154,3 +154,45 @@ class MvcEventIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     event: Literal["start", "stop"]
+
+
+class TrialEmgChannel(BaseModel):
+    """One channel's envelope over a trial, decimated for display."""
+
+    label: str
+    muscle: str
+    side: str
+    values: list[float] = Field(description="envelope in volts at the times `t`")
+    flags: list[str] = Field(description="the recording's quality flags of this channel")
+
+
+class TrialEmgLift(BaseModel):
+    """One lift of the trial and its outcomes from the full-rate envelope, per channel."""
+
+    index: int
+    kind: str
+    start_s: float = Field(description="from the trial's start")
+    end_s: float
+    peak: list[float]
+    mean: list[float]
+    iemg: list[float] = Field(description="envelope integral over the lift, V s")
+
+
+class TrialEmgOut(BaseModel):
+    """`GET /api/trials/{id}/emg-envelope`: the stored EMG's envelope over the trial."""
+
+    trial_id: int
+    recording_id: int
+    source: str
+    unit: Literal["V"] = "V"
+    normalisation: Literal["none"] = Field(default="none", description=(
+        "not normalised: the panel shows volts, results normalise per the study"))
+    processing: dict[str, Any] = Field(description="the chain used (the study's settings)")
+    recording_fs: float
+    fs: float = Field(description="rate of the decimated values (Hz)")
+    t: list[float] = Field(description="seconds from the trial's start")
+    duration_s: float
+    channels: list[TrialEmgChannel]
+    lifts: list[TrialEmgLift]
+    lift_source: str = Field(description="simulation, segments, task or none")
+    lift_note: str

@@ -119,6 +119,12 @@ class ModelSetOut(BaseModel):
     error: str
     created_at: UtcDatetime
     job_id: int | None = None
+    #: population or personal; ppca (fitted) or map (a population set adapted).
+    kind: str = "population"
+    method: str = "ppca"
+    #: A personal set's wearer and the population set it adapts.
+    participant_id: int | None = None
+    base_model_set_id: int | None = None
 
 
 class UtilitySetIn(BaseModel):
@@ -174,6 +180,18 @@ class JobOut(BaseModel):
     finished_at: UtcDatetime | None
 
 
+PlanVariant = Literal["population", "personal", "population+priors", "personal+priors"]
+
+
+class DemonstrationCounts(BaseModel):
+    """Demonstrations of each motion asked for in a demonstration block."""
+
+    model_config = ConfigDict(extra="forbid")
+    squat: int = Field(ge=1, le=50)
+    stoop_left: int = Field(ge=1, le=50)
+    stoop_right: int = Field(ge=1, le=50)
+
+
 class TrialPlanIn(BaseModel):
     """Plan an evaluation session's trials in the study's counterbalanced order."""
 
@@ -182,12 +200,42 @@ class TrialPlanIn(BaseModel):
                              min_length=1, max_length=20)
     include_eumc: bool = Field(default=True, description=(
         "plan the controllers registered as optional in a plan too (the E-UMC)"))
+    include_baselines: bool = Field(default=False, description=(
+        "plan the baseline conditions too (springs free, no exoskeleton), counterbalanced "
+        "and blinded with the controllers; for the plan's lift tasks only (a task with "
+        "squat, stoop or lift in its name) unless `baseline_tasks` names them"))
+    baseline_tasks: list[Annotated[str, Field(min_length=1, max_length=100)]] | None = Field(
+        default=None, min_length=1, max_length=20, description=(
+            "the tasks the baselines are planned for (with include_baselines); default: "
+            "the plan's lift tasks"))
     # Ids within what the id columns hold: a larger one is a 422, not a driver overflow.
     model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
     utility_set_id: int | None = Field(default=None, ge=1, le=MAX_ID)
     replace: bool = Field(default=False, description=(
         "replace the session's plan, allowed while none of its trials has started "
         "(a plan with a started trial is kept, with its data)"))
+    conditions: list[PlanVariant] = Field(
+        default_factory=lambda: list[PlanVariant](["population"]), min_length=1,
+        max_length=4, description=(
+            "the variants of every controller with motion models, each a blinded, "
+            "counterbalanced condition: population or personal models, with equal or "
+            "the prior set's priors (the PEC and baselines run once)"))
+    personal_model_set_id: int | None = Field(default=None, ge=1, le=MAX_ID, description=(
+        "the participant's personal model set for the personal conditions; if unset, "
+        "their newest ready personal set when each such trial starts (fit it from the "
+        "demonstration block first)"))
+    prior_set_id: int | None = Field(default=None, ge=1, le=MAX_ID, description=(
+        "the participant's prior set for the +priors conditions"))
+    demonstrations: DemonstrationCounts | None = Field(default=None, description=(
+        "a demonstration block first in the plan (no locks): how many of each motion"))
+
+    @model_validator(mode="after")
+    def _conditions_distinct(self) -> TrialPlanIn:
+        if len(set(self.conditions)) != len(self.conditions):
+            raise ValueError(f"conditions: each at most once, got {self.conditions}")
+        if self.baseline_tasks is not None and not self.include_baselines:
+            raise ValueError("baseline_tasks: given without include_baselines: true")
+        return self
 
 
 class TrialStartIn(BaseModel):
@@ -230,6 +278,14 @@ class TrialOut(BaseModel):
     quality_flags: dict[str, Any] | None = None
     #: The hardware profile in effect when the trial started (None: none, or not started).
     hardware_profile_id: int | None = None
+    #: The blinding key of the condition ("" before conditions: the controller's name).
+    condition: str = ""
+    #: population or personal models.
+    models: str = "population"
+    #: The prior set the condition runs with (None: equal priors).
+    prior_set_id: int | None = None
+    #: A demonstration block's counts per motion (None for other trials).
+    demonstrations: dict[str, Any] | None = None
 
 
 class LockEventOut(BaseModel):

@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from backend.lab.lsl_names import LSL_TEXT_PATTERN
+from backend.lsl.names import LSL_TEXT_PATTERN
 from backend.schemas.fields import UtcDatetime
 
 #: The marker buttons a study starts with; a study can change them.

@@ -54,6 +54,34 @@ class LiveTicks(BaseModel):
     columns: dict[str, list[float | int | bool | str | None]]
 
 
+class EmgChannelFlags(BaseModel):
+    """One channel's live quality, as the EMG strip shows it (`backend.emg.live_envelope`)."""
+
+    clipping: bool = Field(description="samples at the channel's rails in the last 0.5 s")
+    flat: bool = Field(description="RMS below 0.1 uV in the last 0.5 s (electrode off?)")
+    non_finite: int = Field(description="NaN or infinite samples since the stream connected")
+
+
+class LiveEmg(BaseModel):
+    """The causal EMG envelope of a subscribed stream's channels, decimated for display
+    (sent as samples arrive, at most 25 messages a second per stream)."""
+
+    type: Literal["emg"] = "emg"
+    session_id: int
+    subscription_id: int
+    recording_id: int | None
+    fs: float = Field(description="rate of `values` (Hz): the display rate")
+    t: list[float] = Field(description="session (LSL) clock of each value, s")
+    t_end: float = Field(description="session clock of the newest raw sample taken, s")
+    clock_correction_s: float = Field(description=(
+        "liblsl's estimate of this server's clock minus the amplifier's, added to its "
+        "stamps (t_end - clock_correction_s is the amplifier's own stamp)"))
+    sent_at: float = Field(description="server Unix time when the message was queued")
+    labels: list[str] = Field(description="the montage's channel labels, in order")
+    values: list[list[float]] = Field(description="per channel: the envelope in volts")
+    flags: list[EmgChannelFlags]
+
+
 def _finite_or_none(v: float | None) -> float | None:
     return v if v is not None and math.isfinite(v) else None
 

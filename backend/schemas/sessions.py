@@ -8,7 +8,9 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from backend.schemas.fields import PlainText, UtcDatetime
 
-SessionKind = Literal["data_collection", "evaluation"]
+#: `long_use`: the wearer works with the exoskeleton outside a trial plan; the
+#: controller runs as a long-use trial (`backend.study.long_use`).
+SessionKind = Literal["data_collection", "evaluation", "long_use"]
 
 
 class SessionIn(BaseModel):

@@ -28,6 +28,7 @@ from backend.db.evidence_tables import (
     UtilitySetRecord,
 )
 from backend.db.models import Participant, Study, StudyMember, StudySession, User
+from backend.db.personalisation import PriorSetRecord
 
 StudyRole = Literal["viewer", "experimenter", "owner"]
 STUDY_ROLES: tuple[StudyRole, ...] = ("viewer", "experimenter", "owner")
@@ -119,7 +120,13 @@ def _of_study(db: Session, sid: int) -> Target | None:
 
 def _of_model_set(db: Session, mid: int) -> Target | None:
     m = db.get(ModelSetRecord, mid)
-    return Target(m.study_id) if m is not None else None
+    # A personal set is its wearer's: site limits apply to it as to them.
+    return Target(m.study_id, m.participant_id) if m is not None else None
+
+
+def _of_prior_set(db: Session, pid: int) -> Target | None:
+    p = db.get(PriorSetRecord, pid)
+    return Target(p.study_id, p.participant_id) if p is not None else None
 
 
 def _of_utility_set(db: Session, uid: int) -> Target | None:
@@ -141,7 +148,7 @@ def _of_job(db: Session, jid: int) -> Target | None:
     job = db.get(Job, jid)
     if job is None:
         return None
-    if job.kind == "fit_model_set":
+    if job.kind in ("fit_model_set", "fit_personal_model_set"):
         return _of_model_set(db, job.target_id)
     if job.kind == "compute_utilities":
         return _of_utility_set(db, job.target_id)
@@ -160,6 +167,7 @@ RESOLVERS = {
     "recording_id": _of_recording,
     "trial_id": _of_trial,
     "model_set_id": _of_model_set,
+    "prior_set_id": _of_prior_set,
     "utility_set_id": _of_utility_set,
     "segment_id": _of_segment,
     "trial_segment_id": _of_trial_segment,

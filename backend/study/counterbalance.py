@@ -41,3 +41,33 @@ def controller_order(position: int, include_optional: bool = True,
 def blinded_labels(order: list[str]) -> dict[str, str]:
     """Controller name -> label, in the order met."""
     return {c: LABELS[i] for i, c in enumerate(order)}
+
+
+def condition_order(position: int, variants: dict[str, tuple[str, ...]],
+                    include_optional: bool = True, include_baselines: bool = False
+                    ) -> list[tuple[str, str]]:
+    """(controller, variant) pairs in the order participant `position` meets them, for a
+    plan where some controllers run in several variants (e.g. population and personal
+    models; `variants[name]`, default one unnamed variant). The counterbalanced
+    controllers' variants are rotated together, as one list, exactly as
+    `controller_order` rotates the controllers alone; the variants of each following
+    controller are rotated by the position among themselves, so a comparison of its
+    variants is balanced too. With one variant each this is `controller_order`."""
+    if position < 0:
+        raise ValueError("position must be >= 0")
+    planned = [r for r in registry.planned(include_baselines)
+               if r.plan is not None and (include_optional or not r.plan.optional)]
+
+    def expand(name: str) -> list[tuple[str, str]]:
+        return [(name, v) for v in variants.get(name, ("",))]
+
+    rotated = [p for r in planned if r.plan is not None and r.plan.counterbalanced
+               for p in expand(r.name)]
+    k = position % len(rotated) if rotated else 0
+    following: list[tuple[str, str]] = []
+    for r in planned:
+        if r.plan is not None and not r.plan.counterbalanced:
+            own = expand(r.name)
+            j = position % len(own)
+            following += [*own[j:], *own[:j]]
+    return [*rotated[k:], *rotated[:k], *following]

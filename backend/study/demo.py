@@ -17,9 +17,10 @@ from datetime import date
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from backend.db import audit
 from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, Study, StudySession, User
-from backend.study import accounts, audit
+from backend.study import accounts
 from backend.study.counterbalance import blinded_labels, controller_order
 from controller.controllers.factory import needs_models
 from controller.decision.utility_function import UtilitySet

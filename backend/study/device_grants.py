@@ -13,9 +13,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.core.errors import NotFoundError
+from backend.db import audit
 from backend.db.hardware import DeviceGrant
 from backend.db.models import User
-from backend.study import audit
 
 #: What a refusal says, and where the grant comes from.
 MISSING = ("using the exoskeleton (solenoid pulses, controllers, trials, bring-up) needs "

@@ -22,6 +22,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError, NotFoundError
+from backend.db import audit
 from backend.db.hardware import HardwareProfile
 from backend.db.models import User
 from backend.live.device_binding import BoundDevice, firmware_notice, mismatch
@@ -40,7 +41,7 @@ from backend.schemas.hardware import (
     StepResultOut,
     WatchdogIn,
 )
-from backend.study import activity, audit
+from backend.study import activity
 from backend.worker.messages import (
     BringupCapture,
     BringupCommand,

@@ -16,9 +16,9 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError
+from backend.db import audit
 from backend.db.models import ConditionLabel, ConsentDocument, Participant, User
 from backend.schemas.participants import ConditionIn, ParticipantIn, ParticipantUpdate
-from backend.study import audit
 from controller.controllers.factory import controller_names
 
 

@@ -10,11 +10,12 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, NotFoundError
+from backend.db import audit
 from backend.db.evidence_tables import Recording
 from backend.db.models import StudySession, User
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import RecordingIn
-from backend.study import activity, audit
+from backend.study import activity
 from controller.controllers import registry
 
 

@@ -16,12 +16,15 @@ from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError, NotFoundError
 from backend.core.resources import version
+from backend.db import audit
 from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, StudySession, User
+from backend.db.personalisation import PriorSetRecord
+from backend.lab.hub import Lab
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
-from backend.study import activity, audit, hardware_profiles
-from backend.study.counterbalance import blinded_labels, controller_order
+from backend.study import activity, conditions, hardware_profiles
+from backend.study.counterbalance import blinded_labels, condition_order, controller_order
 from controller.config import SettingError
 from controller.controllers import registry
 from controller.controllers.factory import needs_models
@@ -64,8 +67,16 @@ def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Tr
     if existing_plan:
         _discard_plan(db, sess, existing_plan)
     participant: Participant = _get(db, Participant, sess.participant_id, "participant")
-    order = controller_order(_position(db, participant), body.include_eumc)
-    labels = blinded_labels(order)
+    baseline_tasks = _baseline_tasks(body)
+    order = controller_order(_position(db, participant), body.include_eumc,
+                             include_baselines=body.include_baselines)
+    personal, prior_set = _check_conditions(db, body, participant, us)
+    units = condition_order(_position(db, participant),
+                            conditions.variants_of(order, body.conditions), body.include_eumc,
+                            include_baselines=body.include_baselines)
+    keys = [conditions.key(c, v) for c, v in units]
+    labels = (blinded_labels(order) if keys == order
+              else conditions.assign_labels(db, participant.id, keys))
     existing = {c.controller: c.label for c in db.scalars(
         select(ConditionLabel).where(ConditionLabel.participant_id == participant.id))}
     for controller, label in labels.items():
@@ -73,20 +84,95 @@ def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Tr
             db.add(ConditionLabel(participant_id=participant.id, label=label,
                                   controller=controller))
     trials: list[Trial] = []
-    for controller in order:
+    if body.demonstrations is not None:  # first: the personal set is fitted from it
+        trials.append(Trial(session_id=session_id, controller="none",
+                            task=conditions.DEMONSTRATION_TASK, planned_order=0,
+                            status="planned", demonstrations=body.demonstrations.model_dump()))
+    baselines = set(registry.baselines())
+    for controller, variant in units:
         sets = needs_models(controller)
-        for task in body.tasks:
-            trials.append(Trial(session_id=session_id, controller=controller, task=task,
-                                planned_order=len(trials), status="planned",
-                                model_set_id=body.model_set_id if sets else None,
-                                utility_set_id=body.utility_set_id if sets else None))
+        own = sets and conditions.uses_personal(variant)
+        for task in baseline_tasks if controller in baselines else body.tasks:
+            trials.append(Trial(
+                session_id=session_id, controller=controller, task=task,
+                planned_order=len(trials), status="planned",
+                model_set_id=(personal if own else body.model_set_id) if sets else None,
+                utility_set_id=body.utility_set_id if sets else None,
+                condition=conditions.key(controller, variant),
+                models="personal" if own else "population",
+                prior_set_id=prior_set if sets and conditions.uses_priors(variant) else None))
     db.add_all(trials)
     db.flush()
     audit.record(db, user, "plan", "session", session_id,
-                 {"order": order, "tasks": body.tasks, "labels": labels,
+                 {"order": order, "tasks": body.tasks, "baseline_tasks": baseline_tasks,
+                  "labels": labels,
+                  "conditions": keys, "personal_model_set_id": personal,
+                  "prior_set_id": prior_set, "demonstrations": None if body.demonstrations
+                  is None else body.demonstrations.model_dump(),
                   "replaced_trials": replaced})
     db.commit()
     return trials
+
+
+#: Words that make a task a lift task, for which baselines are planned by default:
+#: muscle activity is measured in lifts; walking and stairs judge false locks, which
+#: mean nothing without a controller.
+LIFT_TASK_WORDS = ("squat", "stoop", "lift")
+
+
+def is_lift_task(task: str) -> bool:
+    """Whether a task's name says it is lifting."""
+    name = task.casefold()
+    return any(w in name for w in LIFT_TASK_WORDS)
+
+
+def _baseline_tasks(body: TrialPlanIn) -> list[str]:
+    """The tasks the baseline conditions are planned for: as asked, or the plan's lift
+    tasks; a plan with baselines and no task for them is refused (422)."""
+    if not body.include_baselines:
+        return []
+    if body.baseline_tasks is not None:
+        return list(dict.fromkeys(body.baseline_tasks))
+    lifts = [t for t in body.tasks if is_lift_task(t)]
+    if not lifts:
+        raise InvalidError.at(["body", "baseline_tasks"], (
+            f"include_baselines: none of the tasks {body.tasks} is a lift task (with "
+            f"{', '.join(LIFT_TASK_WORDS)} in its name); name the baselines' tasks in "
+            "baseline_tasks"))
+    return lifts
+
+
+def _check_conditions(db: Session, body: TrialPlanIn, participant: Participant,
+                      utilities: UtilitySetRecord | None) -> tuple[int | None, int | None]:
+    """The personal model set and prior set the plan's conditions need (422 naming what
+    is missing or wrong): a personal condition needs a personal set named, one to be
+    fitted from the plan's demonstration block, or one the participant already has; a
+    priors condition needs a prior set of this participant inside the safety bound of
+    the plan's utility set."""
+    personal_wanted = any(conditions.uses_personal(v) for v in body.conditions)
+    priors_wanted = any(conditions.uses_priors(v) for v in body.conditions)
+    if body.personal_model_set_id is not None and not personal_wanted:
+        raise InvalidError.at(["body", "personal_model_set_id"], "no condition uses "
+                              'personal models: add "personal" to conditions')
+    if body.prior_set_id is not None and not priors_wanted:
+        raise InvalidError.at(["body", "prior_set_id"], "no condition uses a prior set: "
+                              'add "population+priors" or "personal+priors" to conditions')
+    personal = body.personal_model_set_id
+    if personal is not None:
+        conditions.check_personal_set(db, personal, participant,
+                                      ["body", "personal_model_set_id"])
+    elif personal_wanted and body.demonstrations is None \
+            and conditions.latest_personal_set(db, participant.id) is None:
+        raise InvalidError.at(["body", "conditions"], "a personal-models condition needs "
+                              "a personal model set: give personal_model_set_id, or plan a "
+                              "demonstration block (demonstrations) and fit the set from it "
+                              "before those trials start")
+    if priors_wanted and body.prior_set_id is None:
+        raise InvalidError.at(["body", "prior_set_id"], "a +priors condition needs the "
+                              "participant's prior set")
+    if body.prior_set_id is not None:
+        conditions.check_plan_prior_set(db, body.prior_set_id, participant, utilities)
+    return personal, body.prior_set_id
 
 
 def _check_ready(key: str, entity: str, ref: int | None,
@@ -140,9 +226,21 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
                                 "device": {"kind": runtime.settings.device_kind,
                                            "seed": runtime.settings.device_seed,
                                            "script": runtime.settings.device_script}}
+    if trial.condition:
+        snapshot["condition"] = trial.condition
+    if trial.demonstrations is not None:
+        snapshot["demonstrations"] = trial.demonstrations
     if needs_models(trial.controller):
         ms = db.get(ModelSetRecord, trial.model_set_id) if trial.model_set_id else None
         us = db.get(UtilitySetRecord, trial.utility_set_id) if trial.utility_set_id else None
+        if ms is None and trial.models == "personal":
+            ms = conditions.latest_personal_set(db, sess.participant_id)
+            if ms is None:
+                raise ConflictError("model_set_id", "the trial's condition runs personal "
+                                    "models and the participant has no ready personal "
+                                    "model set: fit one from the demonstration block "
+                                    "(POST /api/participants/{id}/personal-model-sets)")
+            trial.model_set_id = ms.id  # stored with the trial when it starts
         if ms is None or ms.document is None:
             raise ConflictError("model_set_id", "the trial needs a fitted model set")
         if us is None or us.document is None:
@@ -151,10 +249,20 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
             raise ConflictError("utility_set_id", f"utilities were computed for "
                                 f"{us.precompression_pct:g} % but the session runs at "
                                 f"{sess.precompression_pct:g} %")
-        spec = replace(spec, models=ms.document, models_path=None,
-                       utilities=us.document, utilities_path=None)
-        snapshot["model_set"] = {"id": ms.id, "name": ms.name,
-                                 "version": ms.document.get("version")}
+        priors = None
+        if trial.prior_set_id is not None:
+            row = db.get(PriorSetRecord, trial.prior_set_id)
+            if row is None:
+                raise ConflictError("prior_set_id", f"prior set {trial.prior_set_id} of the "
+                                    "trial's condition no longer exists")
+            priors = conditions.checked_priors(row, us)
+            snapshot["priors"] = conditions.snapshot_of_priors(row, priors)
+        try:
+            spec = replace(spec, models=ms.document, models_path=None,
+                           utilities=us.document, utilities_path=None, priors=priors)
+        except SettingError as exc:
+            raise ConflictError(exc.field, exc.problem) from exc
+        snapshot["model_set"] = conditions.snapshot_of_models(ms)
         snapshot["utility_set"] = {"id": us.id, "name": us.name,
                                    "precompression_pct": us.precompression_pct,
                                    "human_source": us.human_source,
@@ -168,13 +276,14 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
     return spec, snapshot
 
 
-async def start(db: Session, user: User, runtime: Runtime, trial_id: int,
+async def start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: int,
                 body: TrialStartIn) -> Trial:
     """Run the trial's controller and mark it running, under the runtime's activity
-    lock; a second running trial refused by the database leaves the worker idle."""
+    lock (with its start marker on the lab's LSL stream); a second running trial refused
+    by the database leaves the worker idle."""
     async with runtime.activity:
         try:
-            return await _start(db, user, runtime, trial_id, body)
+            return await _start(db, user, runtime, lab, trial_id, body)
         except IntegrityError as exc:
             db.rollback()
             # The worker may already run the refused trial's controller: back to none.
@@ -183,7 +292,7 @@ async def start(db: Session, user: User, runtime: Runtime, trial_id: int,
                                 "refused a second") from exc
 
 
-async def _start(db: Session, user: User, runtime: Runtime, trial_id: int,
+async def _start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: int,
                  body: TrialStartIn) -> Trial:
     trial: Trial = _get(db, Trial, trial_id, "trial")
     if trial.status != "planned":
@@ -211,12 +320,12 @@ async def _start(db: Session, user: User, runtime: Runtime, trial_id: int,
     trial.hardware_profile_id = hardware_profiles.active_id(db)
     audit.record(db, user, "start", "trial", trial.id, {"run_id": run_id})
     db.commit()
-    await runtime.lab.trial_marker(db, trial, "trial_start")  # LSL marker, stored
+    await lab.trial_marker(db, trial, "trial_start")  # LSL marker, stored
     return trial
 
 
-async def stop(db: Session, engine: Engine, user: User, runtime: Runtime, trial_id: int,
-               body: TrialStopIn) -> Trial:
+async def stop(db: Session, engine: Engine, user: User, runtime: Runtime, lab: Lab,
+               trial_id: int, body: TrialStopIn) -> Trial:
     """End a running trial as completed or aborted: the worker back to `none`, then its
     tick count, quality flags and lock events from the stored ticks."""
     async with runtime.activity:
@@ -231,5 +340,5 @@ async def stop(db: Session, engine: Engine, user: User, runtime: Runtime, trial_
         db.refresh(trial)
         audit.record(db, user, "stop", "trial", trial.id, body.model_dump())
         db.commit()
-        await runtime.lab.trial_marker(db, trial, "trial_stop")  # LSL marker, stored
+        await lab.trial_marker(db, trial, "trial_stop")  # LSL marker, stored
         return trial

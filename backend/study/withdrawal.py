@@ -16,9 +16,9 @@ from typing import Literal
 from sqlalchemy import delete, select, update
 from sqlalchemy.orm import Session
 
+from backend.db import audit
 from backend.db.evidence_tables import Recording, Trial
 from backend.db.models import AuditEntry, Participant, Run, Study, StudySession, User, ticks_table
-from backend.study import audit
 
 Outcome = Literal["erased", "excluded"]
 

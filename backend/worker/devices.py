@@ -18,6 +18,7 @@ def make_device(config: WorkerConfig) -> Device:
             loop=True,
             precompression_pct=config.precompression_pct,
             speed=config.device_speed,
+            emg_lsl=config.device_emg_lsl,
         )
     if config.device_kind == "udp":
         from pathlib import Path

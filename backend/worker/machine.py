@@ -9,8 +9,13 @@ may be left. Two rules are checked by `Machine.go` on every transition:
 - a command a state does not take is refused with a reason, and the refusal is answered
   (the server waits for every answer; see docs/worker-commands.md).
 
+A calibration is not a state: it is a job (`CalibrationJob`) that collects the next
+seconds of ticks beside whatever the worker is doing (idle or a controller without a time
+limit), with its own short table of what it refuses while it runs (`WHILE_CALIBRATING`).
+
 `Machine.run` is the 100 Hz loop: one tick per device sample, the commands that arrived
-in between dispatched through `Machine.handlers`, a table keyed by the command's type.
+in between dispatched through `Machine.handlers`, a table keyed by the command's kind
+(its type, or `BringupCommand` for the four bring-up steps, which share every rule).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 from multiprocessing.connection import Connection
+from types import UnionType
 from typing import Any
 
 import numpy as np
@@ -33,12 +39,8 @@ from backend.worker import bringup
 from backend.worker.device_gate import DeviceGate
 from backend.worker.devices import make_device
 from backend.worker.messages import (
-    BringupCapture,
     BringupCommand,
-    BringupPulse,
-    BringupRelease,
     BringupResult,
-    BringupWatchdog,
     Calibrate,
     CalibrationResult,
     CommandResult,
@@ -49,6 +51,7 @@ from backend.worker.messages import (
     WorkerCommand,
     WorkerConfig,
     WorkerError,
+    WorkerMessage,
     WorkerStatus,
 )
 from backend.worker.outbox import Outbox
@@ -93,9 +96,6 @@ class State(enum.Enum):
     CONTROLLING = "controlling"
     #: A timed run (`SetController.max_ticks`, a trial): ends by itself, back to `none`.
     TRIAL = "trial"
-    #: Collecting standing-still samples for the E-UMC offsets; the controller of the
-    #: state it came from keeps running.
-    CALIBRATING = "calibrating"
     #: A hardware bring-up step owns the device (it may energise a solenoid).
     BRINGUP = "bringup"
     #: The device is told to let go (passed through, never stayed in).
@@ -104,48 +104,52 @@ class State(enum.Enum):
     STOPPING = "stopping"
 
 
-#: States in which the device may be commanded to lock. A calibration counts: the
-#: controller it runs beside may lock.
-LOCKING = frozenset({State.CONTROLLING, State.TRIAL, State.CALIBRATING, State.BRINGUP})
+#: States in which the device may be commanded to lock.
+LOCKING = frozenset({State.CONTROLLING, State.TRIAL, State.BRINGUP})
 
 #: Every transition the worker may make. Leaving a locking state for one that cannot
 #: lock goes through RELEASING, and so does every way to STOPPING; a locking state may
 #: hand over to another one directly (a new controller decides at the next sample).
 EDGES: frozenset[tuple[State, State]] = frozenset({
     (State.IDLE, State.CONTROLLING), (State.IDLE, State.TRIAL),
-    (State.IDLE, State.CALIBRATING), (State.IDLE, State.BRINGUP),
-    (State.IDLE, State.RELEASING),
-    (State.CONTROLLING, State.TRIAL), (State.CONTROLLING, State.CALIBRATING),
-    (State.CONTROLLING, State.RELEASING),
+    (State.IDLE, State.BRINGUP), (State.IDLE, State.RELEASING),
+    (State.CONTROLLING, State.TRIAL), (State.CONTROLLING, State.RELEASING),
     (State.TRIAL, State.RELEASING),
-    (State.CALIBRATING, State.CONTROLLING), (State.CALIBRATING, State.RELEASING),
     (State.BRINGUP, State.RELEASING),
     (State.RELEASING, State.IDLE), (State.RELEASING, State.CONTROLLING),
     (State.RELEASING, State.STOPPING),
 })
 
+#: What the tables are keyed on: a command's type, or the union of the bring-up steps
+#: (`BringupCommand`: the four share every rule, handler and answer).
+Kind = type | UnionType
+#: Every kind of command, in the order `kind_of` tries them.
+KINDS: tuple[Kind, ...] = (SetController, SetSimulation, Calibrate, StopWorker, BringupCommand)
+#: A state's rule for a kind: None (taken), a reason (refused), or a check of the command
+#: in context that gives a reason, or "" to take it.
+Rule = str | Callable[["Machine", Any], str] | None
+
 _TRIAL_RUNS = "a timed trial is running"
-_TRIAL_BRINGUP = f"{_TRIAL_RUNS}: bring-up needs the worker idle"
-_BRINGUP_TYPES = (BringupCapture, BringupPulse, BringupWatchdog, BringupRelease)
 
 
-def _needs_none(m: Machine, _cmd: WorkerCommand) -> str:
+def kind_of(cmd: object) -> Kind | None:
+    """The kind the tables know `cmd` by; None for something that is not a command."""
+    return next((k for k in KINDS if isinstance(cmd, k)), None)
+
+
+def _needs_none(m: Machine, _cmd: BringupCommand) -> str:
     """Bring-up steps energise solenoids themselves: only with no controller running."""
-    if m.state is State.CALIBRATING and m.base is State.IDLE:
-        return ""
     return f"controller {m.spec.name!r} is running: bring-up needs {_resting()!r}"
 
 
-def _only_release(_m: Machine, cmd: WorkerCommand) -> str:
+def _only_release(_m: Machine, cmd: SetController) -> str:
     """A trial's run is replaced by nothing but `none` (its stop)."""
-    assert isinstance(cmd, SetController)
     if _is_resting(cmd.spec.name) and cmd.max_ticks is None:
         return ""
     return f"{_TRIAL_RUNS}: only {_resting()!r} may replace its controller (stop it first)"
 
 
-def _no_trial_while_calibrating(_m: Machine, cmd: WorkerCommand) -> str:
-    assert isinstance(cmd, SetController)
+def _no_trial_while_calibrating(_m: Machine, cmd: SetController) -> str:
     return "" if cmd.max_ticks is None else \
         "a calibration is being collected: a timed trial cannot start now"
 
@@ -156,47 +160,79 @@ def _simulated(m: Machine, _cmd: WorkerCommand) -> str:
     return "the device is not the in-process simulator: there is no simulation to change"
 
 
-#: Which commands each state takes: None (taken), a reason (refused), or a check of
-#: the command in context that gives a reason, or "" to take it. States not listed take
-#: no command (RELEASING, BRINGUP and STOPPING are passed through inside one handler).
-RULES: dict[State, dict[type, str | Callable[[Machine, WorkerCommand], str] | None]] = {
+#: Which kinds of command each state takes (see `Rule`). States not listed take no
+#: command (RELEASING, BRINGUP and STOPPING are passed through inside one handler).
+RULES: dict[State, dict[Kind, Rule]] = {
     State.IDLE: {
         SetController: None, SetSimulation: _simulated, Calibrate: None,
-        BringupCapture: None, BringupPulse: None, BringupWatchdog: None,
-        BringupRelease: None, StopWorker: None,
+        BringupCommand: None, StopWorker: None,
     },
     State.CONTROLLING: {
         SetController: None, SetSimulation: _simulated, Calibrate: None,
-        BringupCapture: _needs_none, BringupPulse: _needs_none,
-        BringupWatchdog: _needs_none, BringupRelease: _needs_none, StopWorker: None,
+        BringupCommand: _needs_none, StopWorker: None,
     },
     State.TRIAL: {
         SetController: _only_release,
         SetSimulation: f"{_TRIAL_RUNS}: the simulated wearer cannot change under it",
         Calibrate: f"{_TRIAL_RUNS}: a calibration would change its controller",
-        BringupCapture: _TRIAL_BRINGUP, BringupPulse: _TRIAL_BRINGUP,
-        BringupWatchdog: _TRIAL_BRINGUP, BringupRelease: _TRIAL_BRINGUP, StopWorker: None,
-    },
-    State.CALIBRATING: {
-        SetController: _no_trial_while_calibrating, SetSimulation: _simulated,
-        Calibrate: "a calibration is already being collected",
-        BringupCapture: _needs_none, BringupPulse: _needs_none,
-        BringupWatchdog: _needs_none, BringupRelease: _needs_none, StopWorker: None,
+        BringupCommand: f"{_TRIAL_RUNS}: bring-up needs the worker idle", StopWorker: None,
     },
 }
 
+#: What a calibration being collected refuses besides its state's rules (kinds not
+#: listed are left to the state: a new wearer or a bring-up step abandons it, with an
+#: answer; a controller without a time limit takes over beside it).
+WHILE_CALIBRATING: dict[Kind, Rule] = {
+    Calibrate: "a calibration is already being collected",
+    SetController: _no_trial_while_calibrating,
+}
+
+
+def _verdict(rule: Rule, m: Machine, cmd: WorkerCommand) -> str:
+    if rule is None or isinstance(rule, str):
+        return rule or ""
+    return rule(m, cmd)
+
 
 def refusal(m: Machine, cmd: WorkerCommand) -> str:
-    """Why the machine in its present state does not take `cmd` ("" if it does)."""
-    rules = RULES.get(m.state, {})
-    if type(cmd) not in rules:
+    """Why the machine in its present state, and its calibration if one is being
+    collected, does not take `cmd` ("" if it does)."""
+    rules, kind = RULES.get(m.state, {}), kind_of(cmd)
+    if kind is None or kind not in rules:
         return f"the worker is {m.state.value}: it takes no {type(cmd).__name__}"
-    rule = rules[type(cmd)]
-    if rule is None:
-        return ""
-    if isinstance(rule, str):
-        return rule
-    return rule(m, cmd)
+    why = _verdict(rules[kind], m, cmd)
+    if not why and m.calibration is not None:
+        why = _verdict(WHILE_CALIBRATING.get(kind), m, cmd)
+    return why
+
+
+def _refused_change(cmd: SetController | SetSimulation, reason: str
+                    ) -> tuple[WorkerMessage, ...]:
+    """Shown to the experimenter, and the answer its sender waits for (if one does)."""
+    answer = (CommandResult(cmd.request_id, False, reason),) if cmd.request_id else ()
+    return (WorkerError(reason), *answer)
+
+
+#: How a refused command is answered, by kind: in the form its sender waits for.
+#: Anything else (StopWorker is never refused; something that is not a command at all)
+#: is reported as a `WorkerError`: nobody waits, the experimenter sees it.
+REFUSALS: dict[Kind, Callable[[Any, str], tuple[WorkerMessage, ...]]] = {
+    Calibrate: lambda cmd, why: (CalibrationResult(cmd.request_id, False, why),),
+    BringupCommand: lambda cmd, why: (BringupResult(cmd.request_id, False, why,
+                                                    refused=True),),
+    SetController: _refused_change,
+    SetSimulation: _refused_change,
+}
+
+
+def let_go(device: Device) -> None:
+    """The one way the worker lets a device go at its end: release (no solenoid stays
+    energised), then close; a device that fails to close is already released."""
+    device.release()
+    try:
+        device.close()
+    except Exception:
+        pass
 
 
 def build(spec: ControllerSpec) -> Controller:
@@ -248,26 +284,22 @@ class Machine:
         self.cmd_conn, self.parent_pid, self.stopping = cmd_conn, parent_pid, stopping
         self.pid = os.getpid()
         self.state = State.IDLE
-        #: The state a calibration returns to (IDLE or CONTROLLING).
-        self.base = State.IDLE
         #: Every state entered, in order (the tests read the transitions from it).
         self.trace: list[State] = [State.IDLE]
         self.exit_code = 0
+        #: The calibration being collected beside the running controller, if any.
         self.calibration: CalibrationJob | None = None
         self.runs = Runs(outbox, self.pid)
         self.next_status = time.monotonic()
         #: The device the running controller's encoder layout belongs to (None: no
         #: hardware profile, any device); see `backend.worker.device_gate`.
         self.gate: DeviceGate | None = None
-        #: One handler per command type: the state's rules have already taken it.
-        self.handlers: dict[type, Callable[[Any], None]] = {
+        #: One handler per kind of command: the rules have already taken it.
+        self.handlers: dict[Kind, Callable[[Any], None]] = {
             SetController: self.on_set_controller,
             SetSimulation: self.on_set_simulation,
             Calibrate: self.on_calibrate,
-            BringupCapture: self.on_bringup,
-            BringupPulse: self.on_bringup,
-            BringupWatchdog: self.on_bringup,
-            BringupRelease: self.on_bringup,
+            BringupCommand: self.on_bringup,
             StopWorker: self.on_stop,
         }
         try:
@@ -327,15 +359,16 @@ class Machine:
         `gate`: the device its layout belongs to (kept only for a controller that
         locks)."""
         self.gate = None if _is_resting(spec.name) else gate
-        if self.state is State.CALIBRATING:
-            # The calibration goes on beside the new controller, then returns to `to`
-            # (the rules refuse a trial here).
-            self.base = to
-        elif to is State.IDLE:
+        if to is State.IDLE:
             self.leave_for(to)
         elif to is not self.state:
             self.go(to)
         self.loop.controller, self.spec = controller, spec
+        # A "no exoskeleton" baseline: a simulated wearer gets no exoskeleton torque
+        # (devices without `wear` are real: the experimenter takes the device off).
+        wear = getattr(self.device, "wear", None)
+        if callable(wear):
+            wear(registry.exoskeleton_worn(spec.name))
         return self.runs.start(spec, self.device.kind, max_ticks)
 
     def _fall_back(self) -> int:
@@ -351,19 +384,16 @@ class Machine:
         if reason:
             self.refuse(cmd, reason)
             return
-        self.handlers[type(cmd)](cmd)
+        kind = kind_of(cmd)
+        assert kind is not None  # `refusal` refuses what is not a command
+        self.handlers[kind](cmd)
 
-    def refuse(self, cmd: WorkerCommand, reason: str) -> None:
-        """Answer a refused command in the form its sender waits for."""
-        if isinstance(cmd, Calibrate):
-            self.outbox.put(CalibrationResult(cmd.request_id, False, reason))
-        elif isinstance(cmd, _BRINGUP_TYPES):
-            self.outbox.put(BringupResult(cmd.request_id, False, reason, refused=True))
-        elif isinstance(cmd, SetController | SetSimulation):
-            self.outbox.put(WorkerError(reason))
-            self.answer(cmd.request_id, reason)
-        else:  # not a command at all: nobody waits, the experimenter sees it
-            self.outbox.put(WorkerError(reason))
+    def refuse(self, cmd: object, reason: str) -> None:
+        """Answer a refused command in the form its sender waits for (`REFUSALS`)."""
+        kind = kind_of(cmd)
+        answer = REFUSALS.get(kind) if kind is not None else None
+        for msg in answer(cmd, reason) if answer else (WorkerError(reason),):
+            self.outbox.put(msg)
 
     def answer(self, request_id: int, refused: str, run_token: int = 0) -> None:
         """Answer a command the server waits for (request id 0: nobody waits)."""
@@ -380,8 +410,7 @@ class Machine:
             refused = f"controller {cmd.spec.name!r} rejected: {exc}; running " \
                       f"{_resting()!r}"
             self.outbox.put(WorkerError(refused))
-            if self.state is State.IDLE or (self.state is State.CALIBRATING
-                                            and self.base is State.IDLE):
+            if self.state is State.IDLE:
                 self.answer(cmd.request_id, refused)
             else:
                 self.answer(cmd.request_id, refused, self._fall_back())
@@ -393,8 +422,7 @@ class Machine:
             # it was to replace stops too (released), as for a spec that does not build.
             refused = f"controller {cmd.spec.name!r} not started: {wrong_device}"
             self.outbox.put(WorkerError(refused))
-            if self.state is State.IDLE or (self.state is State.CALIBRATING
-                                            and self.base is State.IDLE):
+            if self.state is State.IDLE:
                 self.answer(cmd.request_id, refused)
             else:
                 self.answer(cmd.request_id, refused, self._fall_back())
@@ -431,10 +459,9 @@ class Machine:
         self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind))
 
     def on_calibrate(self, cmd: Calibrate) -> None:
-        """Collect the next seconds of samples beside the running controller."""
-        self.base = self.state
+        """Collect the next seconds of samples beside the running controller: a job,
+        not a state (the worker stays idle or controlling; `after_tick` feeds it)."""
         self.calibration = CalibrationJob(cmd, self.config)
-        self.go(State.CALIBRATING)
 
     def on_bringup(self, cmd: BringupCommand) -> None:
         """The step owns the device for its few seconds (the loop pauses; the step
@@ -456,17 +483,7 @@ class Machine:
             self.outbox.put(CalibrationResult(job.cmd.request_id, False,
                                               f"calibration abandoned: {why}",
                                               samples=len(job.q)))
-            self.end_calibration()
-
-    def end_calibration(self) -> None:
-        """Back to the state the calibration was collected in (its controller still
-        runs), released when that is IDLE."""
-        self.calibration = None
-        if self.state is State.CALIBRATING:
-            if self.base is State.IDLE:
-                self.leave_for(State.IDLE)
-            else:
-                self.go(self.base)
+            self.calibration = None
 
     # -- the loop ------------------------------------------------------------------------
 
@@ -490,21 +507,19 @@ class Machine:
         self.outbox.put_record(record)
         runs = self.runs
         runs.ticks += 1
-        if self.state is State.TRIAL:
-            if runs.limit is not None and runs.ticks >= runs.limit:
-                # A timed run is over: back to no controller (no locks), a new run.
-                self._fall_back()
-        elif self.state is State.CALIBRATING:
-            job = self.calibration
-            if job is not None and job.add(record):
-                self.finish_calibration(job)
+        if self.state is State.TRIAL and runs.limit is not None and runs.ticks >= runs.limit:
+            # A timed run is over: back to no controller (no locks), a new run.
+            self._fall_back()
+        job = self.calibration
+        if job is not None and job.add(record):
+            self.finish_calibration(job)
 
     def finish_calibration(self, job: CalibrationJob) -> None:
         """Answer the calibration; a running E-UMC takes its offsets at once, as a new
         run (its sample count carries over)."""
         result, offsets = job.finish(self.spec)
         self.outbox.put(result)
-        self.end_calibration()
+        self.calibration = None
         if offsets is None:
             return
         try:
@@ -565,15 +580,11 @@ class Machine:
             self._fall_back()
 
     def stop(self) -> None:
-        """Every way out of the loop: release, then close the device."""
+        """Every way out of the loop: through RELEASING to STOPPING, then `let_go`."""
         self.calibration = None
         if self.state is not State.STOPPING:
             self.leave_for(State.STOPPING)
-        self.device.release()
-        try:
-            self.device.close()
-        except Exception:
-            pass
+        let_go(self.device)
 
 
 def hold(device: Device, outbox: Outbox, held: bool) -> bool:
@@ -620,7 +631,7 @@ class CalibrationJob:
             if spec.models is None and not spec.models_path:
                 spec = ControllerSpec(_resting(), models_path=self.worker.models_path)
             mset = load_models(spec)
-            start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
+            start = mset.start_posture()
             cal = calibrate(q, start, max_std=math.radians(self.cmd.max_std_deg))
         except (CalibrationError, ValueError) as exc:
             std = np.nanstd(q, axis=0) if q.size else np.array([math.nan, math.nan])

@@ -33,6 +33,8 @@ class WorkerConfig:
     precompression_pct: float = 25.0
     #: In-process simulator only: samples this many times faster than real time.
     device_speed: float = 1.0
+    #: In-process simulator only: publish the wearer's EMG on LSL (`emg_amplifier`).
+    device_emg_lsl: bool = False
     #: The controller to start with, validated by the server; it crosses the pipe as
     #: this type (the worker validates it once more before building it).
     spec: ControllerSpec = field(default_factory=_no_controller)
@@ -84,7 +86,7 @@ class WorkerStatus:
     loop: LoopReport
     device: DeviceReport
     #: The worker's state (`backend.worker.machine.State` value: idle, controlling,
-    #: trial, calibrating).
+    #: trial; a calibration is a job beside one of these, not a state).
     state: str = ""
     #: The identity the device proved on the link (None before it joined, and for the
     #: in-process simulator): what hardware profiles are bound to.

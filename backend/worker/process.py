@@ -18,7 +18,7 @@ from multiprocessing.connection import Connection
 from types import FrameType
 
 from backend.worker.devices import make_device
-from backend.worker.machine import BACKLOG_HOLD, BACKLOG_RESUME, Machine
+from backend.worker.machine import BACKLOG_HOLD, BACKLOG_RESUME, Machine, let_go
 from backend.worker.messages import WorkerConfig, WorkerError
 from backend.worker.outbox import OUTBOX_LIMIT, Outbox
 from backend.worker.scheduling import raise_priority
@@ -63,13 +63,9 @@ def worker_main(
         exit_code = 5
     finally:
         if machine is not None:
-            machine.stop()  # through RELEASING; closes the device it holds now
+            machine.stop()  # through RELEASING; lets go of the device it holds now
         else:
-            device.release()
-            try:
-                device.close()
-            except Exception:
-                pass
+            let_go(device)
         outbox.stop.set()
         outbox.thread.join(2.0)
     if exit_code:

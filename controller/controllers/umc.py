@@ -22,8 +22,8 @@ from controller.decision import expected_utility as decision
 from controller.decision.expected_utility import decide_fast
 from controller.decision.utility_function import UtilitySet
 from controller.intent.motion_model import ModelSet
-from controller.intent.onset import ModelBank, OnsetCriteria, _bank_kernel, window_start
-from controller.intent.posteriors import IntentEstimator, _intent_kernel
+from controller.intent.onset import ModelBank, OnsetCriteria, bank_kernel, window_start
+from controller.intent.posteriors import IntentEstimator, intent_kernel
 from controller.intent.prior_safety import PriorBounds
 from controller.kernel import Compiled, Kernel, KernelController
 from controller.kernel.entry_points import entry_points
@@ -62,9 +62,9 @@ def evaluate(window, pos, radius, data, row) -> tuple[bool, int, int]:  # type: 
     prm, crit, acc, dist, ints, prog, ok, priors, p_obs, post, table, eu = data
     size = window.shape[0] // 2
     obs = window[window_start(size, pos) : pos[0] + size]
-    if _bank_kernel(obs, prm, radius, crit, acc, dist, ints, prog, ok) != 0:
+    if bank_kernel(obs, prm, radius, crit, acc, dist, ints, prog, ok) != 0:
         return False, NO_LOCK, CONTROLLER_ERROR  # a NaN in the window; not from counts
-    _intent_kernel(dist, ints[0], ok, priors, p_obs, post)
+    intent_kernel(dist, ints[0], ok, priors, p_obs, post)
     action = decide_fast(table, prog[1], post, eu)
     row.d_squat = dist[0]
     row.d_stoop_left = dist[1]

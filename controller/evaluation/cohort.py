@@ -42,6 +42,13 @@ from controller.decision.utility_function import UtilitySet
 from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
 from controller.evaluation.metrics import DecisionOutcome
+from controller.evaluation.muscle_activity import (
+    ParticipantMuscles,
+    SessionEmg,
+    lift_trial,
+    record_baselines,
+    record_condition,
+)
 from controller.evaluation.study import RecordingEvaluation, evaluate_recording
 from controller.intent.calibration import CalibrationError, calibrate
 from controller.intent.motion_model import ModelSet
@@ -107,6 +114,10 @@ class CohortConfig:
     #: controller at this rate.
     rate_hz: float | None = None
     precompression_pct: float = 25.0
+    #: Muscle activity (`controller.evaluation.muscle_activity`): sEMG of every lift
+    #: trial, and the baseline conditions (springs free, no exoskeleton) as extra
+    #: lift trials. Off by default: it costs about 0.6 s per trial.
+    emg: bool = False
 
     def __post_init__(self) -> None:
         if not 2 <= self.participants <= MAX_PARTICIPANTS:
@@ -147,6 +158,8 @@ class ParticipantResult:
     #: controller -> metric -> value (NaN where undefined, e.g. recognised for the PEC)
     metrics: dict[str, dict[str, float]]
     calibration_attempts: int = 0
+    #: Muscle activity per condition (`CohortConfig.emg`), else None.
+    muscles: ParticipantMuscles | None = None
 
 
 @dataclass
@@ -183,7 +196,7 @@ def trial_recording(p: VirtualParticipant, seed: int, script: str,
                           traj.lift.astype(np.int64))
 
 
-def _calibrated(settings: ControllerConfig, rec: AngleRecording,
+def calibrated(settings: ControllerConfig, rec: AngleRecording,
                 start: np.ndarray) -> tuple[ControllerConfig, int]:
     """The E-UMC settings calibrated on the first still second of the trial, and the
     number of windows tried (as the experimenter retries while the wearer moves)."""
@@ -245,16 +258,20 @@ def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
     seed = cfg.participant_seed(j)
     p = VirtualParticipant.from_seed(seed)
     settings = cfg.settings()
-    start = np.mean([m.mean[0] for m in models.ordered()], axis=0)
+    start = models.start_posture()
     models_doc, utilities_doc = docs if docs is not None else (models.to_json(),
                                                                utilities.to_json())
     out: dict[str, dict[str, float]] = {}
     attempts = 0
+    session = SessionEmg(p) if cfg.emg else None
     for i, name in enumerate(cfg.controllers):
-        rec = trial_recording(p, seed, cfg.script, repetition=i)
+        if session is None:
+            rec = trial_recording(p, seed, cfg.script, repetition=i)
+        else:
+            rec, human_nm = lift_trial(p, seed, cfg.script, repetition=i)
         s = settings
         if registry.needs_calibration(name):
-            s, attempts = _calibrated(settings, rec, start)
+            s, attempts = calibrated(settings, rec, start)
         sets = needs_models(name)
         spec = ControllerSpec(name, s, models=models_doc if sets else None,
                               utilities=utilities_doc if sets else None)
@@ -263,7 +280,12 @@ def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
         ev = evaluate_recording(cols, f"V{j + 1:04d}", name, lifts_from_truth(cols),
                                 trials_from_truth(cols))
         out[name] = recording_metrics(ev)
-    return ParticipantResult(j, seed, participant_body(p), out, attempts)
+        if session is not None:
+            record_condition(session, name, cols, human_nm)
+    if session is not None:
+        record_baselines(session, seed, cfg.script, first_repetition=len(cfg.controllers))
+    return ParticipantResult(j, seed, participant_body(p), out, attempts,
+                             session.result() if session is not None else None)
 
 
 def default_model_set(progress: Callable[[float], None] | None = None) -> ModelSet:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from controller.evaluation import muscle_report
 from controller.evaluation.cohort import METRICS, Cohort, MetricSpec, cohort_controllers
 from controller.evaluation.cohort_stats import (
     ALPHA,
@@ -259,7 +260,8 @@ def write_outputs(cohort: Cohort, analysis: CohortAnalysis, out: Path) -> list[P
         put(f"{stem}.png", png)
         put(f"{stem}.svg", svg)
     put("cohort.json", json.dumps(analysis_json(cohort, analysis), indent=1))
-    put("README.md", readme(cohort, analysis))
+    muscles = muscle_report.write_outputs(cohort, put)  # "" without --emg
+    put("README.md", readme(cohort, analysis) + muscles)
     return files.written
 
 
@@ -267,6 +269,7 @@ def from_json(doc: dict[str, Any]) -> tuple[Cohort, CohortAnalysis]:
     """Inverse of `analysis_json`: the cohort and its analysis from `cohort.json` (the
     console renders tables and figures from the stored document)."""
     from controller.evaluation.cohort import CohortConfig, ParticipantResult
+    from controller.evaluation.muscle_activity import ParticipantMuscles
 
     if doc.get("format") != "exostudy.cohort" or doc.get("format_version") != 1:
         raise ValueError("not an exostudy.cohort document of format_version 1")
@@ -278,11 +281,14 @@ def from_json(doc: dict[str, Any]) -> tuple[Cohort, CohortAnalysis]:
     cfg = CohortConfig(participants=int(c["participants"]), seed=int(c["seed"]),
                        controllers=tuple(c["controllers"]), script=str(c["script"]),
                        rate_hz=None if c["rate_hz"] is None else float(c["rate_hz"]),
-                       precompression_pct=float(c["precompression_pct"]))
+                       precompression_pct=float(c["precompression_pct"]),
+                       emg=bool(c.get("emg", False)))
     cohort = Cohort(cfg, [ParticipantResult(int(p["index"]), int(p["seed"]), dict(p["body"]),
                                             {k: {m: num(v) for m, v in ms.items()}
                                              for k, ms in p["metrics"].items()},
-                                            int(p["calibration_attempts"]))
+                                            int(p["calibration_attempts"]),
+                                            ParticipantMuscles.from_dict(p["muscles"])
+                                            if p.get("muscles") else None)
                           for p in doc["participants"]],
                     str(doc.get("models_version", "")), str(doc.get("utilities_version", "")))
     summaries = tuple(MetricSummary(s["controller"], s["metric"], int(s["n"]),

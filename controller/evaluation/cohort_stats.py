@@ -23,8 +23,10 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import stats
 
@@ -134,6 +136,54 @@ def rank_biserial(d: Sequence[float] | FloatArray) -> float:
     return (plus - minus) / (plus + minus)
 
 
+@njit(cache=True, nogil=True)
+def _signed_rank_sums(d: Any) -> tuple[Any, Any, Any]:  # pragma: no cover - compiled
+    """Per row of `d`: the sum of the ranks of the positive differences among the
+    non-zero |differences| (ties at their mean rank), the tie term sum(t^3 - t) over
+    the non-zero tie groups, and the number of non-zero differences.
+
+    One insertion sort per row: a tie group at sorted positions i..j-1 has mean rank
+    (i + j + 1) / 2 among all values, less the number of zeros (which sort first)
+    among the non-zeros. (The pairwise comparison this replaces held n x n values per
+    row: 80 % of a 100-participant cohort's analysis time.)"""
+    rows, cols = d.shape
+    t_plus = np.zeros(rows)
+    ties = np.zeros(rows)
+    n = np.zeros(rows)
+    a = np.empty(cols)  # |differences| of the row, sorted
+    pos = np.empty(cols, dtype=np.bool_)  # whether each sorted one was positive
+    for r in range(rows):
+        for k in range(cols):  # insertion sort: rows are a few dozen long
+            v = abs(d[r, k])
+            up = d[r, k] > 0.0
+            i = k
+            while i > 0 and a[i - 1] > v:
+                a[i] = a[i - 1]
+                pos[i] = pos[i - 1]
+                i -= 1
+            a[i] = v
+            pos[i] = up
+        zeros = 0
+        while zeros < cols and a[zeros] == 0.0:
+            zeros += 1
+        n[r] = cols - zeros
+        i = zeros
+        while i < cols:
+            j = i + 1
+            while j < cols and a[j] == a[i]:
+                j += 1
+            rank = (i + j + 1) / 2.0 - zeros
+            positives = 0
+            for k in range(i, j):
+                if pos[k]:
+                    positives += 1
+            t_plus[r] += rank * positives
+            t = j - i
+            ties[r] += t * t * t - t
+            i = j
+    return t_plus, ties, n
+
+
 def wilcoxon_p(d: FloatArray) -> FloatArray:
     """Two-sided Wilcoxon signed-rank p-value of each row of `d` (rows: samples,
     columns: participants), zero differences dropped, by the normal approximation with
@@ -143,23 +193,11 @@ def wilcoxon_p(d: FloatArray) -> FloatArray:
     correction=True)` (the tests check it row by row), vectorised: a power curve tests
     tens of thousands of resampled studies. The continuity correction keeps it close
     to the exact test at small n (n = 5, all differences positive: 0.059 against the
-    exact 0.0625).
+    exact 0.0625). The rank sums are sums of half-integers, exact in float64, so the
+    way they are summed does not change a p-value.
     """
-    d = np.atleast_2d(np.asarray(d, dtype=np.float64))
-    a = np.abs(d)
-    zeros = np.count_nonzero(a == 0.0, axis=1)
-    n = d.shape[1] - zeros
-    # Zeros hold the lowest ranks, so a non-zero's rank among the non-zeros is its rank
-    # among all minus the number of zeros (ties keep their mean rank).
-    # Pairwise comparisons within each row (n <= a few dozen): a value's mean rank is
-    # 1 + (values below it) + (other values equal to it) / 2.
-    below = (a[:, None, :] < a[:, :, None]).sum(axis=2)
-    size = (a[:, None, :] == a[:, :, None]).sum(axis=2)  # its tie group, itself included
-    ranks = 1.0 + below + (size - 1) / 2.0 - zeros[:, None]
-    t_plus = np.where(d > 0.0, ranks, 0.0).sum(axis=1)
-    # Tie groups among the non-zeros: each member's group size t adds t^2 - 1, so a
-    # group adds t^3 - t in all.
-    ties = np.where(a > 0.0, size * size - 1.0, 0.0).sum(axis=1)
+    d = np.ascontiguousarray(np.atleast_2d(np.asarray(d, dtype=np.float64)))
+    t_plus, ties, n = _signed_rank_sums(d)
     mean = n * (n + 1) / 4.0
     var = n * (n + 1) * (2 * n + 1) / 24.0 - ties / 48.0
     dev = t_plus - mean

@@ -57,7 +57,7 @@ from controller.decision.utility_function import UtilitySet
 from controller.evaluation.cohort import (
     MAX_PARTICIPANTS,
     SEED_BASE,
-    _calibrated,
+    calibrated,
     cohort_controllers,
     default_utilities,
     recording_metrics,
@@ -282,8 +282,8 @@ def _run(name: str, settings: ControllerConfig, rec: AngleRecording, models: Mod
          priors: LearnedPriors | None, precompression_pct: float) -> TickData:
     s = settings
     if registry.needs_calibration(name):
-        start = np.mean([m.mean[0] for m in models.ordered()], axis=0)
-        s, _ = _calibrated(settings, rec, start)
+        start = models.start_posture()
+        s, _ = calibrated(settings, rec, start)
     spec = ControllerSpec(name, s, models=models_doc, utilities=utilities_doc, priors=priors)
     return TickData.of(replay_columns(rec, make_from_spec(spec), precompression_pct))
 

@@ -344,6 +344,13 @@ class ModelSet:
         m = self.models
         return (m[MODEL_NAMES[0]], m[MODEL_NAMES[1]], m[MODEL_NAMES[2]])
 
+    def start_posture(self) -> NDArray[np.float64]:
+        """(q_left, q_right): the mean of the models' first samples, the posture a
+        wearer stands in before a lift. The E-UMC's calibration measures the encoder
+        offsets against it."""
+        return np.asarray(np.mean([m.mean[0] for m in self.ordered()], axis=0),
+                          dtype=np.float64)
+
     def to_json(self) -> dict[str, Any]:
         """Versioned JSON document."""
         return {

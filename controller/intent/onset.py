@@ -252,7 +252,7 @@ def _match_kernel(
 
 
 @njit(cache=True, nogil=True)
-def _bank_kernel(
+def bank_kernel(
     obs: FloatArray,
     prm: FloatArray,
     radius: int,
@@ -266,7 +266,8 @@ def _bank_kernel(
     """Match `obs` against every model and judge each match; -1 if `obs` holds a NaN.
 
     `crit` = (s_req, t_req, d_max, n_full, dt). `out_s[:, k]` = (s_start, s_curr),
-    `out_i[:, k]` = (L, n_start, n_curr, i_start, i_curr).
+    `out_i[:, k]` = (L, n_start, n_curr, i_start, i_curr). Public: the UMC's compiled
+    tick evaluates the bank with it, into the arrays `ModelBank.kernel_arrays` gives.
     """
     m_rows = obs.shape[0]
     for i in range(m_rows):
@@ -514,7 +515,7 @@ class ModelBank:
             obs = _as_obs(obs)
             if obs.shape[0] > self.max_window:
                 raise ValueError(f"window of {obs.shape[0]} > max_window={self.max_window}")
-        rc = _bank_kernel(
+        rc = bank_kernel(
             obs, self._prm, self._radius, self._crit, self._acc,
             self.D, self._ints, self._s, self.accepted,
         )
@@ -530,7 +531,7 @@ class ModelBank:
     def kernel_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
                                      IntArray, FloatArray, npt.NDArray[np.bool_]]:
         """(parameters, criteria, scratch, D, ints, s, accepted): the arguments of
-        `_bank_kernel` after the window and radius, for a compiled caller (the control
+        `bank_kernel` after the window and radius, for a compiled caller (the control
         tick) that evaluates the bank into these very arrays."""
         return (self._prm, self._crit, self._acc, self.D, self._ints, self._s, self.accepted)
 

@@ -137,7 +137,7 @@ def _posteriors_into(p_obs: FloatArray, priors: FloatArray, post: FloatArray) ->
 
 
 @njit(cache=True, nogil=True)
-def _intent_kernel(
+def intent_kernel(
     D: FloatArray,
     L: npt.NDArray[np.int64],
     accepted: npt.NDArray[np.bool_],
@@ -145,6 +145,8 @@ def _intent_kernel(
     p_obs: FloatArray,
     post: FloatArray,
 ) -> None:
+    """Posteriors into `post` from the bank's distances and lengths (`D`, `L`): the
+    estimator's own step, public so the UMC's compiled tick runs the same code."""
     for j in range(D.shape[0]):
         p_obs[j] = likelihood_nb(D[j], L[j]) if accepted[j] else 0.0
     _posteriors_into(p_obs, priors, post)
@@ -203,5 +205,5 @@ class IntentEstimator:
 
         Arguments are the `ModelBank` output arrays (float64, int64, bool).
         """
-        _intent_kernel(D, L, accepted, self.priors, self.p_obs, self.post)
+        intent_kernel(D, L, accepted, self.priors, self.p_obs, self.post)
         return self.post

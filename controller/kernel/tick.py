@@ -35,7 +35,7 @@ from controller.kernel.check import PRESYNC_OR_BACK, RANGE, VELOCITY, check_samp
 from controller.lowlevel.actuator import torque_at
 from controller.lowlevel.encoders import angle_to_count, count_to_angle
 from controller.lowlevel.lock_hold import hold_update
-from controller.sim.plant import _CAM, _OUTPUT, plant_step
+from controller.sim.plant import CAM, OUTPUT, plant_step
 from controller.tick_record import Action, TickFlag
 
 NO_LOCK, LOCK_BOTH, LOCK_RIGHT, LOCK_LEFT = (int(a) for a in Action)
@@ -201,10 +201,10 @@ def replay_sample(  # type: ignore[no-untyped-def]
     qr = q[k, 1]
     if math.isfinite(ql) and math.isfinite(qr):
         status = plant_step(plant_st, plant_k, lock_l, lock_r, ql, qr)
-        c0 = angle_to_count(plant_st[0, _OUTPUT], layout[0], layout[4])
-        c1 = angle_to_count(plant_st[0, _CAM], layout[1], layout[5])
-        c2 = angle_to_count(plant_st[1, _OUTPUT], layout[2], layout[6])
-        c3 = angle_to_count(plant_st[1, _CAM], layout[3], layout[7])
+        c0 = angle_to_count(plant_st[0, OUTPUT], layout[0], layout[4])
+        c1 = angle_to_count(plant_st[0, CAM], layout[1], layout[5])
+        c2 = angle_to_count(plant_st[1, OUTPUT], layout[2], layout[6])
+        c3 = angle_to_count(plant_st[1, CAM], layout[3], layout[7])
     else:
         status = 0
         c0 = 0

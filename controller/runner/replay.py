@@ -241,7 +241,7 @@ def build(
             raise ValueError(f"controller {name} calibrates from the recording's start "
                              "against the models' start posture: give --models")
         mset = load_models(spec)
-        start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
+        start = mset.start_posture()
         n = round(calibrate_seconds / SAMPLE_PERIOD_S)
         cal = calibrate(rec.q[:n], start)
         spec = replace(spec, settings=settings.with_calibration(cal.offset_left,

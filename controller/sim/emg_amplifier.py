@@ -30,7 +30,7 @@ import copy
 import math
 import socket
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -62,6 +62,17 @@ PLACEMENT: dict[str, str] = {
 ELECTRODE = "bipolar Ag/AgCl surface electrodes"
 INTER_ELECTRODE_MM = 20.0
 REFERENCE = "bipolar; common ground electrode on the iliac crest"
+
+
+@dataclass
+class _Stamps:
+    """The last timestamp pushed on an outlet (shared with the outlet when it is)."""
+
+    last: float | None = None
+
+
+#: Shared outlets by stream name: (outlet, its last stamp).
+_SHARED: dict[str, tuple[Any, _Stamps]] = {}
 
 
 class WearerModel(Protocol):
@@ -116,6 +127,8 @@ class EmgTap:
     def __init__(
         self, model: WearerModel, name: str = "ExoStudy-SimEMG", source_id: str | None = None,
         settings: EmgSettings | None = None, publish: bool = True, keep: bool = False,
+        stamping: Literal["schedule", "spread"] = "schedule",
+        only_when_consumed: bool = False, shared: bool = False,
     ) -> None:
         self.model = model
         self.dt = model.dt
@@ -125,6 +138,20 @@ class EmgTap:
         self.generator = SurfaceEmgGenerator(N_CHANNELS, model.seed, settings, SAMPLES_PER_TICK)
         self.publish = publish
         self.keep = keep
+        #: "schedule": tick k's last sample at t0 + k dt (a device with its own clock);
+        #: "spread": each tick's samples spread evenly up to the instant the tick is
+        #: produced, on the clock its reader stamps the tick with (the in-process
+        #: simulator; sped up, the stamps are closer than the nominal period, and the
+        #: recording's rate check says so).
+        self.stamping = stamping
+        #: Generate nothing while no inlet listens (a simulator with the amplifier
+        #: switched on but nobody recording costs nothing).
+        self.only_when_consumed = only_when_consumed
+        #: One outlet per name and process, kept when the tap is closed: a simulator
+        #: that swaps its wearer (a new tap) goes on publishing the same stream, as one
+        #: amplifier does for one session, so the recording does not restart.
+        self.shared = shared
+        self._stamps = _Stamps()
         self.blocks: list[EmgBlock] = []
         self.stats = TapStats()
         self._outlet: Any = None
@@ -155,6 +182,10 @@ class EmgTap:
             return
         import pylsl
 
+        if self.shared and self.name in _SHARED:
+            self._outlet, self._stamps = _SHARED[self.name]
+            self._clock = pylsl.local_clock
+            return
         info = pylsl.StreamInfo(self.name, "EMG", N_CHANNELS, 1.0 / self.dt * SAMPLES_PER_TICK,
                                 pylsl.cf_float32, self.source_id)
         desc = info.desc()
@@ -186,6 +217,8 @@ class EmgTap:
                 entry.append_child_value("placement", "spare input, no electrode on a muscle")
         self._outlet = pylsl.StreamOutlet(info, chunk_size=SAMPLES_PER_TICK, max_buffered=60)
         self._clock = pylsl.local_clock
+        if self.shared:
+            _SHARED[self.name] = (self._outlet, self._stamps)
 
     def close(self) -> None:
         """Close the outlet (consumers see the stream end)."""
@@ -202,9 +235,15 @@ class EmgTap:
         act = self.muscles.activation(self.model.human_torques(), self.model.true_torques())[0]
         return np.concatenate([act, np.zeros(N_SPARE)])
 
-    def emit(self, sample: Sample) -> EmgBlock:
-        """Generate the EMG of the tick that ended at `sample` and push it."""
+    def emit(self, sample: Sample) -> EmgBlock | None:
+        """Generate the EMG of the tick that ended at `sample` and push it (None: not
+        generated, nobody listens and `only_when_consumed`)."""
         activity = sample.truth.activity if sample.truth is not None else None
+        if (self.only_when_consumed and self._outlet is not None
+                and not self._outlet.have_consumers()):
+            self._activity = activity
+            self._stamps.last = None
+            return None
         if self._activity is not None and activity != self._activity:
             self.generator.onset()  # a new movement: a motion artefact
             self.stats.onsets += 1
@@ -214,8 +253,25 @@ class EmgTap:
         if self.keep:
             self.blocks.append(block)
         if self._outlet is not None and block.samples.shape[0]:
-            self._push(block, self._stamp(sample.seq))
+            if self.stamping == "spread":
+                self._push_spread(block)
+            else:
+                self._push(block, self._stamp(sample.seq))
         return block
+
+    def _push_spread(self, block: EmgBlock) -> None:
+        """The tick's samples evenly between the previous tick's last stamp and now
+        (nominal spacing for the first tick), so stamps never go back and each tick's
+        samples carry the instant its reader stamps the tick with."""
+        n = block.samples.shape[0]
+        now = float(self._clock())
+        period = 1.0 / self.generator.settings.fs
+        prev = self._stamps.last if self._stamps.last is not None else now - n * period
+        last = max(now, prev + n * 1e-7)
+        stamps = prev + (last - prev) * np.arange(1, n + 1) / n
+        self._outlet.push_chunk(block.samples.astype(np.float32), stamps.tolist())
+        self._stamps.last = last
+        self.stats.samples_pushed += n
 
     def _push(self, block: EmgBlock, last: float) -> None:
         """One chunk stamped at its last sample; with samples missing (a dropped-samples

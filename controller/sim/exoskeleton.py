@@ -77,6 +77,9 @@ class SimulatedExoskeleton:
         self._start = 0  # sample index of the chunk's first sample
         self.duration = self._chunk.traj.duration
         self.finished = False
+        #: False for the "no exoskeleton" baseline: the wearer moves as scripted, the
+        #: springs never engage and the wearer gets no torque (`true_torques` is 0).
+        self.worn = True
         self._k = 0
         self._lock = (False, False)
         self._i = 0  # index in the chunk of the last sample produced
@@ -133,7 +136,7 @@ class SimulatedExoskeleton:
             else:
                 i = chunk.n - 1
         self._i = i
-        left, right = self._lock
+        left, right = self._lock if self.worn else (False, False)
         status = self.plant.step(left, right, chunk.link_left[i], chunk.link_right[i])
         noise = chunk.noise[(k - self._start) % chunk.n]
         counts = self.plant.counts(noise)
@@ -144,8 +147,9 @@ class SimulatedExoskeleton:
         return Sample(seq=k, t=k * SAMPLE_PERIOD_S, counts=counts, status=status, truth=truth)
 
     def true_torques(self) -> tuple[float, float]:
-        """Exoskeleton extension torque (Nm), left and right, at the last sample."""
-        return self.plant.torques()
+        """Exoskeleton extension torque (Nm), left and right, at the last sample (none
+        when not worn)."""
+        return self.plant.torques() if self.worn else (0.0, 0.0)
 
     def true_angles(self) -> tuple[float, float]:
         """The wearer's true hip flexion (rad), left and right, at the last sample."""

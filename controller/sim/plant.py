@@ -56,7 +56,9 @@ FloatArray = npt.NDArray[np.float64]
 
 # One side's mechanism state, a float64 row so that the compiled step can update it in
 # place: link angles, the three booleans as 0/1 and the solenoid's energised tick count.
-_OUTPUT, _CAM, _LOCKED, _HARD_STOP, _SOLENOID, _ENERGISED = range(6)
+# The two link angles' columns are public: the compiled tick's `replay_sample` reads the
+# encoder counts of a simulated side from them.
+OUTPUT, CAM, _LOCKED, _HARD_STOP, _SOLENOID, _ENERGISED = range(6)
 N_STATE = 6
 # One side's constants: ratchet pitch, tooth phase, deflection limit, pull-in ticks.
 _PITCH, _PHASE, _ALPHA_MAX, _PULL_IN = range(4)
@@ -87,18 +89,18 @@ def hip_step(st: FloatArray, prm: FloatArray, solenoid: bool, intended: float) -
     """
     st[_SOLENOID] = 1.0 if solenoid else 0.0
     st[_ENERGISED] = st[_ENERGISED] + 1.0 if solenoid else 0.0
-    cam = st[_CAM]
+    cam = st[CAM]
     if st[_LOCKED] != 0.0:
         limit = cam + prm[_ALPHA_MAX]
         hard = intended >= limit - _EPS
         output = limit if limit < intended else intended
-        st[_OUTPUT] = output
+        st[OUTPUT] = output
         st[_HARD_STOP] = 1.0 if hard else 0.0
         if output <= cam:
             # The pawl spring pushes the pawl out at alpha = 0.
             st[_LOCKED] = 0.0
             st[_HARD_STOP] = 0.0
-            st[_CAM] = output
+            st[CAM] = output
         return
     st[_HARD_STOP] = 0.0
     pawl_on_ratchet = st[_ENERGISED] >= prm[_PULL_IN]
@@ -106,13 +108,13 @@ def hip_step(st: FloatArray, prm: FloatArray, solenoid: bool, intended: float) -
         tooth = next_tooth(cam, prm[_PITCH], prm[_PHASE])
         if intended > tooth:
             st[_LOCKED] = 1.0
-            st[_CAM] = tooth
+            st[CAM] = tooth
             limit = tooth + prm[_ALPHA_MAX]
             st[_HARD_STOP] = 1.0 if intended >= limit - _EPS else 0.0
-            st[_OUTPUT] = limit if limit < intended else intended
+            st[OUTPUT] = limit if limit < intended else intended
             return
-    st[_OUTPUT] = intended
-    st[_CAM] = intended
+    st[OUTPUT] = intended
+    st[CAM] = intended
 
 
 @njit(
@@ -173,17 +175,17 @@ class HipModule:
     def reset(self, angle: float) -> None:
         """Unlocked, both links at `angle`."""
         self.state[:] = 0.0
-        self.state[_OUTPUT] = self.state[_CAM] = angle
+        self.state[OUTPUT] = self.state[CAM] = angle
 
     @property
     def output(self) -> float:
         """Output-link angle (follows the thigh, up to the hard stop)."""
-        return float(self.state[_OUTPUT])
+        return float(self.state[OUTPUT])
 
     @property
     def cam(self) -> float:
         """Cam-link angle (grounded at a tooth while locked)."""
-        return float(self.state[_CAM])
+        return float(self.state[CAM])
 
     @property
     def locked(self) -> bool:
@@ -203,7 +205,7 @@ class HipModule:
     @property
     def alpha(self) -> float:
         """Spring deflection, output minus cam (>= 0)."""
-        return float(self.state[_OUTPUT] - self.state[_CAM])
+        return float(self.state[OUTPUT] - self.state[CAM])
 
     def torque(self) -> float:
         """Extension torque of the springs (Nm) at the current deflection."""
@@ -298,7 +300,7 @@ class ExoPlant:
 
     def link_angles(self) -> tuple[float, float, float, float]:
         """True (left output, left cam, right output, right cam) angles (rad)."""
-        a, b, c, d = self.state[:, :_CAM + 1].ravel().tolist()
+        a, b, c, d = self.state[:, :CAM + 1].ravel().tolist()
         return a, b, c, d
 
     def counts(self, noise: tuple[float, float, float, float]) -> tuple[int, int, int, int]:

@@ -154,6 +154,10 @@ SCRIPTS: dict[str, Script] = {
         ),
         5.0,
     ),
+    # The lifts of the paper's evaluation alone (5 kg box): the baseline conditions of a
+    # muscle-activity study are measured in lifts only.
+    "lift-evaluation": Script("lift-evaluation", (*_SQUATS, PAUSE, SHORT_WALK, *_STOOPS,
+                                                   PAUSE), 5.0),
     "standing": Script("standing", _BRINGUP_STAND, 0.0),
     "hip-flex-left": Script("hip-flex-left", _hip_flex_steps(0), 0.0),
     "hip-flex-right": Script("hip-flex-right", _hip_flex_steps(1), 0.0),

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import time
+from typing import TYPE_CHECKING
 
 from controller.device.base import MAX_SPEED, Device, DeviceError, LockCommand, Sample
 from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.sim.exoskeleton import SimulatedExoskeleton
+
+if TYPE_CHECKING:
+    from controller.sim.emg_amplifier import EmgTap
 
 
 class SimulatedDevice(Device):
@@ -29,6 +34,7 @@ class SimulatedDevice(Device):
         precompression_pct: float = 25.0,
         layout: EncoderLayout = DEFAULT_LAYOUT,
         speed: float = 1.0,
+        emg_lsl: bool = False,
     ) -> None:
         if not 0.1 <= speed <= MAX_SPEED:
             raise ValueError(
@@ -44,6 +50,15 @@ class SimulatedDevice(Device):
             loop=loop,
         )
         self.realtime = realtime
+        #: The wearer's muscles on LSL as an EMG amplifier (`emg_amplifier`), generated
+        #: only while a consumer listens; stamped on the clock the ticks are read on,
+        #: so a sped-up simulation's EMG lines up with its ticks' host times.
+        self.emg: EmgTap | None = None
+        if emg_lsl:
+            from controller.sim.emg_amplifier import EmgTap
+
+            self.emg = EmgTap(self.exo, source_id=f"exostudy-simemg-{os.getpid()}",
+                              stamping="spread", only_when_consumed=True, shared=True)
         self._command: LockCommand | None = None
         self._start: float | None = None
         self._closed = False
@@ -52,6 +67,8 @@ class SimulatedDevice(Device):
         """Start the clock (the first sample is due now)."""
         self._closed = False
         self._start = time.monotonic()
+        if self.emg is not None:
+            self.emg.start()
 
     def read(self, timeout: float) -> Sample | None:
         """The next sample, when due; None after `timeout` s or once a non-looping script
@@ -75,7 +92,15 @@ class SimulatedDevice(Device):
             if wait > 0:
                 time.sleep(wait)
         command, self._command = self._command, None
-        return self.exo.tick(command)
+        sample = self.exo.tick(command)
+        if self.emg is not None:
+            self.emg.emit(sample)
+        return sample
+
+    def wear(self, worn: bool) -> None:
+        """Put the exoskeleton on the simulated wearer or take it off (the "no
+        exoskeleton" baseline: no torque from the next tick on, the springs never lock)."""
+        self.exo.worn = bool(worn)
 
     def resync(self) -> None:
         """Restart the sample clock from the next sample: after a reader paused on
@@ -97,3 +122,5 @@ class SimulatedDevice(Device):
         """Release and stop producing samples."""
         self.release()
         self._closed = True
+        if self.emg is not None:
+            self.emg.close()

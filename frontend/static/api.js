@@ -18,14 +18,34 @@ function describe(detail) {
   return "request failed";
 }
 
-// A request; without a login, off to the login page, which brings the user back here.
-async function send(method, path, body) {
+// Methods that change nothing, so they carry no CSRF token.
+const SAFE = new Set(["GET", "HEAD", "OPTIONS"]);
+
+// The CSRF token the server set at login (the `exostudy_csrf` cookie); "" without one.
+function csrfToken() {
+  const m = (globalThis.document?.cookie || "").match(/(?:^|; )exostudy_csrf=([^;]+)/);
+  return m ? decodeURIComponent(m[1]) : "";
+}
+
+// The pages' one request function: every request of every page is made here, so every
+// change (POST, PUT, PATCH, DELETE) carries the CSRF token as the X-CSRF-Token header
+// (the server refuses a change made with the session cookie without it, so another site
+// cannot act with the cookie). It answers the Response as it came: the pages that read
+// every status themselves (the login, the participant's form) call it directly.
+export function respond(method, path, body) {
   const init = { method, headers: {} };
   if (body !== undefined) {
     init.headers["Content-Type"] = "application/json";
     init.body = JSON.stringify(body);
   }
-  const r = await fetch(path, init);
+  const token = SAFE.has(method) ? "" : csrfToken();
+  if (token) init.headers["X-CSRF-Token"] = token;
+  return fetch(path, init);
+}
+
+// A request; without a login, off to the login page, which brings the user back here.
+async function send(method, path, body) {
+  const r = await respond(method, path, body);
   if (r.status === 401) {
     location.assign(`/login?next=${encodeURIComponent(location.pathname + location.search)}`);
     throw new ApiError(401, "not logged in");

@@ -273,6 +273,17 @@ export const emg = Object.freeze({
    */
   subscribe: operation("emg.subscribe", "POST", "/api/sessions/{session_id}/emg-streams", {"params": ["session_id"], "query": [], "body": true}),
   /**
+   * GET /api/trials/{trial_id}/emg-envelope: The stored EMG's envelope over the trial (the
+   * study's processing chain, in volts, decimated to at most `points` values), the
+   * recording's flags per channel, and the trial's lifts with each lift's peak, mean and
+   * integral from the full-rate envelope. 409 saying why for a trial that has not run or
+   * that no EMG recording covers.
+   * @param {number} trialId
+   * @param {{points?: number}=} query
+   * @returns {Promise<TrialEmgOut>}
+   */
+  trialEmgEnvelope: operation("emg.trialEmgEnvelope", "GET", "/api/trials/{trial_id}/emg-envelope", {"params": ["trial_id"], "query": ["points"], "body": false}),
+  /**
    * DELETE /api/sessions/{session_id}/emg-streams/{emg_stream_id}: Stop recording the
    * stream; the recording so far is finished and kept.
    * @param {number} sessionId
@@ -648,6 +659,64 @@ export const participants = Object.freeze({
   withdraw: operation("participants.withdraw", "POST", "/api/participants/{participant_id}/withdraw", {"params": ["participant_id"], "query": [], "body": false}),
 });
 
+export const personalisation = Object.freeze({
+  /**
+   * POST /api/participants/{participant_id}/personal-model-sets: Fit the participant's
+   * personal model set from their labelled demonstrations (the population set adapted to
+   * them, or fitted from them alone). Returns at once with the job id; poll `GET
+   * /api/jobs/{job_id}`; the set is a model set (`/api/model-sets/{id}`, `/document`) of
+   * kind `personal`.
+   * @param {number} participantId
+   * @param {PersonalModelSetIn} body
+   * @returns {Promise<PersonalModelSetOut>}
+   */
+  fitPersonalModelSet: operation("personalisation.fitPersonalModelSet", "POST", "/api/participants/{participant_id}/personal-model-sets", {"params": ["participant_id"], "query": [], "body": true}),
+  /**
+   * GET /api/prior-sets/{prior_set_id}: One prior set.
+   * @param {number} priorSetId
+   * @returns {Promise<PriorSetOut>}
+   */
+  getPriorSet: operation("personalisation.getPriorSet", "GET", "/api/prior-sets/{prior_set_id}", {"params": ["prior_set_id"], "query": [], "body": false}),
+  /**
+   * POST /api/participants/{participant_id}/prior-sets: A new version of the participant's
+   * priors: learned from confirmed motions (`dirichlet`) or unconfirmed use (`label-shift-
+   * em`) and projected onto the safety bound of the utility set; the equal priors; or
+   * imported `values`, refused (422) outside that bound.
+   * @param {number} participantId
+   * @param {PriorSetIn} body
+   * @returns {Promise<PriorSetOut>}
+   */
+  learnPriorSet: operation("personalisation.learnPriorSet", "POST", "/api/participants/{participant_id}/prior-sets", {"params": ["participant_id"], "query": [], "body": true}),
+  /**
+   * GET /api/participants/{participant_id}/personal-model-sets: The participant's personal
+   * model sets, oldest first.
+   * @param {number} participantId
+   * @returns {Promise<Array<PersonalModelSetOut>>}
+   */
+  listPersonalModelSets: operation("personalisation.listPersonalModelSets", "GET", "/api/participants/{participant_id}/personal-model-sets", {"params": ["participant_id"], "query": [], "body": false}),
+  /**
+   * GET /api/participants/{participant_id}/prior-sets: The participant's prior sets, by
+   * version.
+   * @param {number} participantId
+   * @returns {Promise<Array<PriorSetOut>>}
+   */
+  listPriorSets: operation("personalisation.listPriorSets", "GET", "/api/participants/{participant_id}/prior-sets", {"params": ["participant_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/personal-model-sets: Every personal model set of the study's
+   * participants, oldest first.
+   * @param {number} studyId
+   * @returns {Promise<Array<PersonalModelSetOut>>}
+   */
+  listStudyPersonalModelSets: operation("personalisation.listStudyPersonalModelSets", "GET", "/api/studies/{study_id}/personal-model-sets", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/prior-sets: Every prior set of the study's participants,
+   * oldest first.
+   * @param {number} studyId
+   * @returns {Promise<Array<PriorSetOut>>}
+   */
+  listStudyPriorSets: operation("personalisation.listStudyPriorSets", "GET", "/api/studies/{study_id}/prior-sets", {"params": ["study_id"], "query": [], "body": false}),
+});
+
 export const preferences = Object.freeze({
   /**
    * GET /api/participants/{participant_id}/preferences: The participant's preferences with
@@ -864,6 +933,35 @@ export const results = Object.freeze({
    * @returns {Promise<*>}
    */
   studyFigure: operation("results.studyFigure", "GET", "/api/studies/{study_id}/figures/{name}.{fmt}", {"params": ["study_id", "name", "fmt"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/muscle-results: Muscle activity from the stored EMG: per
+   * lift (CSV `lifts`), per controller the mean over participants with its 95 % interval,
+   * the reduction against each baseline and the repeated-measures test, with every
+   * processing parameter (`method`) and each trial's quality flags.
+   * @param {number} studyId
+   * @returns {Promise<object>}
+   */
+  studyMuscle: operation("results.studyMuscle", "GET", "/api/studies/{study_id}/muscle-results", {"params": ["study_id"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/muscle-figures/{name}.{fmt}: The envelope over the
+   * normalised lift cycle per controller, or the reduction per muscle and controller against
+   * no exoskeleton (else the first baseline).
+   * @param {number} studyId
+   * @param {("muscle_envelopes"|"muscle_reduction")} name
+   * @param {("png"|"svg")} fmt
+   * @returns {Promise<*>}
+   */
+  studyMuscleFigure: operation("results.studyMuscleFigure", "GET", "/api/studies/{study_id}/muscle-figures/{name}.{fmt}", {"params": ["study_id", "name", "fmt"], "query": [], "body": false}),
+  /**
+   * GET /api/studies/{study_id}/muscle-results/{table}.{fmt}: A muscle-activity table as CSV
+   * (the method in `#` lines first); Markdown gives the reductions against each baseline
+   * whatever the table.
+   * @param {number} studyId
+   * @param {("lifts"|"summary"|"reductions"|"repeated_measures")} table
+   * @param {("csv"|"md")} fmt
+   * @returns {Promise<*>}
+   */
+  studyMuscleTable: operation("results.studyMuscleTable", "GET", "/api/studies/{study_id}/muscle-results/{table}.{fmt}", {"params": ["study_id", "table", "fmt"], "query": [], "body": false}),
   /**
    * GET /api/studies/{study_id}/results/{table}.{fmt}: One table: CSV in long form (every
    * count), Markdown in the paper's layout.
@@ -1110,6 +1208,32 @@ export const vocabulary = Object.freeze({
   vocabularyJson: operation("vocabulary.vocabularyJson", "GET", "/api/vocabulary", {"params": [], "query": [], "body": false}),
 });
 
+export const wearers = Object.freeze({
+  /**
+   * GET /api/participants/{participant_id}/progress: The wearer's long-use sessions in time
+   * order and, per metric (lifts per hour, recognition and lock rates, time to lock, false
+   * positives per hour of walking and of stairs), each session's value with its 95 %
+   * interval and the least-squares trend per session with its 95 % interval. 409 for a
+   * withdrawn participant.
+   * @param {number} participantId
+   * @param {{controller?: (string|null)}=} query
+   * @returns {Promise<WearerProgressOut>}
+   */
+  getProgress: operation("wearers.getProgress", "GET", "/api/participants/{participant_id}/progress", {"params": ["participant_id"], "query": ["controller"], "body": false}),
+  /**
+   * POST /api/sessions/{session_id}/long-use: Run a controller for the wearer's work in a
+   * long-use session: a trial of task `long_use` is added and started as a planned trial
+   * starts (its own run, every tick and decision stored, the configuration snapshot). Stop
+   * it with `POST /api/trials/{id}/stop`; mark events with `POST
+   * /api/sessions/{id}/markers`. 409 if the session is not a long-use session or something
+   * already runs.
+   * @param {number} sessionId
+   * @param {LongUseStartIn} body
+   * @returns {Promise<TrialOut>}
+   */
+  startLongUse: operation("wearers.startLongUse", "POST", "/api/sessions/{session_id}/long-use", {"params": ["session_id"], "query": [], "body": true}),
+});
+
 export const worker = Object.freeze({
   /**
    * POST /api/worker/calibrate: E-UMC calibration: record the next seconds of standing still
@@ -1193,6 +1317,14 @@ export const sockets = Object.freeze({"live": "/ws/live"});
  */
 
 /**
+ * One channel's live quality, as the EMG strip shows it (`backend.emg.live_envelope`).
+ * @typedef {object} EmgChannelFlags
+ * @property {boolean} clipping samples at the channel's rails in the last 0.5 s
+ * @property {boolean} flat RMS below 0.1 uV in the last 0.5 s (electrode off?)
+ * @property {number} non_finite NaN or infinite samples since the stream connected
+ */
+
+/**
  * `GET /api/health`: is the live path working?
  * @typedef {object} Health
  * @property {("ok"|"degraded")} status
@@ -1201,6 +1333,23 @@ export const sockets = Object.freeze({"live": "/ws/live"});
  * @property {DatabaseHealth} database
  * @property {number} clients
  * @property {string} version
+ */
+
+/**
+ * The causal EMG envelope of a subscribed stream's channels, decimated for display (sent as samples arrive, at most 25 messages a second per stream).
+ * @typedef {object} LiveEmg
+ * @property {"emg"} type
+ * @property {number} session_id
+ * @property {number} subscription_id
+ * @property {(number|null)} recording_id
+ * @property {number} fs rate of `values` (Hz): the display rate
+ * @property {Array<number>} t session (LSL) clock of each value, s
+ * @property {number} t_end session clock of the newest raw sample taken, s
+ * @property {number} clock_correction_s liblsl's estimate of this server's clock minus the amplifier's, added to its stamps (t_end - clock_correction_s is the amplifier's own stamp)
+ * @property {number} sent_at server Unix time when the message was queued
+ * @property {Array<string>} labels the montage's channel labels, in order
+ * @property {Array<Array<number>>} values per channel: the envelope in volts
+ * @property {Array<EmgChannelFlags>} flags
  */
 
 /**
@@ -1268,10 +1417,10 @@ export const sockets = Object.freeze({"live": "/ws/live"});
  * @property {Array<string>} errors
  */
 
-/** @typedef {LiveTicks | LiveStatus | LiveMarker} LiveMessage */
+/** @typedef {LiveTicks | LiveStatus | LiveMarker | LiveEmg} LiveMessage */
 
 /** The fields of each live message, by its `type`. */
-export const LIVE_MESSAGES = Object.freeze({"ticks": ["type", "msg_seq", "sent_at", "run_id", "dropped", "columns"], "status": ["type", "health"], "marker": ["type", "marker"]});
+export const LIVE_MESSAGES = Object.freeze({"ticks": ["type", "msg_seq", "sent_at", "run_id", "dropped", "columns"], "status": ["type", "health"], "marker": ["type", "marker"], "emg": ["type", "session_id", "subscription_id", "recording_id", "fs", "t", "t_end", "clock_correction_s", "sent_at", "labels", "values", "flags"]});
 
 /** A live message from its JSON text, checked against LIVE_MESSAGES.
  * @type {(text: string) => LiveMessage} */

@@ -6,6 +6,7 @@
 // 1, "Strongly agree" over 5), the page says which form of how many this is, the
 // choices are large enough to tap on a tablet, and answers given so far survive a
 // reload (kept in this tab's sessionStorage until the form is sent).
+import { respond } from "/static/api.js";
 import * as api from "/static/api_client.js";
 
 const token = location.pathname.split("/").pop();
@@ -21,9 +22,7 @@ function el(tag, attrs = {}, ...children) {
 // The participant has no login: the page reads the answers itself (a 410 is a closed
 // link, not a reason to go to the login page).
 async function post(url, body) {
-  const r = await fetch(url, {
-    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
-  });
+  const r = await respond("POST", url, body);
   const data = await r.json().catch(() => ({}));
   if (!r.ok) {
     const d = data.detail;
@@ -119,7 +118,7 @@ function renderPreference(pref, step, total) {
 }
 
 async function load() {
-  const r = await fetch(api.participantForms.get.url(token));
+  const r = await respond("GET", api.participantForms.get.url(token));
   const data = await r.json().catch(() => ({}));
   root.replaceChildren();
   if (!r.ok) {

@@ -1,32 +1,13 @@
 // Loaded first by every experimenter page (a classic script, before the modules).
-// 1. Every same-origin change (POST, PUT, PATCH, DELETE) carries the CSRF token the
-//    server set at login, as the X-CSRF-Token header: the server refuses a change made
-//    with the session cookie without it, so another site cannot act with the cookie.
-// 2. While an account still has the published demo password, every page says so.
-// 3. The header names who is logged in (the page shell leaves it a place, #who).
+// 1. While an account still has the published demo password, every page says so.
+// 2. The header names who is logged in (the page shell leaves it a place, #who).
+// (The CSRF header every change carries is set by the one request function, api.js.)
 (() => {
-  const SAFE = new Set(["GET", "HEAD", "OPTIONS"]);
-  const token = () => {
-    const m = document.cookie.match(/(?:^|; )exostudy_csrf=([^;]+)/);
-    return m ? decodeURIComponent(m[1]) : "";
-  };
-  const original = window.fetch.bind(window);
-  window.fetch = (input, init = {}) => {
-    const isRequest = input instanceof Request;
-    const method = (init.method || (isRequest ? input.method : "GET")).toUpperCase();
-    const url = new URL(isRequest ? input.url : String(input), location.href);
-    if (!SAFE.has(method) && url.origin === location.origin) {
-      const headers = new Headers(init.headers || (isRequest ? input.headers : undefined));
-      headers.set("X-CSRF-Token", token());
-      init = { ...init, headers };
-    }
-    return original(input, init);
-  };
-
   async function warn() {
     // A classic script cannot import statically; the client is a module like the pages.
-    const { auth } = await import("/static/api_client.js");
-    const r = await original(auth.me.url());
+    const [{ auth }, { respond }] = await Promise.all([
+      import("/static/api_client.js"), import("/static/api.js")]);
+    const r = await respond("GET", auth.me.url());
     if (!r.ok) return;
     const me = await r.json();
     const who = document.getElementById("who");

@@ -6,6 +6,7 @@ import { connectLive, Ring } from "/static/livestream.js";
 import { createTimePlots } from "/static/timeplots.js";
 import { addProgress, displayValue, lastTick, PLOT_COLUMNS } from "/static/tickdata.js";
 import { createStateStrip } from "/static/statestrip.js";
+import { createEmgStrip } from "/static/emgstrip.js";
 import { createMarkerBar, markDrawn, noteMarker } from "/static/markers.js";
 import { CATEGORY_NAMES, controllerLabel, CONTROLLER_NAMES, IDLE_CONTROLLER, MODEL_NAMES, tickColumn } from "/static/names.js";
 
@@ -58,6 +59,9 @@ const plots = createTimePlots({
 }, { onDraw: () => { stats.draws += 1; }, onMarkersShown: markDrawn });
 const strip = createStateStrip($("strip"));
 stats.strip = strip.counts;
+// EMG envelopes of the subscribed amplifiers, shown once the first arrives.
+const emgStrip = createEmgStrip($("emg-strip"));
+stats.emg = emgStrip.counts;
 
 const pauseBtn = $("pause");
 pauseBtn.addEventListener("click", () => {
@@ -74,6 +78,7 @@ windowSel.addEventListener("change", () => {
   stats.windowS = Number(windowSel.value);
   $("window-s").textContent = windowSel.value;
   if (ring) ring.resize(stats.windowS * RATE_HZ);
+  emgStrip.setWindow(stats.windowS);
   if (replay) showReplay();
   dirty = true;
 });
@@ -187,6 +192,7 @@ function startLive() {
     },
     onStatus: showHealth,
     onMarker(m) { noteMarker(m); plots.addMarker(m); requestDraw(); },
+    onEmg(msg) { if (!stats.paused) emgStrip.push(msg); },
     onState(state, retryMs) {
       if (state === "live") setConn("live", "live");
       else setConn("down", `disconnected, retrying in ${(retryMs / 1000).toFixed(1)} s`);

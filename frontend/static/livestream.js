@@ -1,10 +1,11 @@
 // The live WebSocket for any page: reconnects, counts messages, gaps and drops. Its
 // path and message types come from the generated client (api_client.js), from the
 // Python models backend/schemas/live.py (LiveTicks, LiveStatus) and
-// backend/schemas/lab.py (LiveMarker); a message missing a field of its model throws.
+// backend/schemas/lab.py (LiveMarker), LiveEmg for the EMG strip; a message missing a
+// field of its model throws.
 import { readLiveMessage, sockets } from "/static/api_client.js";
 
-export function connectLive({ onTicks, onStatus, onState, onMarker }) {
+export function connectLive({ onTicks, onStatus, onState, onMarker, onEmg }) {
   const counts = { messages: 0, samples: 0, gaps: 0, dropped: 0 };
   let lastSeq = 0;
   let retryMs = 500;
@@ -28,6 +29,8 @@ export function connectLive({ onTicks, onStatus, onState, onMarker }) {
         onStatus && onStatus(msg.health);
       } else if (msg.type === "marker") {
         onMarker && onMarker(msg.marker);
+      } else if (msg.type === "emg") {
+        onEmg && onEmg(msg);
       }
     };
     ws.onclose = () => {

@@ -1,5 +1,6 @@
 // Log in with the JSON endpoint (it sets the httponly session cookie), then go back to
 // the page that sent us here. Only same-site paths are followed, never another origin.
+import { respond } from "/static/api.js";
 import * as api from "/static/api_client.js";
 
 const form = document.getElementById("login");
@@ -27,11 +28,7 @@ form.addEventListener("submit", async (event) => {
     password: document.getElementById("password").value,
   };
   // Not through api.auth.login(): a refused login must stay here, not go to the login page.
-  const r = await fetch(api.auth.login.url(), {
-    method: "POST",
-    headers: { "Content-Type": "application/json" },
-    body: JSON.stringify(body),
-  });
+  const r = await respond("POST", api.auth.login.url(), body);
   if (r.ok) {
     location.assign(nextPath());
   } else {

@@ -3,6 +3,7 @@
 import * as api from "/static/api_client.js";
 import { $, act, formData, h, showFatal } from "/static/dom.js";
 import { cellNode, parseCsv, sortableTable, sortRows } from "/static/datatable.js";
+import { showTrialEmg } from "/static/emgpanel.js";
 import { CONTROLLER_NAMES, controllerInfo, controllerKey, controllerLabel, correctAction, SEGMENT_LABELS, STUDY_CONTROLLERS } from "/static/names.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
@@ -220,6 +221,35 @@ async function loadResults() {
         h("a", { href: api.results.studyFigure.url(studyId, n, "svg"), download: "" }, "SVG")));
   }));
   state.loaded += 1;
+  loadMuscle().catch((e) => { $("#muscle-msg").textContent = `muscle activity: ${e.message}`; });
+}
+
+// Muscle activity from the stored EMG: the reduction of each muscle's mean envelope
+// against each baseline (mean, 95 % interval, Holm-corrected p), the figures, the
+// quality flags of the trials (flagged data are kept and shown), the method.
+async function loadMuscle() {
+  const m = await api.results.studyMuscle(studyId);
+  state.muscle = m;
+  const reds = m.reductions.filter((r) => r.group === "all" && r.metric === "mean");
+  const fmt = (x, d = 1) => (x == null ? "–" : x.toFixed(d));
+  const cards = m.baselines.map((b) => {
+    const rows = reds.filter((r) => r.baseline === b).map((r) => [r.channel,
+      controllerLabel(r.condition), r.n, fmt(r.mean_pct), `${fmt(r.ci_low)} to ${fmt(r.ci_high)}`, fmt(r.p_holm, 3)]);
+    return h("div", { "data-baseline": b }, h("h3", {}, `Reduction against ${controllerLabel(b)} (%)`),
+      tableView(`muscle:${b}`, ["muscle", "controller", "participants", "mean", "95 % CI", "p (Holm)"], rows));
+  });
+  const flagged = m.trials.filter((t) => t.flags.length || t.lifts_without_emg);
+  const files = [["lifts", "per lift"], ["summary", "means"], ["reductions", "reductions"], ["repeated_measures", "Friedman"]];
+  $("#muscle-body").replaceChildren(
+    h("p", { class: "small" }, `Normalisation: ${m.method.normalisation}; ${m.method.reduction}. CSV: `,
+      ...files.flatMap(([n, t], i) => [i ? " · " : "", h("a", { href: api.results.studyMuscleTable.url(studyId, n, "csv"), download: "" }, t)])),
+    ...(cards.length ? cards : [h("p", { class: "muted small" }, "No baseline condition with EMG: no reduction to show.")]),
+    h("div", { class: "grid2" }, ...[["muscle_envelopes", "Envelope over the lift cycle"], ["muscle_reduction", "Reduction per muscle"]].map(([n, title]) =>
+      h("figure", { "data-figure": n }, h("img", { src: `${api.results.studyMuscleFigure.url(studyId, n, "svg")}?v=${Date.now()}`, alt: title, style: "width:100%;height:auto" }),
+        h("figcaption", { class: "small" }, title, " · ", h("a", { href: api.results.studyMuscleFigure.url(studyId, n, "png"), download: "" }, "PNG"))))),
+    flagged.length ? h("p", { class: "small msg-bad" }, "Flagged trials (kept and shown): ",
+      flagged.map((t) => `${t.trial_id} (${[...t.flags, ...(t.lifts_without_emg ? [`${t.lifts_without_emg} lifts without EMG`] : [])].join(", ")})`).join("; ")) : null,
+    ...m.notes.map((n) => h("p", { class: "muted small" }, n)));
 }
 
 let currentTrial = null;
@@ -245,6 +275,7 @@ function openTrial(t) {
   $("#panel-timeline").src = api.results.trialTimeline.url(t.trial_id, "svg");
   $("#whatif-controller").value = whatIfDefault(t.controller);
   loadSegments().catch((err) => { $("#seg-msg").textContent = err.message; });
+  showTrialEmg(t.trial_id);
   $("#whatif").hidden = true;
   $("#whatif-msg").textContent = "";
   document.querySelectorAll("#trials tr.selected").forEach((tr) => tr.classList.remove("selected"));

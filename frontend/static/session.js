@@ -16,6 +16,7 @@ import { Stillness } from "/static/stillness.js";
 import { createMarkerBar, createStreamPicker, markDrawn, noteMarker } from "/static/markers.js";
 import { controllerLabel, MODEL_NAMES, modelLabel, SCRIPTS, SEGMENT_LABELS } from "/static/names.js";
 import { categoryColour } from "/static/palette.js";
+import { personalPlanFields } from "/static/personal_plan.js";
 
 const sessionId = Number(location.pathname.split("/").pop());
 
@@ -450,8 +451,11 @@ function trialAction(button, request, text, before = null) {
 $("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), async () => {
   const tasks = [...document.querySelectorAll("input[name=task]:checked")].map((x) => x.value);
   const body = { tasks, include_eumc: $("#plan-eumc").checked };
+  // Baselines (springs free, no exoskeleton) for the lift tasks; the server says which.
+  if ($("#plan-baselines").checked) body.include_baselines = true;
   if ($("#plan-ms").value) body.model_set_id = Number($("#plan-ms").value);
   if ($("#plan-us").value) body.utility_set_id = Number($("#plan-us").value);
+  Object.assign(body, personalPlanFields());  // conditions, personal and prior sets, block
   const trials = await api.trials.plan(sessionId, body);
   $("#plan-msg").dataset.order = trials.map((t) => t.controller).join(",");
   await loadTrials();

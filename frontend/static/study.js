@@ -8,7 +8,7 @@ const studyId = Number(location.pathname.split("/").pop());
 let participants = [];
 let selected = null;
 
-const KIND = { data_collection: "data collection", evaluation: "evaluation" };
+const KIND = { data_collection: "data collection", evaluation: "evaluation", long_use: "long use" };
 
 async function loadStudy() {
   const s = await api.studies.get(studyId);
@@ -18,6 +18,7 @@ async function loadStudy() {
   $("#export").href = api.trials.exportStudy.url(studyId);
   $("#export-bids").href = api.lab.exportBids.url(studyId);
   $("#results-link").href = `/console/studies/${studyId}/results`;
+  $("#model-sets-link").href = `/console/studies/${studyId}/model-sets`;
 }
 
 async function loadParticipants() {
@@ -36,6 +37,7 @@ async function select(id) {
   selected = participants.find((p) => p.id === id);
   $("#participant-panel").hidden = false;
   $("#panel-code").textContent = selected.code;
+  $("#progress-link").href = `/console/participants/${selected.id}/progress`;
   const form = $("#edit-form");
   for (const k of ["code", "age", "sex", "height_m", "mass_kg", "consent_date"]) {
     form.elements[k].value = selected[k] ?? "";
@@ -50,7 +52,9 @@ async function loadSessions() {
   $("#sessions tbody").replaceChildren(...sessions.map((s) => h("tr", { "data-session": s.id },
     h("td", {}, KIND[s.kind] ?? s.kind), h("td", {}, `${s.precompression_pct} %`),
     h("td", {}, fmtDate(s.started_at)),
-    h("td", {}, h("a", { href: `/console/sessions/${s.id}`, class: "session-link" }, "Open session ›")))));
+    h("td", {}, h("a", { href: s.kind === "long_use"
+      ? `/console/participants/${selected.id}/progress?session=${s.id}`
+      : `/console/sessions/${s.id}`, class: "session-link" }, "Open session ›")))));
 }
 
 // The participant's scored questionnaires and stated preference, unblinded.

@@ -1,6 +1,7 @@
 """Access in a real browser: the login page follows only same-site `next` paths, every
 page warns while the demo password is published, and the accounts page manages
-accounts under the app's Content-Security-Policy (the CSRF token sent by guard.js)."""
+accounts under the app's Content-Security-Policy (the CSRF token sent by api.js's one
+request function)."""
 
 from __future__ import annotations
 

@@ -52,6 +52,8 @@ def test_every_page_loads_without_a_failed_request_or_console_error(
     page.wait_for_url(f"{quiet_server}/console")
     pages = ["/live", "/console", f"/console/studies/{sid}", f"/console/studies/{sid}/results",
              f"/console/sessions/{sess}", "/console/cohorts", "/admin", "/docs"]
+    participant = page.request.get(f"{quiet_server}/api/sessions/{sess}").json()["participant_id"]
+    pages.insert(4, f"/console/participants/{participant}/progress")
     for path in pages:
         page.goto(f"{quiet_server}{path}")
         page.wait_for_load_state("networkidle")

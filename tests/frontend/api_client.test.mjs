@@ -3,7 +3,7 @@
 import assert from "node:assert/strict";
 import { beforeEach, test } from "node:test";
 import * as api from "/static/api_client.js";
-import { ApiError } from "/static/api.js";
+import { ApiError, respond } from "/static/api.js";
 
 let calls = [];
 let answers = [];
@@ -97,4 +97,23 @@ test("a text answer is read as text", async () => {
   answers.push(new Response("a,b\n1,2\n", { status: 200 }));
   assert.equal(await api.results.studyTable.text(3, "lifts", "csv"), "a,b\n1,2\n");
   assert.equal(calls[0].path, "/api/studies/3/results/lifts.csv");
+});
+
+test("a change carries the login's CSRF token as X-CSRF-Token; a read does not", async () => {
+  globalThis.document = { cookie: "other=1; exostudy_csrf=t%2Fk; x=2" };
+  try {
+    await api.trials.start(7, { note: "x" });
+    await api.studies.list();
+    await api.worker.restart();
+    assert.equal(calls[0].init.headers["X-CSRF-Token"], "t/k");
+    assert.equal(calls[1].init.method, "GET");
+    assert.equal(calls[1].init.headers["X-CSRF-Token"], undefined);
+    assert.equal(calls[2].init.headers["X-CSRF-Token"], "t/k");
+    globalThis.document = { cookie: "" };  // no login yet (the login page): no header
+    await respond("POST", api.auth.login.url(), { username: "a" });
+    assert.equal(calls[3].init.headers["X-CSRF-Token"], undefined);
+    assert.equal(calls[3].init.body, JSON.stringify({ username: "a" }));
+  } finally {
+    delete globalThis.document;
+  }
 });

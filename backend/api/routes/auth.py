@@ -21,6 +21,7 @@ from backend.api.deps import (
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, ErrorMessage, invalid, not_found
 from backend.api.params import MAX_ID
 from backend.api.web_surface import CSRF_COOKIE, csrf_token_for
+from backend.db import audit
 from backend.db.models import User
 from backend.schemas.auth import (
     AccountUpdate,
@@ -32,7 +33,7 @@ from backend.schemas.auth import (
     TokenOut,
     UserOut,
 )
-from backend.study import accounts, audit
+from backend.study import accounts
 
 router = APIRouter(prefix="/api/auth", tags=["auth"])
 users = APIRouter(prefix="/api/users", tags=["accounts"], responses=AUTH_RESPONSES)

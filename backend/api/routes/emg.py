@@ -7,11 +7,18 @@ import asyncio
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from fastapi import APIRouter, File, Form, HTTPException, Path, UploadFile
+from fastapi import APIRouter, File, Form, HTTPException, Path, Query, UploadFile
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SettingsDep
+from backend.api.deps import (
+    CurrentUser,
+    EmgLabDep,
+    EngineDep,
+    LabDep,
+    SessionDep,
+    SettingsDep,
+)
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -25,6 +32,7 @@ from backend.api.errors import (
 )
 from backend.api.params import MAX_ID, SessionId, StudyId
 from backend.core.config import Settings
+from backend.db import audit
 from backend.db.emg import (
     EmgAnalysisSettings,
     EmgMontage,
@@ -32,8 +40,10 @@ from backend.db.emg import (
     EmgStream,
     MvcStep,
 )
+from backend.db.evidence_tables import Trial
 from backend.db.models import Study, StudySession
 from backend.emg import edf_import, mvc, recordings
+from backend.emg.live import EmgLab
 from backend.emg.recordings import ChannelMismatchError, NoMontageError
 from backend.lab import xdf_emg
 from backend.schemas.emg import (
@@ -47,8 +57,8 @@ from backend.schemas.emg import (
     MvcEventIn,
     MvcPlanIn,
     MvcStepOut,
+    TrialEmgOut,
 )
-from backend.study import audit
 from controller.emg.montage import normalise_label
 from controller.emg.processing import EmgProcessing, EmgSettingsError
 
@@ -57,6 +67,7 @@ router = APIRouter(tags=["emg"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BOD
 EmgStreamId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG subscription id")]
 EmgRecordingId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG recording id")]
 MvcStepId = Annotated[int, Path(ge=1, le=MAX_ID, description="MVC step id")]
+TrialId = Annotated[int, Path(ge=1, le=MAX_ID, description="trial id")]
 
 
 # Montage ------------------------------------------------------------------------------------
@@ -196,9 +207,9 @@ def put_emg_settings(study_id: StudyId, body: EmgSettingsIn, user: CurrentUser,
 
 
 # Live EMG from LSL --------------------------------------------------------------------------
-def _stream_out(runtime: Any, sub: EmgStream) -> EmgStreamOut:
+def _stream_out(emg: EmgLab, sub: EmgStream) -> EmgStreamOut:
     out = EmgStreamOut.model_validate(sub)
-    inlet = runtime.emg.inlets.get(sub.id)
+    inlet = emg.inlets.get(sub.id)
     out.connected = bool(inlet is not None and inlet.connected)
     return out
 
@@ -212,17 +223,17 @@ def _mismatch(loc: list[str | int], exc: ChannelMismatchError) -> None:
 
 @router.get("/api/sessions/{session_id}/emg-streams", response_model=list[EmgStreamOut])
 def list_emg_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
-                     runtime: RuntimeDep) -> list[EmgStreamOut]:
+                     emg: EmgLabDep) -> list[EmgStreamOut]:
     """The session's EMG stream subscriptions."""
     one_or_404(db, StudySession, session_id, "session")
-    return [_stream_out(runtime, s) for s in db.scalars(
+    return [_stream_out(emg, s) for s in db.scalars(
         select(EmgStream).where(EmgStream.session_id == session_id).order_by(EmgStream.id))]
 
 
 @router.post("/api/sessions/{session_id}/emg-streams", response_model=EmgStreamOut,
              status_code=201, responses=CONFLICT)
 async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentUser,
-                        db: SessionDep, runtime: RuntimeDep) -> EmgStreamOut:
+                        db: SessionDep, emg: EmgLabDep) -> EmgStreamOut:
     """Record this LSL EMG stream with the session from now on, in chunks to the EMG
     folder, on this server's LSL clock (clock correction). The stream must be visible
     (409 otherwise), of type EMG, in volts (V, mV, uV), and its channel labels must match
@@ -231,7 +242,7 @@ async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentU
     from backend.emg import live
 
     one_or_404(db, StudySession, session_id, "session")
-    if not runtime.emg.enabled:
+    if not emg.enabled:
         conflict("lsl", "the Lab Streaming Layer is switched off (EXOSTUDY_LSL_ENABLED)")
     try:
         montage = recordings.session_montage(db, session_id)
@@ -258,25 +269,25 @@ async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentU
     db.flush()
     audit.record(db, user, "create", "emg_stream", sub.id, body.model_dump())
     db.commit()
-    runtime.emg.subscribe(sub.id)
-    return _stream_out(runtime, sub)
+    emg.subscribe(sub.id)
+    return _stream_out(emg, sub)
 
 
 @router.delete("/api/sessions/{session_id}/emg-streams/{emg_stream_id}",
                response_model=EmgStreamOut)
 async def unsubscribe_emg(session_id: SessionId, emg_stream_id: EmgStreamId,
-                          user: CurrentUser, db: SessionDep, runtime: RuntimeDep
+                          user: CurrentUser, db: SessionDep, emg: EmgLabDep
                           ) -> EmgStreamOut:
     """Stop recording the stream; the recording so far is finished and kept."""
     sub = db.get(EmgStream, emg_stream_id)
     if sub is None or sub.session_id != session_id:
         not_found("EMG subscription", emg_stream_id)
-    await asyncio.to_thread(runtime.emg.unsubscribe, sub.id)
+    await asyncio.to_thread(emg.unsubscribe, sub.id)
     db.refresh(sub)
     sub.active = False
     audit.record(db, user, "delete", "emg_stream", sub.id, {})
     db.commit()
-    return _stream_out(runtime, sub)
+    return _stream_out(emg, sub)
 
 
 # Files -------------------------------------------------------------------------------------
@@ -415,7 +426,7 @@ def plan_mvc(session_id: SessionId, body: MvcPlanIn, user: CurrentUser, db: Sess
 @router.post("/api/sessions/{session_id}/mvc-steps/{mvc_step_id}/events",
              response_model=MvcStepOut, responses=CONFLICT)
 def mvc_event(session_id: SessionId, mvc_step_id: MvcStepId, body: MvcEventIn,
-              user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> MvcStep:
+              user: CurrentUser, db: SessionDep, lab: LabDep) -> MvcStep:
     """Start or stop the step's next repetition: an `mvc_start` / `mvc_stop` marker
     (stored, shown and sent on LSL like every marker) names muscle, side and
     repetition. 409 for a stop without a start, a start while one runs, or a step
@@ -424,6 +435,28 @@ def mvc_event(session_id: SessionId, mvc_step_id: MvcStepId, body: MvcEventIn,
     if step is None or step.session_id != session_id:
         not_found("MVC step", mvc_step_id)
     try:
-        return mvc.event(db, runtime.lab, step, body.event, user.id)
+        return mvc.event(db, lab, step, body.event, user.id)
     except mvc.MvcConflictError as exc:
         conflict("event", str(exc))
+
+
+# A trial's EMG panel ----------------------------------------------------------------------
+@router.get("/api/trials/{trial_id}/emg-envelope", response_model=TrialEmgOut,
+            responses=CONFLICT)
+def trial_emg_envelope(
+    trial_id: TrialId, user: CurrentUser, db: SessionDep, engine: EngineDep,
+    settings: SettingsDep,
+    points: Annotated[int, Query(ge=100, le=20000, description=(
+        "most values per channel (the envelope is decimated to fit)"))] = 2000,
+) -> TrialEmgOut:
+    """The stored EMG's envelope over the trial (the study's processing chain, in volts,
+    decimated to at most `points` values), the recording's flags per channel, and the
+    trial's lifts with each lift's peak, mean and integral from the full-rate envelope.
+    409 saying why for a trial that has not run or that no EMG recording covers."""
+    from backend.emg.trial_envelope import NoTrialEmgError, trial_envelope
+
+    trial = one_or_404(db, Trial, trial_id, "trial")
+    try:
+        return trial_envelope(engine, db, settings, trial, points)
+    except NoTrialEmgError as exc:
+        conflict("emg", str(exc))

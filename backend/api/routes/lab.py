@@ -10,7 +10,7 @@ import io
 import zipfile
 from datetime import UTC, datetime
 from pathlib import Path as PathType
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, File, HTTPException, Path, Request, UploadFile
 from fastapi.responses import Response
@@ -21,6 +21,7 @@ from backend.analysis import markers as analysis_markers
 from backend.api.deps import (
     CurrentUser,
     EngineDep,
+    LabDep,
     RuntimeDep,
     SessionDep,
     SettingsDep,
@@ -38,11 +39,13 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import MAX_ID, SessionId, StudyId
+from backend.db import audit
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream, StudyMarkerLabels, XdfAttachment
 from backend.db.models import Study, StudySession
 from backend.emg import store as emg_store
 from backend.lab import bids_export, markers, xdf_import
+from backend.lab.hub import Lab
 from backend.schemas.lab import (
     LslStreamOut,
     MarkerIn,
@@ -52,7 +55,6 @@ from backend.schemas.lab import (
     MarkerStreamOut,
     XdfAttachmentOut,
 )
-from backend.study import audit
 from backend.study.access import may_unblind
 
 router = APIRouter(tags=["lab"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
@@ -98,12 +100,12 @@ def session_marker_labels(session_id: SessionId, user: CurrentUser, db: SessionD
 # Markers ------------------------------------------------------------------------------------
 @router.post("/api/sessions/{session_id}/markers", response_model=MarkerOut, status_code=201)
 def add_marker(session_id: SessionId, body: MarkerIn, user: CurrentUser, db: SessionDep,
-               runtime: RuntimeDep) -> Marker:
+               lab: LabDep) -> Marker:
     """An event marker now: stamped with the newest tick, stored with the session's
     running trial (if that tick is the trial's), drawn on the consoles and sent on the
     LSL marker stream."""
     one_or_404(db, StudySession, session_id, "session")
-    return runtime.lab.console_marker(db, session_id, body.label, body.note, user.id)
+    return lab.console_marker(db, session_id, body.label, body.note, user.id)
 
 
 @router.get("/api/sessions/{session_id}/markers", response_model=list[MarkerOut])
@@ -123,31 +125,31 @@ def trial_markers(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> list[
 
 
 # LSL marker streams of other software -----------------------------------------------------
-def _lsl_on(runtime: Any) -> None:
-    if not runtime.lab.enabled:
+def _lsl_on(lab: Lab) -> None:
+    if not lab.enabled:
         conflict("lsl", "the Lab Streaming Layer is switched off (EXOSTUDY_LSL_ENABLED)")
 
 
 @router.get("/api/sessions/{session_id}/lsl-streams", response_model=list[LslStreamOut],
             responses=CONFLICT)
 async def visible_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
-                          runtime: RuntimeDep) -> list[LslStreamOut]:
+                          lab: LabDep) -> list[LslStreamOut]:
     """The LSL streams visible on the network now (marker streams first)."""
     from backend.lab.marker_inlet import visible_streams as resolve
 
     one_or_404(db, StudySession, session_id, "session")
-    _lsl_on(runtime)
+    _lsl_on(lab)
     found = await asyncio.to_thread(resolve, 1.0)
-    own = f"exostudy-{runtime.lab.outlets.name}-"
+    own = f"exostudy-{lab.outlets.name}-"
     return [LslStreamOut(name=s.name, type=s.type, source_id=s.source_id,
                          hostname=s.hostname, channel_count=s.channel_count,
                          nominal_srate=s.nominal_srate, own=s.source_id.startswith(own))
             for s in found]
 
 
-def _sub_out(runtime: Any, sub: MarkerStream) -> MarkerStreamOut:
+def _sub_out(lab: Lab, sub: MarkerStream) -> MarkerStreamOut:
     out = MarkerStreamOut.model_validate(sub)
-    inlet = runtime.lab.inlets.get(sub.id)
+    inlet = lab.inlets.get(sub.id)
     out.connected = bool(inlet is not None and inlet.connected)
     return out
 
@@ -155,22 +157,22 @@ def _sub_out(runtime: Any, sub: MarkerStream) -> MarkerStreamOut:
 @router.get("/api/sessions/{session_id}/marker-streams",
             response_model=list[MarkerStreamOut])
 def list_marker_streams(session_id: SessionId, user: CurrentUser, db: SessionDep,
-                        runtime: RuntimeDep) -> list[MarkerStreamOut]:
+                        lab: LabDep) -> list[MarkerStreamOut]:
     """The session's subscriptions to other software's marker streams."""
     one_or_404(db, StudySession, session_id, "session")
     subs = db.scalars(select(MarkerStream).where(MarkerStream.session_id == session_id)
                       .order_by(MarkerStream.id))
-    return [_sub_out(runtime, s) for s in subs]
+    return [_sub_out(lab, s) for s in subs]
 
 
 @router.post("/api/sessions/{session_id}/marker-streams", response_model=MarkerStreamOut,
              status_code=201, responses=CONFLICT)
 def subscribe(session_id: SessionId, body: MarkerStreamIn, user: CurrentUser,
-              db: SessionDep, runtime: RuntimeDep) -> MarkerStreamOut:
+              db: SessionDep, lab: LabDep) -> MarkerStreamOut:
     """Store this marker stream's markers with the session (and its running trial) from
     now on. One session at a time listens to a given stream."""
     one_or_404(db, StudySession, session_id, "session")
-    _lsl_on(runtime)
+    _lsl_on(lab)
     key = body.source_id or body.name
     for other in db.scalars(select(MarkerStream).where(MarkerStream.active)):
         if (other.source_id or other.name) == key:
@@ -182,23 +184,23 @@ def subscribe(session_id: SessionId, body: MarkerStreamIn, user: CurrentUser,
     db.flush()
     audit.record(db, user, "create", "marker_stream", sub.id, body.model_dump())
     db.commit()
-    runtime.lab.subscribe(sub.id, sub.name, sub.source_id)
-    return _sub_out(runtime, sub)
+    lab.subscribe(sub.id, sub.name, sub.source_id)
+    return _sub_out(lab, sub)
 
 
 @router.delete("/api/sessions/{session_id}/marker-streams/{subscription_id}",
                response_model=MarkerStreamOut)
 def unsubscribe(session_id: SessionId, subscription_id: SubscriptionId, user: CurrentUser,
-                db: SessionDep, runtime: RuntimeDep) -> MarkerStreamOut:
+                db: SessionDep, lab: LabDep) -> MarkerStreamOut:
     """Stop storing the stream's markers (those stored stay)."""
     sub = db.get(MarkerStream, subscription_id)
     if sub is None or sub.session_id != session_id:
         not_found("marker stream subscription", subscription_id)
-    runtime.lab.unsubscribe(sub.id)
+    lab.unsubscribe(sub.id)
     sub.active = False
     audit.record(db, user, "delete", "marker_stream", sub.id, {})
     db.commit()
-    return _sub_out(runtime, sub)
+    return _sub_out(lab, sub)
 
 
 # XDF attachments -----------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from sqlalchemy.exc import IntegrityError
 from backend.api.deps import SessionDep, SettingsDep, access
 from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
 from backend.core.security import token_digest
+from backend.db import audit
 from backend.db.models import (
     Participant,
     ParticipantLink,
@@ -35,7 +36,6 @@ from backend.schemas.questionnaires import (
     PreferenceView,
     SubmissionOut,
 )
-from backend.study import audit
 from backend.study.blinding import labels_of
 
 router = APIRouter(prefix="/api/participant-forms", tags=["participant forms"], responses={

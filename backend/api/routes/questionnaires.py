@@ -30,6 +30,7 @@ from backend.api.errors import (
 )
 from backend.api.params import ParticipantId, StudyId
 from backend.core.security import new_token, token_digest
+from backend.db import audit
 from backend.db.models import (
     Participant,
     ParticipantLink,
@@ -53,7 +54,6 @@ from backend.schemas.questionnaires import (
     LinkOut,
     ResponseOut,
 )
-from backend.study import audit
 from backend.study.access import may_unblind
 from backend.study.blinding import labels_of
 

@@ -14,6 +14,7 @@ from backend.analysis.segmentation import SegmentationError, propose_lifts
 from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
 from backend.api.params import MAX_ID, SessionId
+from backend.db import audit
 from backend.db.evidence_tables import LiftSegment, Recording
 from backend.db.models import StudySession
 from backend.schemas.evidence import (
@@ -24,7 +25,7 @@ from backend.schemas.evidence import (
     SegmentOut,
     SegmentUpdate,
 )
-from backend.study import audit, recordings
+from backend.study import recordings
 
 router = APIRouter(tags=["recordings"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 

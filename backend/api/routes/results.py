@@ -6,7 +6,7 @@ Everything here only reads; the computation lives in `backend.analysis.results`.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Path, Query
 from fastapi.responses import Response
@@ -18,6 +18,7 @@ from backend.api.deps import (
     ResultsCacheDep,
     RuntimeDep,
     SessionDep,
+    SettingsDep,
     SiteDep,
 )
 from backend.api.errors import (
@@ -151,3 +152,61 @@ def model_evaluation(
                                                  utility_set_id, rate_hz)
     except results.ResultsError as exc:
         invalid(["query", exc.field_name], exc.problem)
+
+
+# Muscle activity (EMG) -----------------------------------------------------------------------
+MuscleTable = Annotated[Literal["lifts", "summary", "reductions", "repeated_measures"],
+                        Path(description="which muscle-activity table")]
+MuscleFigure = Annotated[Literal["muscle_envelopes", "muscle_reduction"],
+                         Path(description="which muscle-activity figure")]
+
+
+def _muscle(db: SessionDep, runtime: RuntimeDep, engine: EngineDep, settings: SettingsDep,
+            site: SiteDep, study_id: int) -> Any:
+    from backend.analysis import muscle_results
+    from backend.emg.store import emg_folder
+
+    one_or_404(db, Study, study_id, "study")
+    runtime.recorder.flush()
+    try:
+        return muscle_results.CACHE.get(engine, db, emg_folder(settings), study_id, site)
+    except results.ResultsError as exc:
+        conflict(exc.field_name, exc.problem)
+
+
+@router.get("/api/studies/{study_id}/muscle-results", responses=CONFLICT)
+def study_muscle_results(study_id: StudyId, runtime: RuntimeDep, engine: EngineDep,
+                         settings: SettingsDep, site: SiteDep, user: CurrentUser,
+                         db: SessionDep) -> dict[str, Any]:
+    """Muscle activity from the stored EMG: per lift (CSV `lifts`), per controller the
+    mean over participants with its 95 % interval, the reduction against each baseline
+    and the repeated-measures test, with every processing parameter (`method`) and each
+    trial's quality flags."""
+    return dict(_muscle(db, runtime, engine, settings, site, study_id).document())
+
+
+@router.get("/api/studies/{study_id}/muscle-results/{table}.{fmt}", response_class=Response,
+            responses={200: {"content": {"text/csv": {}, "text/markdown": {}},
+                             "description": "the table"}, **CONFLICT})
+def study_muscle_table(study_id: StudyId, table: MuscleTable,
+                       fmt: Annotated[Literal["csv", "md"], Path(description="csv or md")],
+                       runtime: RuntimeDep, engine: EngineDep, settings: SettingsDep,
+                       site: SiteDep, user: CurrentUser, db: SessionDep) -> Response:
+    """A muscle-activity table as CSV (the method in `#` lines first); Markdown gives the
+    reductions against each baseline whatever the table."""
+    res = _muscle(db, runtime, engine, settings, site, study_id)
+    body = res.csv(table) if fmt == "csv" else res.markdown()
+    return Response(body, media_type=_MEDIA[fmt], headers={
+        "Content-Disposition": f'inline; filename="study-{study_id}-muscle-{table}.{fmt}"'})
+
+
+@router.get("/api/studies/{study_id}/muscle-figures/{name}.{fmt}", response_class=Response,
+            responses={200: {"content": {"image/png": {}, "image/svg+xml": {}},
+                             "description": "the figure"}, **CONFLICT})
+def study_muscle_figure(study_id: StudyId, name: MuscleFigure, fmt: ImageFormat,
+                        runtime: RuntimeDep, engine: EngineDep, settings: SettingsDep,
+                        site: SiteDep, user: CurrentUser, db: SessionDep) -> Response:
+    """The envelope over the normalised lift cycle per controller, or the reduction per
+    muscle and controller against no exoskeleton (else the first baseline)."""
+    fig = _muscle(db, runtime, engine, settings, site, study_id).figure(name)
+    return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])

@@ -10,9 +10,10 @@ from sqlalchemy import select
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, BODY, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId, SessionId
+from backend.db import audit
 from backend.db.models import Participant, StudySession
 from backend.schemas.sessions import SessionIn, SessionOut, SessionUpdate
-from backend.study import audit, hardware_profiles
+from backend.study import hardware_profiles
 
 router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 

@@ -22,6 +22,7 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import StudyId
+from backend.db import audit
 from backend.db.models import ConsentDocument, Study, StudyMember, User
 from backend.schemas.studies import (
     ConsentIn,
@@ -33,7 +34,6 @@ from backend.schemas.studies import (
     StudyUpdate,
 )
 from backend.study import access as access_rules
-from backend.study import audit
 
 router = APIRouter(prefix="/api/studies", tags=["studies"], responses=AUTH_RESPONSES)
 

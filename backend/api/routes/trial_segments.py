@@ -27,9 +27,9 @@ from backend.api.errors import (
     one_or_404,
 )
 from backend.api.params import MAX_ID
+from backend.db import audit
 from backend.db.evidence_tables import Trial, TrialSegment
 from backend.schemas.evidence import SegmentIn, TrialSegmentOut
-from backend.study import audit
 
 router = APIRouter(tags=["trials"], responses={**AUTH_RESPONSES, **NOT_FOUND})
 

@@ -10,9 +10,18 @@ from fastapi.responses import Response
 from sqlalchemy import select
 
 from backend.analysis import tick_queries
-from backend.api.deps import CurrentUser, EngineDep, RuntimeDep, SessionDep, SiteDep, access
+from backend.api.deps import (
+    CurrentUser,
+    EngineDep,
+    LabDep,
+    RuntimeDep,
+    SessionDep,
+    SiteDep,
+    access,
+)
 from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, one_or_404
 from backend.api.params import MAX_ID, SessionId, StudyId
+from backend.db import audit
 from backend.db.evidence_tables import LockEvent, Trial
 from backend.db.models import StudySession
 from backend.schemas.documents import TickColumnsOut
@@ -23,7 +32,6 @@ from backend.schemas.evidence import (
     TrialStartIn,
     TrialStopIn,
 )
-from backend.study import audit
 from backend.study import trials as trials_service
 from controller.tick_codec import json_columns
 
@@ -59,22 +67,23 @@ def get_trial(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> Trial:
 @router.post("/api/trials/{trial_id}/start", response_model=TrialOut, responses=CONFLICT,
              openapi_extra=access("device"))
 async def start_trial(trial_id: TrialId, body: TrialStartIn, user: CurrentUser,
-                      db: SessionDep, runtime: RuntimeDep) -> Trial:
+                      db: SessionDep, runtime: RuntimeDep, lab: LabDep) -> Trial:
     """Run the trial's controller with its model and utility sets, at the session's
     precompression; the exact configuration is stored with the trial. 409 while another
     trial or recording runs (checked and started under the runtime's activity lock; the
     database's unique index refuses a second running trial in any case)."""
-    return await trials_service.start(db, user, runtime, trial_id, body)
+    return await trials_service.start(db, user, runtime, lab, trial_id, body)
 
 
 @router.post("/api/trials/{trial_id}/stop", response_model=TrialOut, responses=CONFLICT)
 async def stop_trial(trial_id: TrialId, body: TrialStopIn, engine: EngineDep,
-                     user: CurrentUser, db: SessionDep, runtime: RuntimeDep) -> Trial:
+                     user: CurrentUser, db: SessionDep, runtime: RuntimeDep,
+                     lab: LabDep) -> Trial:
     """End the trial as completed or aborted; the worker returns to recording mode
     (no locks); the trial's tick count, quality flags (device time gaps, time going
     backwards) and lock events are derived from its stored ticks. 409 if it is no
     longer running (e.g. `interrupted` because its worker stopped)."""
-    return await trials_service.stop(db, engine, user, runtime, trial_id, body)
+    return await trials_service.stop(db, engine, user, runtime, lab, trial_id, body)
 
 
 @router.get("/api/trials/{trial_id}/lock-events", response_model=list[LockEventOut])

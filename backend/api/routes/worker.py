@@ -18,6 +18,7 @@ from backend.schemas.live import (
     SimulationChoice,
 )
 from backend.study import activity
+from backend.study.conditions import spec_priors_problem
 from controller.config import SettingError
 from controller.controllers.factory import controller_names
 
@@ -71,6 +72,12 @@ def _set_controller(choice: ControllerChoice, runtime: RuntimeDep) -> Health:
             422, f"name: unknown controller {choice.name!r}; choose one of {controller_names()}"
         )
     try:
+        # Priors from the body are checked against the utility set here (422), not
+        # only by the controller in the worker (which refuses them again).
+        problem = spec_priors_problem(runtime.controller_spec(choice.name,
+                                                              dict(choice.config)))
+        if problem is not None:
+            invalid(["body", "config", "priors"], problem)
         runtime.set_controller(choice.name, dict(choice.config))
     except WrongDeviceError as exc:
         conflict("device", str(exc))

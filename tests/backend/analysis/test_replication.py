@@ -45,6 +45,9 @@ def test_report_is_self_contained_and_judges_every_claim(tiny: Path) -> None:
         assert b"<svg" in (tiny / "figures" / f"{name}.svg").read_bytes()[:2000]
     md = (tiny / "replication.md").read_text()
     assert md.count("\n| ") == len(CLAIMS) + 1
+    # The muscle-activity section (an EMG cohort, controller.evaluation.muscle_report).
+    assert "Reduction of the mean normalised envelope against no exoskeleton" in page
+    assert (tiny / "figures" / "muscle_envelope.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_the_default_seed_count_is_the_measured_one() -> None:

@@ -24,6 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from schemathesis import GenerationMode
 from schemathesis.checks import not_a_server_error
+from schemathesis.python import asgi
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
     response_schema_conformance,
@@ -116,13 +117,31 @@ def api_schema(fuzz_target: tuple[FastAPI, dict[str, str]]) -> Any:
     return schemathesis.openapi.from_asgi("/openapi.json", fuzz_target[0])
 
 
+@pytest.fixture(scope="module")
+def raw_client(fuzz_target: tuple[FastAPI, dict[str, str]]) -> Iterator[TestClient]:
+    """The app started once for the module (its lifespan: migrations checked, worker
+    runtime and job runner up), for every test here."""
+    with TestClient(fuzz_target[0]) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def fuzz_session(raw_client: TestClient) -> asgi.ASGIClient:
+    """schemathesis' in-process client for the app `raw_client` has started. Left
+    unentered on purpose: an entered one (what `call_and_validate` makes without a
+    session) starts the app's lifespan, and schemathesis' pytest plugin ends it after
+    every test, so each of the 300 operations paid a start and a stop (about a third of
+    the module's time)."""
+    return asgi.get_client(raw_client.app)
+
+
 # schemathesis' own pytest plugin (`schema.parametrize`) reads a node attribute pytest 9
 # removed, so the cases are drawn with hypothesis directly from each operation.
 @pytest.mark.parametrize(("method", "path", "mode"), [
     pytest.param(m, p, g, id=f"{m} {p} {'valid' if g == GenerationMode.POSITIVE else 'invalid'}")
     for m, p, g in _cases()])
 def test_api_has_no_server_errors(method: str, path: str, mode: GenerationMode,
-                                  api_schema: Any,
+                                  api_schema: Any, fuzz_session: asgi.ASGIClient,
                                   fuzz_target: tuple[FastAPI, dict[str, str]]) -> None:
     operation = api_schema[path][method]
     headers = fuzz_target[1]
@@ -131,7 +150,8 @@ def test_api_has_no_server_errors(method: str, path: str, mode: GenerationMode,
     @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
               suppress_health_check=list(HealthCheck))
     def run(case: Any) -> None:
-        case.call_and_validate(headers=headers, checks=CHECKS)
+        fuzz_session.cookies.clear()  # each call as from a new client, bearer token only
+        case.call_and_validate(session=fuzz_session, headers=headers, checks=CHECKS)
 
     run()
 
@@ -217,12 +237,6 @@ def _json_body(case: Any) -> Any:
     except (TypeError, ValueError):
         return None
     return body if isinstance(body, dict | list) else None
-
-
-@pytest.fixture(scope="module")
-def raw_client(fuzz_target: tuple[FastAPI, dict[str, str]]) -> Iterator[TestClient]:
-    with TestClient(fuzz_target[0]) as c:
-        yield c
 
 
 def _operations() -> list[tuple[str, str, bool]]:

@@ -140,7 +140,7 @@ def test_live_emg_is_stored_mapped_and_clock_corrected(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(store, "CHUNK_ROWS", 1000)  # 0.5 s per file chunk
     sess = _session(client)
-    runtime = client.app.state.runtime  # type: ignore[attr-defined]
+    emg = client.app.state.emg  # type: ignore[attr-defined]
     source = f"test-simemg-{uuid.uuid4().hex[:8]}"
     body = {"name": f"SimEMG-{source}", "source_id": source,
             "ignore_labels": [f"SPARE {i}" for i in range(1, 5)]}
@@ -150,7 +150,7 @@ def test_live_emg_is_stored_mapped_and_clock_corrected(
         r = client.post(url, json=body)
         assert r.status_code == 201, r.text
         sub = r.json()["id"]
-        inlet = runtime.emg.inlets[sub]
+        inlet = emg.inlets[sub]
         t_begin = pylsl.local_clock()
         wait_for(lambda: inlet.samples >= 3000, 15, "1.5 s of live EMG in the store")
         # The stream stops mid-recording: the recording ends, flagged, and is kept.

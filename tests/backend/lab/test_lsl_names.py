@@ -20,8 +20,10 @@ from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.lab import MarkerStream
 from backend.db.models import Participant, Study, StudySession
-from backend.lab import lsl_names, marker_inlet
+from backend.lab import marker_inlet
 from backend.lab.marker_inlet import MarkerInlet
+from backend.lsl import backoff
+from backend.lsl import names as lsl_names
 from backend.main import create_app
 from tests.login import log_in
 from tests.polling import wait_for
@@ -135,7 +137,7 @@ def test_an_inlet_that_keeps_failing_is_closed_as_failed(
     wait_for(lambda: not inlet.alive, 10, "the inlet to give up")
     assert len(failures) == 1 and "failed attempts" in failures[0]
     assert len(delays) == marker_inlet.MAX_FAILURES - 1
-    assert max(delays) <= marker_inlet.BACKOFF_MAX_S
+    assert max(delays) <= backoff.BACKOFF_MAX_S
 
 
 def test_bad_subscriptions_stored_before_are_closed_at_start(

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from fastapi.testclient import TestClient
 
-from backend.study import audit
+from backend.db import audit
 from tests.login import USERNAME
 
 

@@ -21,14 +21,19 @@ import pytest
 from backend.worker.devices import make_device
 from backend.worker.machine import (
     EDGES,
+    KINDS,
     LOCKING,
+    REFUSALS,
     RULES,
+    WHILE_CALIBRATING,
     Machine,
     State,
     TransitionError,
+    kind_of,
 )
 from backend.worker.messages import (
     BringupCapture,
+    BringupCommand,
     BringupPulse,
     BringupRelease,
     BringupResult,
@@ -52,8 +57,16 @@ from controller.stop_flag import SignalSafeFlag
 from tests.backend.worker.unchecked import unchecked_spec
 from tests.polling import wait_for
 
-ID, C, T, K, B, R, S = (State.IDLE, State.CONTROLLING, State.TRIAL, State.CALIBRATING,
-                       State.BRINGUP, State.RELEASING, State.STOPPING)
+ID, C, T, B, R, S = (State.IDLE, State.CONTROLLING, State.TRIAL, State.BRINGUP,
+                    State.RELEASING, State.STOPPING)
+#: Not a state: controlling with a calibration being collected beside it (a job).
+K = "calibrating"
+Where = State | str
+
+
+def _state(where: Where) -> State:
+    """The worker's state at `where`: a calibration runs beside a controller."""
+    return C if where == K else State(where)
 PEC = ControllerSpec("pec")
 NONE = ControllerSpec("none")
 LAY = DEFAULT_LAYOUT
@@ -73,18 +86,28 @@ def test_every_way_out_of_a_locking_state_to_a_safe_one_passes_through_releasing
     assert all((a, R) in EDGES for a in State if a is not S and a is not R)
 
 
-def test_every_state_that_takes_commands_has_a_rule_for_each_and_always_takes_stop() -> None:
-    assert set(RULES) == {ID, C, T, K}
+def test_every_command_type_has_one_kind_and_the_bringup_steps_share_one() -> None:
     assert {SetController, StopWorker, BringupRelease} <= set(COMMAND_TYPES)
+    for t in COMMAND_TYPES:
+        assert [k for k in KINDS if issubclass(t, k)] == [kind_of(t.__new__(t))], t
+    steps = (BringupCapture, BringupPulse, BringupWatchdog, BringupRelease)
+    assert {kind_of(t.__new__(t)) for t in steps} == {BringupCommand}
+    assert kind_of({"name": "pec"}) is None and kind_of(None) is None
+    # Every kind a sender waits on is answered in its own form when refused.
+    assert set(REFUSALS) == set(KINDS) - {StopWorker}
+
+
+def test_every_state_that_takes_commands_has_a_rule_for_each_and_always_takes_stop() -> None:
+    assert set(RULES) == {ID, C, T}
     for state, rules in RULES.items():
-        assert set(rules) == set(COMMAND_TYPES), state
+        assert set(rules) == set(KINDS), state
         assert rules[StopWorker] is None, state
     # Idle takes everything (the simulation change checks the device kind).
     assert [t for t, r in RULES[ID].items() if r is not None] == [SetSimulation]
     # A trial refuses every change but its stop, outright.
-    assert all(isinstance(RULES[T][t], str)
-               for t in (SetSimulation, Calibrate, BringupCapture, BringupPulse,
-                         BringupWatchdog, BringupRelease))
+    assert all(isinstance(RULES[T][t], str) for t in (SetSimulation, Calibrate, BringupCommand))
+    # A calibration refuses a second one and a timed trial, nothing else of its own.
+    assert set(WHILE_CALIBRATING) == {Calibrate, SetController}
 
 
 # -- the machine in this process ----------------------------------------------------------
@@ -162,16 +185,17 @@ def _answer(msgs: list[Any], kind: type) -> Any:
     return answer
 
 
-def _into(h: Harness, state: State) -> None:
+def _into(h: Harness, state: Where) -> None:
     """Bring the machine from idle into `state` through its commands."""
     if state is C:
         h.send(SetController(PEC, request_id=90))
     elif state is T:
         h.send(SetController(PEC, max_ticks=10_000, request_id=91))
-    elif state is K:
+    elif state == K:
         h.send(SetController(PEC, request_id=92))
         h.send(Calibrate(seconds=30.0, request_id=93))
-    assert h.m.state is state
+        assert h.m.calibration is not None
+    assert h.m.state is _state(state)
 
 
 def test_idle_to_controlling_and_back_through_releasing(h: Harness) -> None:
@@ -215,27 +239,42 @@ def test_a_trial_is_stopped_only_by_none(h: Harness) -> None:
 
 
 @pytest.mark.parametrize("base", [ID, C])
-def test_a_calibration_returns_to_the_state_it_was_collected_in(h: Harness,
-                                                                base: State) -> None:
+def test_a_calibration_is_collected_beside_the_state_it_started_in(h: Harness,
+                                                                   base: State) -> None:
     _into(h, base)
-    mark = len(h.m.trace)
+    mark, token = len(h.m.trace), h.m.runs.token
     h.send(Calibrate(seconds=0.2, max_std_deg=90.0, request_id=7))
-    assert h.m.state is K
+    assert h.m.state is base and h.m.calibration is not None
     h.ticks(19)
-    assert h.m.state is K
+    assert h.m.state is base and not h.messages()
     h.ticks(1)
-    result = _answer(h.messages(), CalibrationResult)
+    msgs = h.messages()
+    result = _answer(msgs, CalibrationResult)
     assert result.request_id == 7 and result.samples == 20
-    # Back to idle is a way out of a locking state: through releasing.
-    assert h.trace_since(mark) == ([K, R, ID] if base is ID else [K, C])
-    assert h.releases == (1 if base is ID else 0)
+    # No transition and no release at all: the controller ran on untouched (pec takes
+    # no offsets, so no new run either).
+    assert h.m.calibration is None and h.trace_since(mark) == [] and h.releases == 0
+    assert h.m.state is base and h.m.runs.token == token and _runs(msgs) == []
 
 
 def test_a_controller_change_while_calibrating_keeps_the_calibration(h: Harness) -> None:
     _into(h, K)
+    mark = len(h.m.trace)
     msgs = h.send(SetController(NONE, request_id=8))
-    assert _runs(msgs) == ["none"] and h.m.state is K and h.m.base is ID
+    assert _runs(msgs) == ["none"] and h.m.state is ID and h.m.calibration is not None
     assert not [m for m in msgs if isinstance(m, CalibrationResult)]
+    # Controlling to idle is released at once, calibration or not.
+    assert h.trace_since(mark) == [R, ID] and h.releases == 1
+    h.ticks(5)
+    assert len(h.m.calibration.q) == 5
+
+
+def test_a_rejected_controller_while_calibrating_beside_idle_starts_no_run(h: Harness) -> None:
+    h.send(Calibrate(seconds=30.0, request_id=16))
+    msgs = h.send(SetController(unchecked_spec("umc"), request_id=17))
+    answer = _answer(msgs, CommandResult)
+    assert not answer.ok and answer.run_token == 0 and _runs(msgs) == []
+    assert h.m.state is ID and h.m.calibration is not None and h.releases == 0
 
 
 def test_a_new_wearer_abandons_a_calibration_and_keeps_the_controller(h: Harness) -> None:
@@ -246,7 +285,8 @@ def test_a_new_wearer_abandons_a_calibration_and_keeps_the_controller(h: Harness
     assert not cal.ok and "abandoned" in cal.message and "simulated wearer" in cal.message
     assert _answer(msgs, CommandResult).ok and _runs(msgs) == ["pec"]
     # Released, then closed (which releases once more) before the new device opens.
-    assert h.trace_since(mark) == [C, R, C] and h.releases == 2
+    assert h.trace_since(mark) == [R, C] and h.releases == 2
+    assert h.m.calibration is None
     assert h.m.config.device_seed == 4
 
 
@@ -271,7 +311,7 @@ def test_a_bringup_step_abandons_a_calibration_collected_while_idle(h: Harness) 
     msgs = h.send(BringupCapture(seconds=0.1, request_id=13))
     assert "bring-up" in _answer(msgs, CalibrationResult).message
     assert _answer(msgs, BringupResult).ok
-    assert h.trace_since(mark) == [R, ID, B, R, ID]
+    assert h.trace_since(mark) == [B, R, ID] and h.m.calibration is None
 
 
 def test_a_rejected_controller_falls_back_to_none_through_releasing(h: Harness) -> None:
@@ -293,7 +333,7 @@ def test_a_rejected_controller_in_idle_starts_no_run(h: Harness) -> None:
 
 
 #: (state, command, words of the reason): every command each state refuses.
-REFUSED: list[tuple[State, Any, str]] = [
+REFUSED: list[tuple[Where, Any, str]] = [
     (C, BringupCapture(seconds=0.1, request_id=20), "'pec' is running"),
     (C, BringupPulse("left", 0.1, LAY.offsets, LAY.directions, 2.0, request_id=21),
      "'pec' is running"),
@@ -319,9 +359,9 @@ REFUSED: list[tuple[State, Any, str]] = [
 
 
 @pytest.mark.parametrize(("state", "cmd", "words"), REFUSED,
-                         ids=[f"{s.value}-{type(c).__name__}-{c.request_id}"
+                         ids=[f"{getattr(s, 'value', s)}-{type(c).__name__}-{c.request_id}"
                               for s, c, _ in REFUSED])
-def test_each_refused_command_is_answered_with_its_reason(h: Harness, state: State, cmd: Any,
+def test_each_refused_command_is_answered_with_its_reason(h: Harness, state: Where, cmd: Any,
                                                           words: str) -> None:
     _into(h, state)
     mark, token, releases = len(h.m.trace), h.m.runs.token, h.releases
@@ -338,7 +378,8 @@ def test_each_refused_command_is_answered_with_its_reason(h: Harness, state: Sta
     assert answer.request_id == cmd.request_id and not answer.ok
     assert words in answer.message
     # Nothing changed: same state, same run, the device untouched.
-    assert h.trace_since(mark) == [] and h.m.state is state
+    assert h.trace_since(mark) == [] and h.m.state is _state(state)
+    assert (h.m.calibration is not None) == (state == K)
     assert h.m.runs.token == token and h.releases == releases and _runs(msgs) == []
 
 
@@ -351,7 +392,7 @@ def test_a_simulation_change_is_refused_without_the_simulator(h: Harness) -> Non
 
 
 @pytest.mark.parametrize("state", [ID, C, T, K])
-def test_stopping_passes_through_releasing_from_every_state(state: State) -> None:
+def test_stopping_passes_through_releasing_from_every_state(state: Where) -> None:
     h = Harness()
     try:
         _into(h, state)

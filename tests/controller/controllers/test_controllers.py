@@ -41,7 +41,7 @@ def calibrated(sets: tuple[ModelSet, UtilitySet], script: str, seed: int) -> EUM
     from controller.sim.demonstrations import record
 
     rec = record(seed, script)
-    start = np.mean([m.mean[0] for m in sets[0].ordered()], axis=0)
+    start = sets[0].start_posture()
     cal = calibrate(rec.q[:200], start)
     return EUMC(*sets, ControllerConfig().with_calibration(cal.offset_left, cal.offset_right))
 

@@ -274,3 +274,11 @@ def test_segmented_recording_to_model_set() -> None:
     for name, (pl, pr) in peaks.items():
         np.testing.assert_allclose(mset[name].mean[50], [pl, pr], atol=0.15)
         assert np.abs(mset[name].mean[0]).max() < 0.05
+
+
+def test_start_posture_is_the_mean_of_the_models_first_samples() -> None:
+    mset = make_set()
+    first = np.array([m.mean[0] for m in mset.ordered()])
+    assert first.shape == (3, 2)
+    np.testing.assert_allclose(mset.start_posture(), first.sum(axis=0) / 3, atol=1e-12)
+    assert mset.start_posture().dtype == np.float64

@@ -19,10 +19,10 @@ from controller.intent.onset import (
     ObservationWindow,
     OnsetCriteria,
     OnsetDetector,
-    _bank_kernel,
+    bank_kernel,
     match,
 )
-from controller.intent.posteriors import IntentEstimator, _intent_kernel
+from controller.intent.posteriors import IntentEstimator, intent_kernel
 
 # --------------------------------------------------------------------------- references
 
@@ -400,11 +400,11 @@ def test_no_compilation_after_warm_up_in_a_tick() -> None:
     bank, intent, window = ModelBank(means, covs), IntentEstimator(), ObservationWindow(30)
     bank.warm_up()
     intent.warm_up()
-    before = (len(_bank_kernel.signatures), len(_intent_kernel.signatures))
+    before = (len(bank_kernel.signatures), len(intent_kernel.signatures))
     for q in means[1, :40]:
         window.push(float(q[0]), float(q[1]))
         bank.evaluate(window.view())
         intent.update(bank.D, bank.L, bank.accepted)
-    assert (len(_bank_kernel.signatures), len(_intent_kernel.signatures)) == before
+    assert (len(bank_kernel.signatures), len(intent_kernel.signatures)) == before
     for arr in (bank.D, bank.L, bank.s_curr, bank.s_start, bank.accepted, intent.post):
         assert arr.flags.c_contiguous

@@ -155,3 +155,21 @@ def test_safe_priors_can_raise_the_stoops(table: np.ndarray, bounds: PriorBounds
     assert pr[1] == pr[2] > 0.25 and pr[0] < 0.25
     s, p = random_evaluations(3, 5000)
     assert not (lock_decided(table, s, p, pr) & ~lock_decided(table, s, p, EQUAL)).any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 200),
+       point=st.sampled_from(CATEGORY_NAMES), sharp=st.floats(0.0, 1.0))
+def test_no_unconfirmed_use_adds_a_lock_on_any_evaluation(
+        table: np.ndarray, bounds: PriorBounds, seed: int, n: int, point: str,
+        sharp: float) -> None:
+    """Unconfirmed use, however it looks (posteriors that all point at one category, to
+    any degree, mixed with noise): the EM estimate, bounded, adds no lock on worst-case
+    evaluations, and refuses nothing the equal priors would not."""
+    rng = np.random.default_rng(seed)
+    post = rng.dirichlet(np.full(4, 0.5), size=n)
+    post = (1 - sharp) * post + sharp * np.eye(4)[CATEGORY_NAMES.index(point)]
+    pri = learn_from_unconfirmed(post, EQUAL, bounds).values
+    s, p = random_evaluations(seed)
+    equal, learned = lock_decided(table, s, p, EQUAL), lock_decided(table, s, p, pri)
+    assert not (learned & ~equal).any()

@@ -197,7 +197,7 @@ def test_five_percent_glitches_add_no_lock_to_the_eumc(default_sets: tuple[Path,
     calib = _run_stream("squat-sequence", "none", {}, 0.0, 200)
     q = np.array([[r.q_raw_left, r.q_raw_right] for r in calib])
     mset = load_models({"models_path": str(models)})
-    start = np.mean([m.mean[0] for m in mset.ordered()], axis=0)
+    start = mset.start_posture()
     cal = calibrate(q, start)
     cfg = {"models_path": str(models), "utilities_path": str(folder / "utilities-sim-p25.json"),
            "settings": {"calibration": [cal.offset_left, cal.offset_right]}}

@@ -112,7 +112,7 @@ def _with_gap(path: Path) -> AngleRecording:
 
 def _calibration(models: Path, rec: AngleRecording) -> list[float]:
     mset = load_models({"models_path": str(models)})
-    cal = calibrate(rec.q[:200], np.mean([m.mean[0] for m in mset.ordered()], axis=0))
+    cal = calibrate(rec.q[:200], mset.start_posture())
     return [cal.offset_left, cal.offset_right]
 
 

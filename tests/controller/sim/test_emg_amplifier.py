@@ -82,3 +82,65 @@ def test_emg_reaches_an_lsl_inlet_at_2_khz() -> None:
         assert 1e-6 < float(np.std(x[:, 0])) < 5e-3
     finally:
         tap.close()
+
+
+class _FakeOutlet:
+    """Keeps what is pushed; `consumers` says whether an inlet listens."""
+
+    def __init__(self) -> None:
+        self.stamps: list[float] = []
+        self.rows = 0
+        self.consumers = True
+
+    def have_consumers(self) -> bool:
+        return self.consumers
+
+    def push_chunk(self, x: Any, stamps: list[float]) -> None:
+        assert len(stamps) == len(x)
+        self.stamps += stamps
+        self.rows += len(x)
+
+
+def test_spread_stamps_follow_the_reader_clock_and_never_go_back() -> None:
+    """A sped-up in-process simulator: each tick's 20 samples end at the instant the
+    tick is produced, evenly spaced since the previous tick, never backwards; with no
+    consumer nothing is generated."""
+    tap = EmgTap(SimulatedExoskeleton(seed=3, script="squat-sequence"), stamping="spread",
+                 only_when_consumed=True)
+    out = _FakeOutlet()
+    clock = iter(np.concatenate([1000.0 + 0.0001 * np.arange(50),  # 100x real time
+                                 1000.0049 + np.zeros(5)]))  # a clock that stalls
+    tap._outlet, tap._clock = out, lambda: next(clock)
+    for _ in range(55):
+        tap.tick(None)
+    s = np.asarray(out.stamps)
+    assert out.rows == 55 * 20 and s.size == out.rows
+    assert np.all(np.diff(s) > 0)
+    ends = s[19::20]
+    assert np.allclose(ends[1:50], 1000.0 + 0.0001 * np.arange(1, 50))
+    assert np.allclose(np.diff(s[20:40]), 0.0001 / 20)
+    assert s[0] == pytest.approx(1000.0 - 20 / 2000 + 1 / 2000)  # first tick: nominal
+    out.consumers = False
+    made = tap.generator.samples_generated
+    tap.tick(None)
+    assert out.rows == 55 * 20 and tap.generator.samples_generated == made
+
+
+def test_not_worn_wearer_gets_no_torque_and_full_muscle_demand() -> None:
+    """The "no exoskeleton" baseline: locks asked for are ignored, the springs give no
+    torque, and the muscles carry the whole moment."""
+    from controller.device.base import LockCommand
+
+    worn, bare = (SimulatedExoskeleton(seed=4, script="squat-sequence") for _ in range(2))
+    bare.worn = False
+    tw, tb = [], []
+    aw, ab = EmgTap(worn, publish=False), EmgTap(bare, publish=False)
+    for k in range(2500):
+        for exo, acc in ((worn, tw), (bare, tb)):
+            exo.tick(LockCommand(seq=k, lock_left=True, lock_right=True))
+            acc.append(exo.true_torques())
+        if k % 10 == 0:  # the extensors (not the flexors, which springs may load)
+            ext = [0, 1, 2, 3, 6, 7, 8, 9]
+            assert np.all(ab.activation()[ext] >= aw.activation()[ext] - 1e-12)
+    assert np.max(tw) > 5.0
+    assert np.max(np.abs(tb)) == 0.0

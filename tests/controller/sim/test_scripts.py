@@ -25,7 +25,7 @@ def lift_kinds(tr: Trajectory) -> list[str]:
 def test_builtin_names_and_unknown_name() -> None:
     assert set(SCRIPT_NAMES) == {
         "squat-sequence", "stoop-sequence", "walking", "stairs", "paper-evaluation",
-        "standing", "hip-flex-left", "hip-flex-right",
+        "lift-evaluation", "standing", "hip-flex-left", "hip-flex-right",
     }
     with pytest.raises(ValueError, match="squat-sequence"):
         get_script("jumping")

@@ -1,0 +1,206 @@
+"""Personal model sets, prior sets and their conditions through the API: a plan with a
+demonstration block and personal/prior conditions (counterbalanced, blinded), the
+personal set fitted from the block as a job with its provenance, priors learned from
+confirmed motions inside the safety bound, and priors from outside refused."""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from fastapi.testclient import TestClient
+from sqlalchemy import update
+
+from backend.core.config import Settings
+from backend.db.engine import make_engine, make_session_factory
+from backend.db.evidence_tables import ModelSetRecord, Trial, TrialSegment, UtilitySetRecord
+from backend.db.personalisation import PriorSetRecord
+from backend.live.recorder import TickRecorder
+from backend.worker.messages import RunStarted, TickBatch
+from controller.evaluation.cohort import trial_recording
+from controller.intent.prior_safety import PriorBounds
+from controller.intent.segmentation import segment_lifts
+from controller.sim.participant import VirtualParticipant
+from controller.tick_record import TickRecord
+from tests.polling import wait_for
+
+TASKS = ["squat-sequence", "walking"]
+STOOP_LEFT_SKEW = [0.05, 0.8, 0.05, 0.1]  # every lift "stoop left": outside the bound
+
+
+def _ok(r: Any, code: int = 200) -> Any:
+    assert r.status_code == code, r.text
+    return r.json()
+
+
+def _setup(client: TestClient, settings: Settings, n: int = 1) -> dict[str, Any]:
+    study = _ok(client.post("/api/studies", json={"name": "Personal"}), 201)
+    parts, sessions = [], []
+    for i in range(n):
+        p = _ok(client.post(f"/api/studies/{study['id']}/participants",
+                            json={"code": f"P{i + 1:02d}"}), 201)
+        s = _ok(client.post(f"/api/participants/{p['id']}/sessions",
+                            json={"kind": "evaluation", "precompression_pct": 25}), 201)
+        parts.append(p["id"])
+        sessions.append(s["id"])
+    engine = make_engine(settings.database_url)
+    with make_session_factory(engine)() as db:
+        ms = ModelSetRecord(study_id=study["id"], name="population", status="ready",
+                            document=json.loads(Path(settings.models_path).read_text()))
+        doc = json.loads(next(Path(settings.utilities_dir).glob("*.json")).read_text())
+        us = UtilitySetRecord(study_id=study["id"], name="defaults", precompression_pct=25,
+                              human_source="sim", status="ready", document=doc)
+        db.add_all([ms, us])
+        db.commit()
+        ids = {"study": study["id"], "participants": parts, "sessions": sessions,
+               "ms": ms.id, "us": us.id, "table": np.asarray(doc["utilities_nm2"])}
+    engine.dispose()
+    return ids
+
+
+def _record_block(settings: Settings, trial_id: int) -> dict[str, int]:
+    """The demonstration block as it would be after the lab ran it: simulated squats
+    and stoops stored as the trial's ticks, the lifts marked and labelled."""
+    p = VirtualParticipant.from_seed(7)
+    recs = [trial_recording(p, 7, s, 100) for s in ("squat-sequence", "stoop-sequence")]
+    q = np.concatenate([r.q for r in recs])
+    t = np.arange(len(q)) / 100.0
+    segs: list[tuple[int, int, int, str]] = []
+    offset = 0
+    for r in recs:
+        assert r.activity is not None
+        segs += [(offset + s.start, offset + s.peak, offset + s.end, r.activity[s.peak])
+                 for s in segment_lifts(r.t, r.q)]
+        offset += len(r.q)
+    engine = make_engine(settings.database_url)
+    rec = TickRecorder(engine)
+    run = rec.run_started(RunStarted(1, "none", {}, "sim", 1), "sim")
+    rec.add(TickBatch.from_records(1, (TickRecord(seq=k, t=float(t[k]), q_left=float(q[k, 0]),
+                                                  q_right=float(q[k, 1]))
+                                       for k in range(len(q)))))
+    assert rec.flush() == len(q)
+    with make_session_factory(engine)() as db:
+        db.execute(update(Trial).where(Trial.id == trial_id).values(
+            status="completed", run_id=run, started_at=datetime(2026, 11, 1, 10, tzinfo=UTC)))
+        db.add_all([TrialSegment(trial_id=trial_id, start=a, peak=b, end=c, label=lab,
+                                 source="manual") for a, b, c, lab in segs])
+        db.commit()
+    engine.dispose()
+    return {lab: sum(s[3] == lab for s in segs) for lab in ("squat", "stoop_left",
+                                                             "stoop_right")}
+
+
+def test_plan_fit_learn_and_condition_snapshot(client: TestClient, settings: Settings) -> None:
+    ids = _setup(client, settings, n=3)
+    pid, sid = ids["participants"][0], ids["sessions"][0]
+    base = {"tasks": TASKS, "include_eumc": False, "model_set_id": ids["ms"],
+            "utility_set_id": ids["us"]}
+
+    # A personal condition with nothing to fit it from is refused, naming what to do.
+    r = client.post(f"/api/sessions/{sid}/trials/plan",
+                    json={**base, "conditions": ["population", "personal"]})
+    assert r.status_code == 422 and "demonstration block" in r.text
+    # Priors from outside: refused when outside the bound, never projected.
+    r = client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "skewed", "method": "import", "utility_set_id": ids["us"],
+        "values": STOOP_LEFT_SKEW})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"][0]["loc"] == ["body", "values"]
+    assert "stoop_left" in r.json()["detail"][0]["msg"]
+    r = client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "nothing yet", "method": "dirichlet", "utility_set_id": ids["us"]})
+    assert r.status_code == 422 and "no confirmed motions" in r.text
+    equal = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "equal", "method": "equal", "utility_set_id": ids["us"]}), 201)
+    assert equal["version"] == 1 and equal["document"]["values"] == [0.25] * 4
+
+    demos = {"squat": 5, "stoop_left": 5, "stoop_right": 5}
+    plans = [_ok(client.post(f"/api/sessions/{s}/trials/plan", json={
+        **base, "conditions": ["population", "personal"], "demonstrations": demos}), 201)
+        for s in ids["sessions"]]
+    plan = plans[0]
+    block = plan[0]
+    assert (block["controller"], block["task"], block["demonstrations"]) == (
+        "none", "demonstrations", demos)
+    # UMC with population and with personal models, and the PEC, rotated together:
+    # each condition leads once in three participants.
+    firsts = [p[1]["condition"] for p in plans]
+    assert sorted(firsts) == ["pec", "umc", "umc+personal"]
+    for p in plans:
+        conds = list(dict.fromkeys(t["condition"] for t in p[1:]))
+        assert sorted(conds) == ["pec", "umc", "umc+personal"]
+        personal = [t for t in p if t["condition"] == "umc+personal"]
+        assert all(t["models"] == "personal" and t["model_set_id"] is None for t in personal)
+    key = {row["label"]: row["controller"] for row in
+           _ok(client.get(f"/api/participants/{pid}/conditions"))}
+    assert sorted(key.values()) == ["eumc", "pec", "umc", "umc+personal"] or \
+        sorted(key.values()) == ["pec", "umc", "umc+personal"]
+    assert len(set(key)) == len(key)  # one letter per condition
+
+    # The personal trial cannot start before the personal set exists (409 naming why).
+    personal_trial = next(t for t in plan if t["condition"] == "umc+personal")
+    r = client.post(f"/api/trials/{personal_trial['id']}/start", json={})
+    assert r.status_code == 409 and "personal" in r.text
+
+    counts = _record_block(settings, block["id"])
+    r = client.post(f"/api/participants/{pid}/personal-model-sets", json={
+        "name": "too few", "method": "participant-only", "min_per_motion": 6,
+        "demonstration_trial_id": block["id"]})
+    assert r.status_code == 422 and "stoop_left" in r.text
+    fit = _ok(client.post(f"/api/participants/{pid}/personal-model-sets", json={
+        "name": "P01 MAP", "method": "map", "population_model_set_id": ids["ms"],
+        "demonstration_trial_id": block["id"]}), 202)
+    assert (fit["kind"], fit["method"], fit["participant_id"], fit["base_model_set_id"]) == (
+        "personal", "map", pid, ids["ms"])
+    def finished() -> dict[str, Any]:
+        j: dict[str, Any] = client.get(f"/api/jobs/{fit['job_id']}").json()
+        return j if j["status"] in ("done", "failed") else {}
+
+    job = wait_for(finished, 120, "the personal fit")
+    assert job["status"] == "done", job
+    row = _ok(client.get(f"/api/model-sets/{fit['id']}"))
+    assert row["status"] == "ready" and row["params"]["counts"] == counts
+    doc = _ok(client.get(f"/api/model-sets/{fit['id']}/document"))
+    prov = doc["meta"]["personal"]
+    assert prov["method"] == "map-mean" and prov["n_participant"] == counts
+    assert all(i.startswith("trial-segment:") for i in prov["participant_demonstrations"]
+               ["squat"])
+    listed = _ok(client.get(f"/api/studies/{ids['study']}/personal-model-sets"))
+    assert [m["id"] for m in listed] == [fit["id"]]
+
+    # Priors from the block's confirmed motions: a new version, inside the bound.
+    learned = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "from the block", "method": "dirichlet", "utility_set_id": ids["us"]}), 201)
+    assert learned["version"] == 2 and learned["params"]["new_motions"] == sum(
+        counts.values())
+    bounds = PriorBounds.for_table(ids["table"])
+    assert bounds.contains(learned["document"]["values"])
+    assert learned["document"]["estimate"][3] < 0.25  # lifts only: "other" fell ...
+    assert learned["document"]["values"][3] >= 0.25  # ... but not what the controller uses
+
+    # The personal trial's snapshot names the personal set and its provenance; a +priors
+    # plan stores the prior set; a prior row altered after it was stored is refused.
+    sid2 = _ok(client.post(f"/api/participants/{pid}/sessions",
+                           json={"kind": "evaluation", "precompression_pct": 25}), 201)["id"]
+    plan2 = _ok(client.post(f"/api/sessions/{sid2}/trials/plan", json={
+        **base, "conditions": ["population", "personal+priors"],
+        "prior_set_id": learned["id"]}), 201)
+    pp = next(t for t in plan2 if t["condition"] == "umc+personal+priors")
+    assert pp["prior_set_id"] == learned["id"]
+    engine = make_engine(settings.database_url)
+    with make_session_factory(engine)() as db:
+        doc_row = db.get(PriorSetRecord, learned["id"])
+        assert doc_row is not None and doc_row.document is not None
+        altered = {**doc_row.document, "values": STOOP_LEFT_SKEW, "roles": [
+            "neutral"] * 4}
+        db.execute(update(PriorSetRecord).where(PriorSetRecord.id == learned["id"])
+                   .values(document=altered))
+        db.commit()
+    engine.dispose()
+    r = client.post(f"/api/trials/{pp['id']}/start", json={})
+    assert r.status_code == 409, r.text
+    assert "outside the safety bound" in r.text and "stoop_left" in r.text
+    assert _ok(client.get(f"/api/trials/{pp['id']}"))["status"] == "planned"
