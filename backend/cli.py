@@ -38,7 +38,7 @@ def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from backend.core.config import Settings
-    from backend.main import create_app
+    from backend.core.starting import ASGIApp, StagedApp
 
     overrides: dict[str, object] = {}
     if args.host:
@@ -46,10 +46,29 @@ def _serve(args: argparse.Namespace) -> int:
     if args.port is not None:
         overrides["port"] = args.port
     settings = Settings(**overrides)  # type: ignore[arg-type]
-    app = create_app(settings)
+    failures: list[str] = []
+
+    def load() -> ASGIApp:
+        from backend.main import create_app
+
+        return create_app(settings)
+
+    def failed(message: str) -> None:
+        failures.append(message)
+        server.should_exit = True
+
+    # Listens at once and answers "starting" (503) while the application loads and
+    # starts in the background (backend/core/starting.py).
+    app = StagedApp(load, failed)
     print(f"ExoStudy is starting on http://{settings.host}:{settings.port}/", flush=True)
     # One process only: the worker and the 3D view are per server process.
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, workers=1)
+    server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port,
+                                           log_level=args.log_level, workers=1,
+                                           lifespan="on"))
+    server.run()
+    if failures:
+        print(f"ExoStudy did not start: {failures[0]}", file=sys.stderr, flush=True)
+        return 1
     return 0
 
 
@@ -213,11 +232,22 @@ def _cohort(args: argparse.Namespace) -> int:
                        controllers=tuple(c.strip() for c in args.controllers.split(",")
                                          if c.strip()),
                        rate_hz=args.rate, emg=args.emg)
-    models = ModelSet.load(Path(args.models)) if args.models else None
-    utilities = UtilitySet.load(Path(args.utilities)) if args.utilities else None
+    from backend import bootstrap
+    from backend.core.config import Settings
+
     t0 = time.monotonic()
     if args.processes < 1:
         raise ValueError("--processes: at least 1")
+    # Without files named, the server's default sets (as its cohort jobs use them): fitted
+    # from the simulated data collection once and kept in the data folder, not refitted
+    # per cohort (that took a third of a 100-participant cohort's time).
+    server = Settings()
+    models = (ModelSet.load(Path(args.models)) if args.models
+              else bootstrap.ensure_models(server.models_path))
+    utilities = (UtilitySet.load(Path(args.utilities)) if args.utilities
+                 else bootstrap.ensure_utilities(
+                     bootstrap.utilities_path(server.utilities_dir, cfg.precompression_pct),
+                     cfg.precompression_pct))
     cohort = simulate_cohort(cfg, models, utilities, processes=args.processes)
     t1 = time.monotonic()
     paths = write_outputs(cohort, analyse(cohort, seed=args.seed), Path(args.out))
@@ -317,8 +347,9 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _replicate(args: argparse.Namespace) -> int:
-    from backend.analysis.replication import ReplicationConfig, run
-    from controller.evaluation.replication import DEFAULT_SEEDS
+    from backend.analysis.replication_config import ReplicationConfig
+    from backend.analysis.replication_run import run
+    from controller.evaluation.paper_claims import DEFAULT_SEEDS
 
     cfg = ReplicationConfig(
         out=Path(args.out), seeds=DEFAULT_SEEDS if args.seeds is None else args.seeds,
@@ -417,10 +448,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="comma-separated: umc, eumc, pec")
     c.add_argument("--rate", type=float, default=None,
                    help="every controller at this rate (Hz); default: the paper's rates")
-    c.add_argument("--models", default=None, help="model set JSON (default: fitted from the "
-                   "simulated data collection)")
-    c.add_argument("--utilities", default=None, help="utility set JSON (default: from the "
-                   "simulated reference human dataset)")
+    c.add_argument("--models", default=None, help="model set JSON (default: the server's "
+                   "default set, fitted once from the simulated data collection and kept "
+                   "in the data folder)")
+    c.add_argument("--utilities", default=None, help="utility set JSON (default: the "
+                   "server's default set, from the simulated reference human dataset)")
     c.add_argument("--processes", type=int, default=1,
                    help="spread the participants over this many processes (default 1: "
                    "bench/bench_cohort.py found one process faster up to 100 participants)")
@@ -477,11 +509,14 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", required=True, help="folder for the report and the seeds")
     rp.add_argument("--seeds", type=int, default=None,
                     help="virtual studies (default 20: DEFAULT_SEEDS of "
-                    "controller.evaluation.replication)")
+                    "controller.evaluation.paper_claims)")
     rp.add_argument("--first-seed", type=int, default=1)
-    rp.add_argument("--engine", choices=["study", "cohort"], default="study",
-                    help="study: the live virtual study per seed (reused when finished); "
-                    "cohort: the same protocol replayed in this process")
+    rp.add_argument("--engine", choices=["study", "cohort"], default="cohort",
+                    help="cohort (the default): the paper's protocol replayed in this "
+                    "process through the controllers' live tick code, minutes for 20 "
+                    "seeds; study: the whole live virtual study (server, worker, "
+                    "simulated device) per seed, reused when finished, about 100 minutes "
+                    "for 20 seeds")
     rp.add_argument("--from-db", nargs="+", default=None,
                     help="read these study.db files instead of running seeds")
     rp.add_argument("--participants", type=int, default=8)

@@ -126,6 +126,8 @@ def main() -> int:
                     push.append(now - (msg["t_end"] - own))
                     shown.append(now - (msg["t"][-1] - own))
                     corrections.append(own)
+                    if os.environ.get("BENCH_DEBUG") and len(push) < 8:
+                        print(now, msg["t_end"], msg["t"][:3], own, flush=True)
                     values += len(msg["t"])
             health = srv.health()
     finally:

@@ -7,7 +7,7 @@ Step 1 measures every seed once with the cohort engine (`cohort_seed` and
 seed's measures in a cache file, so the sweep can be repeated without simulating again
 (about 7-15 s per seed on 2 shared cores). Step 2 draws, for each set size k, `draws`
 pairs of disjoint k-seed sets from the pool, judges every claim on each set
-(`controller.evaluation.replication.judge`) and counts the claims whose verdicts
+(`controller.evaluation.paper_claims.judge`) and counts the claims whose verdicts
 differ. The same is done with the former rule (the paper's mean against the virtual
 interval, treating the paper's number as exact) for the claims that are now judged on
 the difference, for comparison.
@@ -32,25 +32,24 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.record import load_average, record  # noqa: E402
-from controller.evaluation.replication import CLAIMS, Claim, judge  # noqa: E402
+from controller.evaluation.paper_claims import CLAIMS, Claim, judge  # noqa: E402
 
 CACHE = ROOT / "bench" / "results" / "verdict_stability" / "seeds.json"
 
 
 def measure(seeds: list[int], cache: Path) -> dict[int, dict[str, float]]:
     """Every seed's measures (the cached ones read, the others simulated and added)."""
-    from backend.analysis.replication import ReplicationConfig, cohort_seed, measure_seed
+    from controller.evaluation.paper_protocol import measure_seed, protocol_seed
 
     keep = {c.measure for c in CLAIMS if c.measure}
     doc: dict[str, dict[str, float | None]] = (json.loads(cache.read_text())
                                                if cache.is_file() else {})
-    cfg = ReplicationConfig(out=cache.parent, seeds=2, engine="cohort")
     for s in seeds:
         if str(s) in doc:
             continue
         t0 = time.monotonic()
-        trials, models, _u = cohort_seed(cfg, s)
-        m = measure_seed(f"seed {s}", trials, models)
+        trials, models, _u = protocol_seed(s, participants=8, eumc=3, data_participants=6)
+        m = measure_seed(trials, models)
         doc[str(s)] = {k: (v if math.isfinite(v) else None) for k, v in m.items()
                        if k in keep}
         cache.parent.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,5 @@
 """Replication reports started from the console: the `cohort` engine of
-`backend.analysis.replication` on the job runner's cohort lane, in a child process, each
+`backend.analysis.replication_run` on the job runner's cohort lane, in a child process, each
 report in its own folder under `<run_dir>/replication/`.
 
 Only the `cohort` engine runs from the console: the `study` engine starts a server and
@@ -36,13 +36,15 @@ def reports_dir(run_dir: Path) -> Path:
 
 def compute(out: Path, seeds: int, participants: int, progress: Any) -> str:
     """The report (runs in the job's child process, so it takes picklable values)."""
-    from backend.analysis.replication import ReplicationConfig, run
+    # Deferred: the replication loads the simulator and matplotlib, which only the
+    # job's child process needs (the server imports this module at start-up).
+    from backend.analysis.replication_config import ReplicationConfig
+    from backend.analysis.replication_run import run
+    from controller.evaluation.paper_claims import verdict_counts
 
     eumc = min(3, participants)
     cfg = ReplicationConfig(out=out, seeds=seeds, engine="cohort", participants=participants,
                             eumc=eumc)
-    from controller.evaluation.replication import verdict_counts
-
     rep = run(cfg, log=lambda _m: None, progress=progress)
     return f"{verdict_counts(rep.claims)}, in {rep.wall_s:.0f} s"
 

@@ -96,8 +96,8 @@ DATASET_INFO: dict[str, Any] = {
 #: Tables written per rate setting (questionnaires are left out, see the docstring).
 WRITTEN_TABLES = ("performance", "performance_by_kind", "false_positives", "onset_to_lock",
                   "lifts")
-#: See `VirtualStudyConfig.emg_speed`.
-EMG_SPEED = 15.0
+#: See `VirtualStudyConfig.emg_idle_speed`.
+EMG_IDLE_SPEED = 1.0
 #: The simulated amplifier's stream (`SimulatedDevice` with `emg_lsl`) and its spare inputs.
 EMG_STREAM = "ExoStudy-SimEMG"
 EMG_SPARE = ("spare_1", "spare_2", "spare_3", "spare_4")
@@ -129,11 +129,9 @@ class VirtualStudyConfig:
     #: EMG on LSL and the baseline conditions in the first rate setting's study.
     emg: bool = True
     baseline_script: str = "lift-evaluation"
-    #: Simulator speed-up while a session records EMG: 2 kHz x 16 channels at this
-    #: multiple of real time through LSL, the server's inlet and the store (which also
-    #: checks quality and draws the live strip); more and a loaded machine's inlet falls
-    #: behind LSL's buffer and samples are lost (flagged, never hidden).
-    emg_speed: float = EMG_SPEED
+    #: Simulator speed-up in the pause after a trial that records EMG, while the
+    #: server's inlet catches up with what the sped-up trial produced (LSL buffers it).
+    emg_idle_speed: float = EMG_IDLE_SPEED
 
     def __post_init__(self) -> None:
         if self.participants < 1:
@@ -372,12 +370,12 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
         for label, plan in plans:
             rate = RATE_SETTINGS[label]
             sub = _subscribe_emg(d, sessions[label]) if label in sessions else None
-            speed = cfg.emg_speed if sub is not None else cfg.speed
             for trial in plan:
-                if trial["task"] != script or speed != d.speed:
-                    # a baseline's lifts, back to the protocol, or the EMG's pace
+                if trial["task"] != script or sub is not None:
+                    # A baseline's lifts or back to the protocol; with EMG every trial
+                    # from the script's start at full speed, the pause after it slow.
                     script = trial["task"]
-                    d.simulate(seed, script, speed)
+                    d.simulate(seed, script, cfg.speed)
                 trial_s = _script_s(seed, script) + cfg.margin_s
                 t0 = time.monotonic()
                 body = {"duration_s": trial_s}
@@ -385,8 +383,12 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
                     body["rate_hz"] = rate
                 started = _ok(d.c.post(f"/api/trials/{trial['id']}/start", json=body))
                 d.wait_run_over(started["run_id"], trial_s)
+                ended = _lsl_now() if sub is not None else 0.0
                 stopped = _ok(d.c.post(f"/api/trials/{trial['id']}/stop",
                                        json={"outcome": "completed"}))
+                if sub is not None:
+                    d.simulate(seed, script, cfg.emg_idle_speed)
+                    _drain_emg(d, sessions[label], sub, ended)
                 wall = time.monotonic() - t0
                 n, gaps = _gaps(engine, stopped["run_id"])
                 report.trials.append(TrialTiming(trial["id"], label, code, trial["controller"],
@@ -397,6 +399,31 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
                 _ok(d.c.request("DELETE",
                                 f"/api/sessions/{sessions[label]}/emg-streams/{sub}"))
         d.log(f"evaluation: {code} done ({sum(len(p) for _, p in plans)} trials)")
+
+
+def _lsl_now() -> float:
+    import pylsl
+
+    return float(pylsl.local_clock())
+
+
+def _drain_emg(d: _Driver, session_id: int, sub: int, until: float) -> None:
+    """Until the server's inlet has recorded the EMG up to `until` (LSL clock): a sped-up
+    trial produces EMG faster than a loaded server stores it, and LSL buffers the rest
+    (6 min of samples); the pause after each trial lets the inlet catch up, so nothing
+    overflows. Fails only if the inlet makes no progress for `STALL_S`."""
+    last, since = None, time.monotonic()
+    while True:
+        streams = _ok(d.c.get(f"/api/sessions/{session_id}/emg-streams"))
+        t = next((s.get("last_time") for s in streams if s["id"] == sub), None)
+        if t is not None and t >= until:
+            return
+        if t != last:
+            last, since = t, time.monotonic()
+        elif time.monotonic() - since > STALL_S:
+            raise VirtualStudyError(f"the EMG inlet of session {session_id} made no "
+                                    f"progress for {STALL_S:.0f} s")
+        time.sleep(0.1)
 
 
 def _subscribe_emg(d: _Driver, session_id: int) -> int:

@@ -172,6 +172,8 @@ class EmgInlet:
         self.envelope: LiveEnvelope | None = None
         self.connected = False
         self.samples = 0
+        #: The newest sample recorded, on the session clock (None before the first).
+        self.last_time: float | None = None
         self.recordings: list[int] = []
         self.failure = ""
         self._stop = threading.Event()
@@ -240,7 +242,9 @@ class EmgInlet:
 
         with Session(self.engine) as db:
             sub, montage = self._sub(db)
-            inlet = pylsl.StreamInlet(info, max_buflen=60, recover=False)
+            # LSL's default buffer (6 min of samples): a server busy for a while catches
+            # up afterwards instead of losing samples.
+            inlet = pylsl.StreamInlet(info, max_buflen=360, recover=False)
             layout = layout_of(inlet.info(timeout=_INFO_TIMEOUT_S), montage,
                                list(sub.ignored_labels))
             inlet.open_stream(timeout=5.0)
@@ -269,6 +273,7 @@ class EmgInlet:
                     t = np.asarray(ts, dtype=np.float64) + correction
                     rec.append(t, x)
                     self.samples += len(ts)
+                    self.last_time = float(t[-1])
                     try:
                         envelope.clock_correction_s = float(correction)
                         envelope.push(t, x)

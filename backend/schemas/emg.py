@@ -93,6 +93,8 @@ class EmgStreamOut(BaseModel):
     error: str
     created_at: UtcDatetime
     connected: bool = False
+    #: The newest sample recorded so far, on the session clock (LSL time).
+    last_time: float | None = None
 
 
 class EmgRecordingOut(BaseModel):

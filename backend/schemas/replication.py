@@ -10,7 +10,7 @@ from pydantic import BaseModel, Field
 class ReplicationIn(BaseModel):
     """What to run: seeds (virtual studies) of `participants` each."""
 
-    # DEFAULT_SEEDS of controller.evaluation.replication, not imported: it is slow to
+    # DEFAULT_SEEDS of controller.evaluation.paper_claims, not imported: it is slow to
     # load and this module loads with the server.
     seeds: int = Field(20, ge=2, le=20, description="virtual studies (2..20)")
     participants: int = Field(8, ge=2, le=40, description="participants per seed")

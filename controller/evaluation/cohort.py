@@ -249,6 +249,28 @@ def recording_metrics(ev: RecordingEvaluation) -> dict[str, float]:
     }
 
 
+def replay_trial(rec: AngleRecording, name: str, settings: ControllerConfig,
+                 start: np.ndarray, docs: tuple[dict[str, Any], dict[str, Any]],
+                 participant: str) -> tuple[TickData, RecordingEvaluation, int]:
+    """One trial of a virtual participant through controller `name`, as the live protocol
+    runs it: calibrated first when the controller needs it (`calibrated`), replayed with
+    the live tick code, evaluated against the simulation's truth. `docs`: the model and
+    utility sets' JSON documents. Returns the ticks, the evaluation and the calibration
+    windows tried (0 without calibration). The one replay of a cohort's trial: the
+    replication's `cohort` engine runs its protocol through it too."""
+    attempts = 0
+    if registry.needs_calibration(name):
+        settings, attempts = calibrated(settings, rec, start)
+    sets = needs_models(name)
+    spec = ControllerSpec(name, settings, models=docs[0] if sets else None,
+                          utilities=docs[1] if sets else None)
+    # Checked once (the truth columns are converted to text here), read three times.
+    cols = TickData.of(replay_columns(rec, make_from_spec(spec), settings.precompression_pct))
+    ev = evaluate_recording(cols, participant, name, lifts_from_truth(cols),
+                            trials_from_truth(cols))
+    return cols, ev, attempts
+
+
 def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
                          utilities: UtilitySet,
                          docs: tuple[dict[str, Any], dict[str, Any]] | None = None
@@ -269,16 +291,9 @@ def simulate_participant(cfg: CohortConfig, j: int, models: ModelSet,
             rec = trial_recording(p, seed, cfg.script, repetition=i)
         else:
             rec, human_nm = lift_trial(p, seed, cfg.script, repetition=i)
-        s = settings
-        if registry.needs_calibration(name):
-            s, attempts = calibrated(settings, rec, start)
-        sets = needs_models(name)
-        spec = ControllerSpec(name, s, models=models_doc if sets else None,
-                              utilities=utilities_doc if sets else None)
-        # Checked once (the truth columns are converted to text here), read three times.
-        cols = TickData.of(replay_columns(rec, make_from_spec(spec), cfg.precompression_pct))
-        ev = evaluate_recording(cols, f"V{j + 1:04d}", name, lifts_from_truth(cols),
-                                trials_from_truth(cols))
+        cols, ev, tried = replay_trial(rec, name, settings, start,
+                                       (models_doc, utilities_doc), f"V{j + 1:04d}")
+        attempts = tried or attempts
         out[name] = recording_metrics(ev)
         if session is not None:
             record_condition(session, name, cols, human_nm)

@@ -215,7 +215,10 @@ class EmgTap:
             else:
                 entry.append_child_value("muscle", "none")
                 entry.append_child_value("placement", "spare input, no electrode on a muscle")
-        self._outlet = pylsl.StreamOutlet(info, chunk_size=SAMPLES_PER_TICK, max_buffered=60)
+        # A shared (in-process, possibly sped-up) outlet keeps LSL's default 6 min for a
+        # consumer that falls behind for a while.
+        self._outlet = pylsl.StreamOutlet(info, chunk_size=SAMPLES_PER_TICK,
+                                          max_buffered=360 if self.shared else 60)
         self._clock = pylsl.local_clock
         if self.shared:
             _SHARED[self.name] = (self._outlet, self._stamps)

@@ -23,6 +23,7 @@ import stat
 import subprocess
 import sys
 import sysconfig
+import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -123,6 +124,9 @@ def test_the_wheel_carries_the_application_and_not_the_clone(installed: Installe
     assert data == installed.data / "exostudy"
     assert (migrations / "env.py").is_file() and list((migrations / "versions").glob("0*.py"))
     assert (front / "node_modules" / "uplot" / "LICENSE").is_file()
+    # Package data: the replication report's template is rendered at run time.
+    assert "backend/analysis/templates/replication_report.html.j2" in zipfile.ZipFile(
+        installed.wheel).namelist()
 
 
 def test_db_upgrade_makes_the_database_in_the_data_folder(installed: Installed) -> None:

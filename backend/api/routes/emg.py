@@ -211,6 +211,7 @@ def _stream_out(emg: EmgLab, sub: EmgStream) -> EmgStreamOut:
     out = EmgStreamOut.model_validate(sub)
     inlet = emg.inlets.get(sub.id)
     out.connected = bool(inlet is not None and inlet.connected)
+    out.last_time = inlet.last_time if inlet is not None else None
     return out
 
 

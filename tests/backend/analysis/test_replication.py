@@ -11,10 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from backend.analysis import replication
-from backend.analysis.replication import ReplicationConfig, run, run_study_seed
+from backend.analysis import replication_report, replication_run
+from backend.analysis.replication_config import Replication, ReplicationConfig
+from backend.analysis.replication_run import run, run_study_seed
 from backend.cli import main
-from controller.evaluation.replication import CLAIMS
+from controller.evaluation.paper_claims import CLAIMS
 
 
 @pytest.fixture(scope="module")
@@ -53,11 +54,35 @@ def test_report_is_self_contained_and_judges_every_claim(tiny: Path) -> None:
 def test_the_default_seed_count_is_the_measured_one() -> None:
     from backend.cli import build_parser
     from backend.schemas.replication import ReplicationIn
-    from controller.evaluation.replication import DEFAULT_SEEDS
+    from controller.evaluation.paper_claims import DEFAULT_SEEDS
 
     assert ReplicationConfig(out=Path("x")).seeds == DEFAULT_SEEDS
     assert ReplicationIn.model_fields["seeds"].default == DEFAULT_SEEDS
     assert build_parser().parse_args(["replicate", "--out", "x"]).seeds is None
+
+
+def test_the_cohort_engine_is_the_default_and_help_says_so() -> None:
+    from backend.cli import build_parser
+
+    assert ReplicationConfig(out=Path("x")).engine == "cohort"
+    parser = build_parser()
+    assert parser.parse_args(["replicate", "--out", "x"]).engine == "cohort"
+    assert parser.parse_args(["replicate", "--out", "x", "--engine", "study"]).engine == "study"
+    sub = next(a for a in parser._actions if a.dest == "command").choices["replicate"]
+    text = " ".join(sub.format_help().split())
+    assert "cohort (the default)" in text and "about 100 minutes" in text
+
+
+def test_the_report_template_escapes_what_it_shows(tmp_path: Path) -> None:
+    """Rendered by the Jinja2 template with autoescape: a note with markup stays text."""
+    rep = Replication(ReplicationConfig(out=tmp_path, seeds=2))
+    rep.notes = ["<script>alert(1)</script> & more"]
+    rep.sections = {"muscle_activity": "| a | b |\n| --- | --- |"}
+    page = replication_report.report_html(rep)
+    assert "<script>" not in page
+    assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; more" in page
+    assert "<h3>Virtual, first seed: muscle activity</h3>" in page
+    assert page.count("<table>") == 3  # the claims and the paper's two tables, no more
 
 
 def test_offsets_regression_is_ordinary_least_squares(tiny: Path) -> None:
@@ -70,7 +95,7 @@ def test_offsets_regression_is_ordinary_least_squares(tiny: Path) -> None:
 def test_a_finished_seed_is_reused_and_an_unfinished_one_refused(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     cfg = ReplicationConfig(out=tmp_path, seeds=2)
-    done = replication.study_seed_folder(tmp_path, 1)
+    done = replication_run.study_seed_folder(tmp_path, 1)
     done.mkdir(parents=True)
     (done / "study.db").write_bytes(b"")
     (done / "summary.json").write_text("{}")
@@ -80,7 +105,7 @@ def test_a_finished_seed_is_reused_and_an_unfinished_one_refused(
 
     monkeypatch.setattr(subprocess, "call", no_run)
     assert run_study_seed(cfg, 1, lambda _m: None) == done / "study.db"
-    replication.study_seed_folder(tmp_path, 2).mkdir(parents=True)
+    replication_run.study_seed_folder(tmp_path, 2).mkdir(parents=True)
     with pytest.raises(ValueError, match="unfinished virtual study"):
         run_study_seed(cfg, 2, lambda _m: None)
 
@@ -101,9 +126,9 @@ def test_the_report_and_its_figures_are_private_whatever_the_umask(
     try:
         (out / "figures").mkdir(parents=True)  # left 0755 by an earlier run
         os.chmod(out, 0o700)
-        rep = replication.Replication(ReplicationConfig(out=out, seeds=2))
+        rep = Replication(ReplicationConfig(out=out, seeds=2))
         rep.figures = {"peak_torques": (b"\x89PNG", b"<svg/>")}
-        written = replication.write(rep)
+        written = replication_report.write(rep)
         modes = {p.relative_to(out).as_posix(): oct(stat.S_IMODE(p.stat().st_mode))
                  for p in [out / "figures", *written]}
         assert modes == {
@@ -125,5 +150,5 @@ def test_the_report_and_its_figures_are_private_whatever_the_umask(
         os.umask(old)
     assert seen["umask"] == 0o077
     log = out / "seed-1.log"
-    studies = replication.study_seed_folder(out, 1).parent
+    studies = replication_run.study_seed_folder(out, 1).parent
     assert [oct(stat.S_IMODE(p.stat().st_mode)) for p in (log, studies)] == ["0o600", "0o700"]

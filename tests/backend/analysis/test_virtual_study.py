@@ -83,8 +83,9 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
         small_study: tuple[Path, VirtualStudyReport], tmp_path: Path) -> None:
     """The replication's plain-SQL reader against the server's own tables of the same
     virtual study, then a replication run from that database."""
-    from backend.analysis.replication import ReplicationConfig, read_study_db
-    from backend.analysis.replication import run as replicate
+    from backend.analysis.replication_config import ReplicationConfig
+    from backend.analysis.replication_run import read_study_db
+    from backend.analysis.replication_run import run as replicate
 
     out, _report = small_study
     trials, models, utilities = read_study_db(out / "study.db")

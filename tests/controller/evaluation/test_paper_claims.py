@@ -8,7 +8,7 @@ import pytest
 
 from controller.evaluation import GaitTrial, evaluate_recording, lifts_from_truth
 from controller.evaluation.columns import TickData
-from controller.evaluation.replication import (
+from controller.evaluation.paper_claims import (
     CLAIMS,
     MARGIN_PER_10_LIFTS,
     MARGIN_PER_TRIAL,
