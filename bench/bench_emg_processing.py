@@ -100,12 +100,13 @@ def main() -> int:
     default = EmgProcessing(notch_hz=50)
     exact = EmgProcessing(notch_hz=50, precision="float64")
     threads = processing._threads(raw)
+    n_threads = f"{threads} thread" + ("s" if threads > 1 else "")
     calls: list[tuple[str, Callable[[], object]]] = [
         ("previous chain: scipy sosfiltfilt per channel, float32 (baseline)",
          partial(_scipy_per_channel, raw, default)),
-        (f"process, float32 filters (default), {threads} threads",
+        (f"process, float32 filters (default), {n_threads}",
          partial(process, raw, FS, default)),
-        (f"process, float64 filters, {threads} threads", partial(process, raw, FS, exact)),
+        (f"process, float64 filters, {n_threads}", partial(process, raw, FS, exact)),
         ("process, float32 filters, 1 thread", partial(_one_thread, raw, default)),
     ]
     for label, call in calls:

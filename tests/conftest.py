@@ -16,6 +16,29 @@ if TYPE_CHECKING:
     from tests.databases import AccountTemplates
 
 
+@pytest.fixture(scope="session", autouse=True)
+def quick_password_hashes() -> Iterator[None]:
+    """Argon2 at its smallest cost for the passwords tests hash and check in this process.
+
+    The server's parameters (64 MiB, 3 passes, 4 lanes) cost about 0.25 s of CPU per
+    hash or login, and hundreds of tests create accounts and log in: minutes of the
+    suite's CPU spent on a work factor that is a deployment setting, not a behaviour.
+    The hashes stay argon2id and carry their parameters, so verification, the
+    `$argon2id$` format and the rehash of an older hash are unchanged; a server the
+    suite starts as its own process (tests/faults, tests/browser, the wheel) keeps the
+    real parameters, and there a cheap template hash is rehashed at its first login,
+    as an older hash would be.
+    """
+    from argon2 import PasswordHasher
+
+    from backend.core import security
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(security, "_hasher",
+                      PasswordHasher(time_cost=1, memory_cost=1024, parallelism=1))
+        yield
+
+
 @pytest.fixture(scope="session")
 def default_sets(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The embedded default model set and utility folder, built once per test session

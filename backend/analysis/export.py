@@ -14,28 +14,15 @@ from typing import Any
 from sqlalchemy import Engine, Table, or_, select
 
 from backend.analysis import data_dictionary, tick_queries
+from backend.analysis.data_dictionary import EXPORTED_COLUMNS, EXPORTED_TABLES
 from backend.core.resources import version
 from backend.db.tables import Base
 from controller import spreadsheet
-
-#: Columns left out of the CSVs: large documents (written as JSON files instead), and
-#: the de-identified export's stored date shifts (which would undo it).
-_OMIT = {"document", "human_data", "content", "date_shift_days"}
-
-_TABLE_ORDER = ("participants", "study_sessions", "condition_labels", "recordings",
-                "lift_segments", "model_sets", "utility_sets", "prior_sets", "trials",
-                "trial_segments",
-                "lock_events", "questionnaire_responses", "preferences", "markers",
-                "xdf_attachments")
+from controller.tick_record import TICK_FIELD_DOCS, TickRecord
 
 
 def _table(name: str) -> Table:
     return Base.metadata.tables[name]
-
-
-EXPORTED_COLUMNS: dict[str, list[str]] = {
-    name: [c.name for c in _table(name).columns if c.name not in _OMIT] for name in _TABLE_ORDER
-}
 
 
 def _cell(v: Any) -> Any:
@@ -146,7 +133,7 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
             "markers": ("session_id", sessions),
             "xdf_attachments": ("session_id", sessions),
         }
-        for name in _TABLE_ORDER:
+        for name in EXPORTED_TABLES:
             column, keys = scope[name]
             t = _table(name)
             cols = EXPORTED_COLUMNS[name]
@@ -255,13 +242,11 @@ def _deidentify(table: str, cols: list[str], row: list[Any], key: int, column: s
 
 
 def _dictionary_csv(deidentified: bool = False) -> str:
-    from controller.tick_record import TICK_FIELD_DOCS, TickRecord
-
     out = io.StringIO()
     w = spreadsheet.writer(out)
     w.writerow(["file", "column", "unit", "meaning"] + (["deidentified"] if deidentified
                                                         else []))
-    for name in _TABLE_ORDER:
+    for name in EXPORTED_TABLES:
         types = {c.name: _python_type(c.type) for c in _table(name).columns}
         for col in EXPORTED_COLUMNS[name]:
             unit, meaning = data_dictionary.describe(name, col)

@@ -62,6 +62,7 @@ from backend.emg import mvc, store
 from controller.controllers import registry
 from controller.controllers.baselines import NO_EXOSKELETON
 from controller.device.base import SAMPLE_PERIOD_S
+from controller.emg import quality
 from controller.emg.normalisation import UNITS, moving_average_max, mvc_reference
 from controller.emg.outcomes import CYCLE_POINTS, LiftOutcome, lift_outcome
 from controller.emg.processing import EmgProcessing, EmgSettingsError, fill_non_finite, process
@@ -492,9 +493,26 @@ def _channel_flags(rec: EmgRecording) -> dict[str, list[str]]:
     return {str(label): sorted(per) for label, per in chans.items() if per}
 
 
+#: Flags of a recording's timestamps, which are measured again over each trial's lifts
+#: (a gap elsewhere in the recording says nothing about this trial).
+TIMING_FLAGS = frozenset({quality.DROPPED_SAMPLES, quality.RATE_MISMATCH,
+                          quality.TIMESTAMPS_BACKWARDS})
+
+
 def _recording_flags(rec: EmgRecording) -> list[str]:
+    """The recording's flags that concern every trial in it: not the channels' (kept per
+    channel) and not the timing's (measured per trial)."""
     chan = {f for per in ((rec.quality or {}).get("channels") or {}).values() for f in per}
-    return [f for f in (rec.quality or {}).get("flags", []) if f not in chan]
+    return [f for f in (rec.quality or {}).get("flags", [])
+            if f not in chan and f not in TIMING_FLAGS]
+
+
+def _timing_flags(e: _Envelope, t0: float, t1: float) -> list[str]:
+    """Timing flags of the envelope's samples between t0 and t1 (session clock)."""
+    keep = (e.t >= t0) & (e.t <= t1)
+    if keep.sum() < 2:
+        return []
+    return list(quality.timing_quality(e.t[keep], e.recording.fs).flags)
 
 
 def _measure(lift_t: tuple[float, float], envs: Sequence[_Envelope], proc: EmgProcessing,
@@ -571,7 +589,8 @@ def trial_emg(engine: Engine, db: Session, folder: Path, trial: Trial, participa
     envs = [e for r in covering if (e := _envelope(folder, r, *span, proc)) is not None]
     for e in envs:
         out.recordings.append(e.recording.id)
-        for f in _recording_flags(e.recording):
+        lifts_span = (min(x[2] for x in lifts), max(x[3] for x in lifts))
+        for f in [*_recording_flags(e.recording), *_timing_flags(e, *lifts_span)]:
             if f not in out.flags:
                 out.flags.append(f)
         for label, fl in _channel_flags(e.recording).items():

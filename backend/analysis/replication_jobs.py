@@ -18,6 +18,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from backend.analysis.job_process import run_in_child
 from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
 from backend.core.errors import ConflictError
 from backend.db.evidence_tables import Job
@@ -57,8 +58,6 @@ def start(jobs: JobRunner, user: User, run_dir: Path, seeds: int, participants: 
 
     The folder is made when the report is queued, named by the time and the job's id
     and created exclusively, so two reports started in the same second never share one."""
-    from backend.analysis.job_process import run_in_child
-
     try:
         job_id = jobs.reserve(JOB_KIND, lane="cohort", owner_id=user.id, quota=per_account)
     except QuotaFullError as exc:

@@ -49,7 +49,9 @@ Protocol (paper, "User study set-up"), and the choices made here:
   (a virtual participant performs no MVC). The simulation runs faster than real time,
   so the stream's timestamps are closer together than 2 kHz: every recording carries
   the `rate_mismatch` flag, which says exactly that; samples are processed at the
-  amplifier's nominal rate.
+  amplifier's nominal rate. A sped-up trial produces EMG faster than the server's
+  inlet stores it; LSL buffers the rest, and after each such trial the simulator runs
+  at real time until the inlet has caught up (`_drain_emg`), so nothing overflows.
 """
 
 from __future__ import annotations

@@ -25,6 +25,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import Mapped, mapped_column
 
 from backend.db.models import Base, utcnow
+from backend.db.segments import SegmentColumns
 
 
 class Recording(Base):
@@ -54,7 +55,7 @@ class Recording(Base):
     )
 
 
-class LiftSegment(Base):
+class LiftSegment(SegmentColumns, Base):
     """One lift in a recording: sample indices from its first tick, and a label."""
 
     __tablename__ = "lift_segments"
@@ -62,15 +63,9 @@ class LiftSegment(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     recording_id: Mapped[int] = mapped_column(
         ForeignKey("recordings.id", ondelete="CASCADE"), index=True)
-    start: Mapped[int] = mapped_column(Integer)
-    peak: Mapped[int] = mapped_column(Integer)
-    end: Mapped[int] = mapped_column(Integer)
-    label: Mapped[str] = mapped_column(String(32), default="unlabelled")
-    source: Mapped[str] = mapped_column(String(16), default="auto")
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class TrialSegment(Base):
+class TrialSegment(SegmentColumns, Base):
     """One lift in a trial, marked by the experimenter: the ground truth of a trial on
     hardware, where no simulation labels the ticks. Sample indices from the trial's
     first tick."""
@@ -80,12 +75,6 @@ class TrialSegment(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(
         ForeignKey("trials.id", ondelete="CASCADE"), index=True)
-    start: Mapped[int] = mapped_column(Integer)
-    peak: Mapped[int] = mapped_column(Integer)
-    end: Mapped[int] = mapped_column(Integer)
-    label: Mapped[str] = mapped_column(String(32), default="unlabelled")
-    source: Mapped[str] = mapped_column(String(16), default="auto")
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class ModelSetRecord(Base):

@@ -5,12 +5,11 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Path, UploadFile
-from sqlalchemy import select
 
-from backend.analysis import fitting
+from backend.analysis import fitting, set_records
 from backend.analysis.human_data_csv import CsvError, parse_human_data
 from backend.api.deps import CurrentUser, EngineDep, JobsDep, SessionDep, SessionFactoryDep
-from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, invalid, one_or_404
+from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, invalid, one_or_404
 from backend.api.params import MAX_ID, StudyId
 from backend.db.evidence_tables import Job, ModelSetRecord, UtilitySetRecord
 from backend.db.models import Study
@@ -48,16 +47,14 @@ def fit_models(study_id: StudyId, body: ModelSetIn, engine: EngineDep,
 def list_model_sets(study_id: StudyId, user: CurrentUser, db: SessionDep
                     ) -> list[ModelSetRecord]:
     """The study's model sets, newest last."""
-    one_or_404(db, Study, study_id, "study")
-    return list(db.scalars(select(ModelSetRecord).where(ModelSetRecord.study_id == study_id)
-                           .order_by(ModelSetRecord.id)))
+    return set_records.study_sets(db, ModelSetRecord, study_id)
 
 
 @router.get("/api/model-sets/{model_set_id}", response_model=ModelSetOut)
 def get_model_set(model_set_id: ModelSetId, user: CurrentUser, db: SessionDep
                   ) -> ModelSetRecord:
     """One model set's record."""
-    return one_or_404(db, ModelSetRecord, model_set_id, "model set")
+    return set_records.one_set(db, ModelSetRecord, model_set_id)
 
 
 @router.get("/api/model-sets/{model_set_id}/document", response_model=ModelSetDocument,
@@ -66,10 +63,7 @@ def get_model_set(model_set_id: ModelSetId, user: CurrentUser, db: SessionDep
 def model_set_document(model_set_id: ModelSetId, user: CurrentUser, db: SessionDep
                        ) -> dict[str, Any]:
     """The fitted model set as versioned JSON (the format `exostudy replay` reads)."""
-    row = one_or_404(db, ModelSetRecord, model_set_id, "model set")
-    if row.document is None:
-        conflict("status", f"model set {row.id} is {row.status}")
-    return row.document
+    return set_records.ready_document(db, ModelSetRecord, model_set_id)
 
 
 @router.post("/api/studies/{study_id}/utility-sets", response_model=UtilitySetOut,
@@ -116,17 +110,14 @@ async def import_utility_set(
 def list_utility_sets(study_id: StudyId, user: CurrentUser, db: SessionDep
                       ) -> list[UtilitySetRecord]:
     """The study's utility sets."""
-    one_or_404(db, Study, study_id, "study")
-    return list(db.scalars(select(UtilitySetRecord)
-                           .where(UtilitySetRecord.study_id == study_id)
-                           .order_by(UtilitySetRecord.id)))
+    return set_records.study_sets(db, UtilitySetRecord, study_id)
 
 
 @router.get("/api/utility-sets/{utility_set_id}", response_model=UtilitySetOut)
 def get_utility_set(utility_set_id: UtilitySetId, user: CurrentUser, db: SessionDep
                     ) -> UtilitySetRecord:
     """One utility set's record."""
-    return one_or_404(db, UtilitySetRecord, utility_set_id, "utility set")
+    return set_records.one_set(db, UtilitySetRecord, utility_set_id)
 
 
 @router.get("/api/utility-sets/{utility_set_id}/document", response_model=UtilitySetDocument,
@@ -135,10 +126,7 @@ def get_utility_set(utility_set_id: UtilitySetId, user: CurrentUser, db: Session
 def utility_set_document(utility_set_id: UtilitySetId, user: CurrentUser, db: SessionDep
                          ) -> dict[str, Any]:
     """The utility set as versioned JSON (the format `exostudy replay` reads)."""
-    row = one_or_404(db, UtilitySetRecord, utility_set_id, "utility set")
-    if row.document is None:
-        conflict("status", f"utility set {row.id} is {row.status}")
-    return row.document
+    return set_records.ready_document(db, UtilitySetRecord, utility_set_id)
 
 
 @router.get("/api/utility-sets/{utility_set_id}/curves", response_model=UtilityCurves,
@@ -146,10 +134,8 @@ def utility_set_document(utility_set_id: UtilitySetId, user: CurrentUser, db: Se
 def utility_curves(utility_set_id: UtilitySetId, user: CurrentUser, db: SessionDep
                    ) -> UtilityCurves:
     """Each action's utility minus "no lock", per motion, over progress."""
-    row = one_or_404(db, UtilitySetRecord, utility_set_id, "utility set")
-    if row.document is None:
-        conflict("status", f"utility set {row.id} is {row.status}")
-    v = UtilitySet.from_json(row.document).table.values
+    v = UtilitySet.from_json(set_records.ready_document(db, UtilitySetRecord,
+                                                        utility_set_id)).table.values
     diffs = {m: {ACTION_NAMES[a]: (v[a, j] - v[0, j]).tolist() for a in range(1, 4)}
              for j, m in enumerate(MODEL_NAMES)}
     other = {ACTION_NAMES[a]: float(v[a, 3, 0] - v[0, 3, 0]) for a in range(1, 4)}

@@ -1,7 +1,8 @@
 """Results: the paper's tables and figures of a study, a trial's controller output, the
 what-if replay of a trial, and the leave-one-participant-out evaluation of motion models.
 
-Everything here only reads; the computation lives in `backend.analysis.results`.
+Everything here only reads; the computation lives in `backend.analysis.results`,
+`backend.analysis.what_if` and `backend.analysis.model_evaluation`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Path, Query
 from fastapi.responses import Response
 
-from backend.analysis import results
+from backend.analysis import model_evaluation as lopo
+from backend.analysis import results, what_if
 from backend.api.deps import (
     CurrentUser,
     EngineDep,
@@ -123,7 +125,7 @@ def trial_what_if(trial_id: TrialId, body: WhatIfIn, engine: EngineDep, user: Cu
     if trial.run_id is None:
         conflict("status", f"trial {trial.id} has not run")
     try:
-        return results.what_if(engine, db, trial, body.controller,
+        return what_if.what_if(engine, db, trial, body.controller,
                                body.model_set_id, body.utility_set_id, body.rate_hz,
                                body.settings)
     except results.ResultsError as exc:
@@ -148,8 +150,8 @@ def model_evaluation(
     if ms.study_id != study_id:
         invalid(["query", "model_set_id"], f"model set {ms.id} belongs to another study")
     try:
-        return results.leave_one_participant_out(engine, db, model_set_id,
-                                                 utility_set_id, rate_hz)
+        return lopo.leave_one_participant_out(engine, db, model_set_id,
+                                              utility_set_id, rate_hz)
     except results.ResultsError as exc:
         invalid(["query", exc.field_name], exc.problem)
 

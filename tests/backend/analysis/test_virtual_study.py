@@ -36,14 +36,20 @@ def test_a_small_virtual_study_writes_its_tables_and_figures(
         small_study: tuple[Path, VirtualStudyReport]) -> None:
     out, report = small_study
 
-    # UMC and PEC for both, E-UMC for the first: 5 trials, in counterbalanced order.
+    # UMC, PEC and the two baselines rotated together, E-UMC after them for the first.
     assert [(t.participant, t.controller) for t in report.trials] == [
-        ("P01", "umc"), ("P01", "pec"), ("P01", "eumc"), ("P02", "pec"), ("P02", "umc")]
-    # Timed trials: one repetition of paper-evaluation plus the margin, exactly.
+        ("P01", "umc"), ("P01", "pec"), ("P01", "springs_free"), ("P01", "no_exoskeleton"),
+        ("P01", "eumc"), ("P02", "pec"), ("P02", "springs_free"), ("P02", "no_exoskeleton"),
+        ("P02", "umc")]
+    # Timed trials: one repetition of the script plus the margin, exactly: the paper's
+    # evaluation for a controller, its lifts alone for a baseline.
     from backend.analysis.virtual_study import _script_s
 
-    for t, seed in zip(report.trials, (701, 701, 701, 702, 702), strict=True):
-        assert t.ticks == round((_script_s(seed, "paper-evaluation") + 4.0) * 100)
+    for t in report.trials:
+        seed = 700 + int(t.participant[1:])
+        script = ("lift-evaluation" if t.controller in ("springs_free", "no_exoskeleton")
+                  else "paper-evaluation")
+        assert t.ticks == round((_script_s(seed, script) + 4.0) * 100)
         assert t.gaps == 0
     assert report.trials[2].calibration_attempts >= 1
 
@@ -76,7 +82,43 @@ def test_a_small_virtual_study_writes_its_tables_and_figures(
     readme = (out / "README.md").read_text()
     assert QUESTIONNAIRE_NOTE in readme and "Intent estimation" in readme
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["wall_s"] > 0 and len(summary["trials"]) == 5
+    assert summary["wall_s"] > 0 and len(summary["trials"]) == 9
+
+
+def test_muscle_activity_is_recorded_from_lsl_and_reduced_by_the_springs(
+        small_study: tuple[Path, VirtualStudyReport]) -> None:
+    """The simulated amplifier's EMG went through LSL, the server's inlet and the store;
+    every lift has its EMG, and the springs lower the back and hip extensors' activity
+    against no exoskeleton, while the two baselines agree (the simulation models no
+    device mass)."""
+    out, _report = small_study
+    folder = out / "paper-rates"
+    doc = json.loads((folder / "muscle_results.json").read_text())
+    assert doc["method"]["normalisation"] == "task_peak"
+    assert doc["method"]["processing"]["notch_hz"] == 50
+    assert doc["baselines"] == ["springs_free", "no_exoskeleton"]
+    assert len(doc["channels"]) == 12
+    assert all(t["recordings"] and t["lifts"] >= 18 and t["lifts_without_emg"] == 0
+               for t in doc["trials"]), doc["trials"]
+    reds = {(r["condition"], r["baseline"], r["channel"]): r for r in doc["reductions"]
+            if r["group"] == "all" and r["metric"] == "mean"}
+    for side in ("left", "right"):
+        for ctl in ("umc", "pec"):
+            r = reds[(ctl, "no_exoskeleton", f"erector_spinae_lumbar_{side}")]
+            assert r["n"] == 2 and r["mean_pct"] > 5.0, r
+            assert r["ci_low"] is not None and r["ci_low"] < r["mean_pct"] < r["ci_high"]
+        same = reds[("springs_free", "no_exoskeleton", f"erector_spinae_lumbar_{side}")]
+        assert abs(same["mean_pct"]) < 5.0, same
+    lifts = list(csv.DictReader(line for line in io.StringIO(
+        (folder / "muscle_lifts.csv").read_text()) if not line.startswith("#")))
+    assert {r["condition"] for r in lifts} == {"umc", "pec", "eumc", "springs_free",
+                                               "no_exoskeleton"}
+    assert all(r["flags"] == "" or "rate_mismatch" in r["flags"] for r in lifts[:50])
+    for name in ("muscle_envelopes.png", "muscle_reduction.svg", "muscle_summary.csv",
+                 "muscle_repeated_measures.csv"):
+        assert (folder / name).stat().st_size > 0, name
+    readme = (out / "README.md").read_text()
+    assert "### Muscle activity" in readme and "Reduction of the mean envelope" in readme
 
 
 def test_the_replication_reader_counts_the_study_db_as_the_server_did(
@@ -90,7 +132,9 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
     out, _report = small_study
     trials, models, utilities = read_study_db(out / "study.db")
     assert sorted((e.participant, e.controller) for _c, e in trials) == [
-        ("P01", "eumc"), ("P01", "pec"), ("P01", "umc"), ("P02", "pec"), ("P02", "umc")]
+        ("P01", "eumc"), ("P01", "no_exoskeleton"), ("P01", "pec"), ("P01", "springs_free"),
+        ("P01", "umc"), ("P02", "no_exoskeleton"), ("P02", "pec"), ("P02", "springs_free"),
+        ("P02", "umc")]
     assert models is not None and utilities is not None
     served = list(csv.DictReader(io.StringIO(
         (out / "paper-rates" / "performance.csv").read_text())))

@@ -27,6 +27,7 @@ from backend.db.evidence_tables import (
     UtilitySetRecord,
 )
 from backend.db.models import Participant, StudySession
+from backend.db.personalisation import PriorSetRecord
 from tests.login import PASSWORD as ADMIN_PASSWORD
 from tests.login import USERNAME, bearer, create_experimenter
 
@@ -93,7 +94,9 @@ def _seed_rows(db_url: str) -> None:
         db.flush()
         db.add_all([LiftSegment(recording_id=rec.id, start=0, peak=1, end=2),
                      TrialSegment(trial_id=trial.id, start=0, peak=1, end=2),
-                     Job(kind="fit_model_set", target_id=ms.id, status="failed")])
+                     Job(kind="fit_model_set", target_id=ms.id, status="failed"),
+                     PriorSetRecord(study_id=1, participant_id=p.id, version=1, name="p",
+                                    method="equal", status="ready")])
         db.commit()
     engine.dispose()
 

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from controller.evaluation.cohort_stats import (
+    _signed_rank_sums,
     bootstrap_mean_ci,
     compare,
     power_curve,
@@ -90,3 +91,28 @@ def test_compare_reports_direction_effect_and_sample_size() -> None:
     assert c.n_for_power == 6  # all differences positive: significant from n = 6 on
     none = compare("m", "umc", "pec", xb, xb, np.random.default_rng(1), sizes=(4, 40))
     assert none.p_value == 1.0 and none.n_for_power is None and none.nonzero == 0
+
+
+def _pairwise_rank_sums(d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """R+, the tie term and n by comparing every pair in a row: an independent
+    definition of what the compiled sort computes."""
+    a = np.abs(d)
+    zeros = np.count_nonzero(a == 0.0, axis=1)
+    below = (a[:, None, :] < a[:, :, None]).sum(axis=2)
+    size = (a[:, None, :] == a[:, :, None]).sum(axis=2)
+    ranks = 1.0 + below + (size - 1) / 2.0 - zeros[:, None]
+    t_plus = np.where(d > 0.0, ranks, 0.0).sum(axis=1)
+    ties = np.where(a > 0.0, size * size - 1.0, 0.0).sum(axis=1)
+    return t_plus, ties, (d.shape[1] - zeros).astype(np.float64)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 45), st.integers(1, 30), st.integers(0, 2**16), st.booleans())
+def test_sorted_rank_sums_equal_the_pairwise_definition_exactly(
+        n: int, rows: int, seed: int, ties: bool) -> None:
+    rng = np.random.default_rng(seed)
+    d = (rng.integers(-3, 4, size=(rows, n)).astype(np.float64) if ties
+         else rng.standard_normal((rows, n)))
+    got = _signed_rank_sums(np.ascontiguousarray(d))
+    for mine, reference in zip(got, _pairwise_rank_sums(d), strict=True):
+        np.testing.assert_array_equal(mine, reference)

@@ -1,0 +1,97 @@
+"""A trial's EMG panel through the API: the stored envelope over the trial, decimated,
+with the trial's lifts and their outcomes; a trial without EMG, or one that has not
+run, is a 409 saying why."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import edfio
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
+
+from backend.db.engine import make_engine
+from backend.db.evidence_tables import Trial
+from tests.backend.lab.test_xdf_import import _session_with_two_trials
+
+FS = 2000.0
+MONTAGE: dict[str, Any] = {"channels": [
+    {"label": "ES-L", "muscle": "erector_spinae_lumbar", "side": "left"},
+    {"label": "ES-R", "muscle": "erector_spinae_lumbar", "side": "right"},
+]}
+#: ES-L: a steady 100 Hz sine. Its envelope is 2 A / pi (the band-pass passes 100 Hz
+#: with gain 1 within 0.1 %, the 6 Hz low-pass leaves the 200 Hz ripple below 1e-6).
+AMPLITUDE_UV = 300.0
+LEVEL_V = 2 * AMPLITUDE_UV / np.pi * 1e-6
+
+
+def _edf(tmp: Path, seconds: float) -> bytes:
+    n = int(seconds * FS)
+    t = np.arange(n) / FS
+    data = [AMPLITUDE_UV * np.sin(2 * np.pi * 100 * t),
+            np.random.default_rng(1).normal(0, 30.0, n)]
+    signals = [edfio.EdfSignal(d, FS, label=c["label"], physical_dimension="uV",
+                               physical_range=(-1000.0, 1000.0))
+               for d, c in zip(data, MONTAGE["channels"], strict=True)]
+    edfio.Edf(signals).write(tmp / "a.edf")
+    return (tmp / "a.edf").read_bytes()
+
+
+def test_the_envelope_over_a_trial_with_its_lifts(client: TestClient, db_url: str,
+                                                  tmp_path: Path) -> None:
+    made = _session_with_two_trials(db_url)
+    first, second = made["trials"]
+    assert client.put(f"/api/studies/{made['study']}/emg-montage", json=MONTAGE).is_success
+    r = client.get(f"/api/trials/{first}/emg-envelope")
+    assert r.status_code == 409
+    assert f"trial {first} has no EMG: none of the 0 EMG recordings" in r.json()["detail"]
+    assert client.put(f"/api/trials/{first}/segments", json=[
+        {"start": 40, "peak": 90, "end": 140, "label": "squat"}]).is_success
+    r = client.post(f"/api/sessions/{made['session']}/emg/edf",
+                    files={"file": ("a.edf", _edf(tmp_path, 6.0))},
+                    data={"trial": str(first), "offset_s": "-1.5"})
+    assert r.status_code == 201, r.text
+
+    r = client.get(f"/api/trials/{first}/emg-envelope", params={"points": 300})
+    assert r.status_code == 200, r.text
+    doc = r.json()
+    assert doc["recording_id"] and doc["source"] == "edf" and doc["unit"] == "V"
+    assert doc["processing"]["envelope_hz"] == 6.0 and doc["normalisation"] == "none"
+    assert [c["label"] for c in doc["channels"]] == ["ES-L", "ES-R"]
+    # The trial's 3 s (300 ticks), from its start, at most 300 points.
+    assert len(doc["t"]) <= 300 and doc["fs"] == pytest.approx(FS / 20)
+    assert doc["t"][0] == pytest.approx(0.0, abs=1 / FS)
+    assert doc["t"][-1] == pytest.approx(doc["duration_s"], abs=0.02)
+    assert doc["duration_s"] == pytest.approx(2.99, abs=1e-6)
+    es_l = np.asarray(doc["channels"][0]["values"])
+    np.testing.assert_allclose(es_l, LEVEL_V, rtol=0.01)  # the padding kept edges clean
+    assert doc["lift_source"] == "segments"
+    (lift,) = doc["lifts"]
+    assert (lift["kind"], lift["start_s"], lift["end_s"]) == ("squat", pytest.approx(0.4),
+                                                              pytest.approx(1.4))
+    assert lift["peak"][0] == pytest.approx(LEVEL_V, rel=0.01)
+    assert lift["mean"][0] == pytest.approx(LEVEL_V, rel=0.01)
+    assert lift["iemg"][0] == pytest.approx(LEVEL_V * 1.0, rel=0.01)
+
+    r = client.get(f"/api/trials/{second}/emg-envelope")  # 12 s after the file ends
+    assert r.status_code == 409 and f"trial {second} has no EMG" in r.json()["detail"]
+    assert client.get("/api/trials/99999/emg-envelope").status_code == 404
+    assert client.get(f"/api/trials/{first}/emg-envelope",
+                      params={"points": 5}).status_code == 422
+
+
+def test_a_trial_that_has_not_run_says_so(client: TestClient, db_url: str) -> None:
+    made = _session_with_two_trials(db_url)
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        trial = Trial(session_id=made["session"], controller="pec", task="squat-sequence",
+                      planned_order=5, status="planned")
+        db.add(trial)
+        db.commit()
+        tid = trial.id
+    engine.dispose()
+    r = client.get(f"/api/trials/{tid}/emg-envelope")
+    assert r.status_code == 409 and f"trial {tid} has not run" in r.json()["detail"]
