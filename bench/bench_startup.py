@@ -153,8 +153,9 @@ def main() -> int:
            note="Fresh data folder each start (all migrations, the demo study), default sets "
            "copied in, device simulator spawned. While the application loads, every "
            "request gets 503 with Retry-After (health says \"starting\"). Target: health "
-           "answers within 10 s beside two busy loops. The worker now loads its controller "
-           "before its device joins, so no command answers a sample queued behind that load "
+           "answers within 10 s beside two busy loops. The spawned device simulator runs "
+           "with real-time scheduling where allowed (as the worker's loop does), so it no "
+           "longer stalls behind the start-up and judges prompt commands stale "
            "(device_stale; -1: the worker did not tick within the run's limit).")
     return 0
 

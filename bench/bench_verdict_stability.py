@@ -2,7 +2,7 @@
 number of seeds per set grows: the measurement behind the default `--seeds` of
 `exostudy replicate` (docs/replication.md, "How many seeds").
 
-Step 1 measures every seed once with the cohort engine (`cohort_seed` and
+Step 1 measures every seed once with the cohort engine (`protocol_seed` and
 `measure_seed`, the paper's protocol, 8 participants, 3 with the E-UMC) and keeps each
 seed's measures in a cache file, so the sweep can be repeated without simulating again
 (about 7-15 s per seed on 2 shared cores). Step 2 draws, for each set size k, `draws`

@@ -16,6 +16,7 @@ from typing import Any
 from sqlalchemy import update
 from sqlalchemy.orm import Session, sessionmaker
 
+from backend.analysis.job_process import run_in_child
 from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
 from backend.core.errors import ConflictError
 from backend.db import audit
@@ -35,6 +36,8 @@ def compute(cfg: CohortConfig, models_path: Path, utilities_path: Path,
             progress: Callable[[float], None]) -> dict[str, Any]:
     """Simulate and analyse the cohort: its cohort.json document. Runs in the job's
     child process (`backend.analysis.job_process`), so it takes only picklable values."""
+    # Deferred: the simulator and its compiled kernels load in the job's child process
+    # only, so the server (which imports this module) starts without them.
     from controller.decision.utility_function import UtilitySet
     from controller.evaluation.cohort import simulate_cohort
     from controller.evaluation.cohort_report import analyse, analysis_json
@@ -53,8 +56,6 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
     """Record the cohort as `queued` and queue its simulation and analysis in the
     cohort lane; the answer carries the job id. Refused (409, `ConflictError`) beyond
     `per_account` unfinished cohorts of this account."""
-    from backend.analysis.job_process import run_in_child
-
     # The job first: it takes one of the account's slots or is refused, before anything
     # is recorded (one unique index decides, however many requests arrive together).
     try:

@@ -38,7 +38,6 @@ flagged data are kept and shown, never dropped.
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import math
@@ -59,6 +58,7 @@ from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, StudySession
 from backend.emg import mvc, store
+from controller import spreadsheet
 from controller.controllers import registry
 from controller.controllers.baselines import NO_EXOSKELETON
 from controller.device.base import SAMPLE_PERIOD_S
@@ -340,7 +340,7 @@ class MuscleResults:
         buf = io.StringIO()
         for k, v in self.method().items():
             buf.write(f"# {k}: {v}\n")
-        w = csv.writer(buf, lineterminator="\n")
+        w = spreadsheet.writer(buf)  # every cell reads as data in a spreadsheet
         w.writerow(header)
         w.writerows(rows)
         return buf.getvalue()
@@ -512,7 +512,13 @@ def _timing_flags(e: _Envelope, t0: float, t1: float) -> list[str]:
     keep = (e.t >= t0) & (e.t <= t1)
     if keep.sum() < 2:
         return []
-    return list(quality.timing_quality(e.t[keep], e.recording.fs).flags)
+    flags = list(quality.timing_quality(e.t[keep], e.recording.fs).flags)
+    if quality.RATE_MISMATCH in flags and quality.DROPPED_SAMPLES in flags:
+        # Stamps off the nominal rate (a sped-up simulation's, or a wrong rate): a long
+        # interval is no evidence of a lost sample; each lift counts its samples against
+        # its duration instead (`samples_missing`).
+        flags.remove(quality.DROPPED_SAMPLES)
+    return flags
 
 
 def _measure(lift_t: tuple[float, float], envs: Sequence[_Envelope], proc: EmgProcessing,
@@ -547,13 +553,24 @@ def _session_recordings(db: Session, session_id: int) -> list[EmgRecording]:
         .order_by(EmgRecording.id)))
 
 
-def trial_emg(engine: Engine, db: Session, folder: Path, trial: Trial, participant: str,
-              proc: EmgProcessing, recs: Sequence[EmgRecording]) -> TrialEmg:
-    """One trial's lifts measured in the session's stored EMG (volts)."""
+@dataclass
+class _Prepared:
+    """A trial's lifts on the session clock, waiting for the recordings' envelopes."""
+
+    out: TrialEmg
+    # index, kind, t0, t1, mid (session clock), duration (device time)
+    lifts: list[tuple[int, str, float, float, float, float]]
+    span: tuple[float, float] | None
+    covered: bool = False
+    decided: dict[int, LiftEmg] = field(default_factory=dict)
+
+
+def _prepare(engine: Engine, db: Session, trial: Trial, participant: str,
+             recs: Sequence[EmgRecording]) -> _Prepared:
+    """The trial's lifts (ticks' truth or segments, else lift markers) and its span."""
     condition = getattr(trial, "condition", None) or trial.controller
     out = TrialEmg(trial.id, trial.session_id, participant, condition, trial.task, "none")
     start = _trial_start(db, trial.id)
-    # index, kind, t0, t1, mid (session clock), duration (device time)
     lifts: list[tuple[int, str, float, float, float, float]] = []
     cols = results.trial_columns(engine, trial)
     if start is not None and start.lsl_time is not None and len(cols):
@@ -578,40 +595,136 @@ def trial_emg(engine: Engine, db: Session, folder: Path, trial: Trial, participa
         out.note = out.note or "the trial has no start marker on the session clock"
     if not lifts:
         out.note = out.note or "no lifts: no truth, segments or lift markers"
-        return out
+        return _Prepared(out, lifts, None)
     span = (min(x[2] for x in lifts) - PAD_S, max(x[3] for x in lifts) + PAD_S)
-    covering = [r for r in recs if r.t_start is not None and r.t_end is not None
-                and r.t_start <= span[1] and r.t_end >= span[0]]
-    if not covering:
+    covered = any(r.t_start is not None and r.t_end is not None
+                  and r.t_start <= span[1] and r.t_end >= span[0] for r in recs)
+    if not covered:
         out.flags.append(NO_EMG)
         out.note = (f"no EMG recording of session {trial.session_id} covers trial "
                     f"{trial.id}")
-    envs = [e for r in covering if (e := _envelope(folder, r, *span, proc)) is not None]
-    for e in envs:
+    return _Prepared(out, lifts, span, covered)
+
+
+def _apply(p: _Prepared, e: _Envelope, proc: EmgProcessing) -> None:
+    """Measure the trial's lifts this envelope covers (a lift is measured in the first
+    recording that covers its time whole) and take the recording's flags."""
+    out = p.out
+    if e.recording.id not in out.recordings:
         out.recordings.append(e.recording.id)
-        lifts_span = (min(x[2] for x in lifts), max(x[3] for x in lifts))
-        for f in [*_recording_flags(e.recording), *_timing_flags(e, *lifts_span)]:
-            if f not in out.flags:
-                out.flags.append(f)
-        for label, fl in _channel_flags(e.recording).items():
-            out.channel_flags.setdefault(label, [])
-            out.channel_flags[label] += [f for f in fl if f not in out.channel_flags[label]]
-        if e.filled and NON_FINITE_FILLED not in out.flags:
-            out.flags.append(NON_FINITE_FILLED)
-    for index, kind, a, b, mid, duration in lifts:
+    lifts_span = (min(x[2] for x in p.lifts), max(x[3] for x in p.lifts))
+    for f in [*_recording_flags(e.recording), *_timing_flags(e, *lifts_span)]:
+        if f not in out.flags:
+            out.flags.append(f)
+    for label, fl in _channel_flags(e.recording).items():
+        out.channel_flags.setdefault(label, [])
+        out.channel_flags[label] += [f for f in fl if f not in out.channel_flags[label]]
+    if e.filled and NON_FINITE_FILLED not in out.flags:
+        out.flags.append(NON_FINITE_FILLED)
+    for pos, (index, kind, a, b, mid, duration) in enumerate(p.lifts):
+        if pos in p.decided:
+            continue
         flags: list[str] = []
-        e, outcome, avg = _measure((a, b), envs, proc, mid, duration, flags)
-        lf = LiftEmg(index, kind, a, b, e.recording.id if e is not None else None,
-                     outcome, avg, flags)
-        if outcome is None and NO_EMG not in lf.flags:
+        got, outcome, avg = _measure((a, b), [e], proc, mid, duration, flags)
+        if got is not None:
+            p.decided[pos] = LiftEmg(index, kind, a, b, e.recording.id, outcome, avg, flags)
+
+
+def _finish(p: _Prepared) -> TrialEmg:
+    """The trial with every lift: measured, or listed with `no_emg`."""
+    out = p.out
+    for pos, (index, kind, a, b, _mid, _duration) in enumerate(p.lifts):
+        lf = p.decided.get(pos) or LiftEmg(index, kind, a, b, None, None)
+        if lf.outcome is None and NO_EMG not in lf.flags:
             lf.flags.append(NO_EMG)
         out.lifts.append(lf)
     missing = sum(1 for lf in out.lifts if lf.outcome is None)
-    if missing and covering:
+    if missing and p.covered:
         out.note = (f"{missing} of {len(out.lifts)} lifts have no EMG: no recording "
                     "covers them whole, or the stream lost most of their samples (a "
                     "stream that stopped, restarted or fell behind)")
     return out
+
+
+def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, float]],
+              proc: EmgProcessing) -> Iterable[tuple[int, _Envelope]]:
+    """(span index, envelope) of each span the recording holds, from one pass over its
+    chunks: a span is processed as soon as the chunks have passed it, so only the raw
+    samples of the spans still open are held (the file is read once, however many
+    trials it covers)."""
+    path = folder / f"{rec.id}.emgc"
+    if not path.is_file() or not spans:
+        return
+    off = rec.time_offset_s
+    parts: dict[int, tuple[list[NDArray[np.float64]], list[NDArray[np.float32]]]] = {
+        i: ([], []) for i in range(len(spans))}
+
+    def done(i: int) -> tuple[int, _Envelope] | None:
+        ts_parts, xs_parts = parts.pop(i)
+        if not ts_parts:
+            return None
+        e = _process(rec, np.concatenate(ts_parts) + off,
+                     np.concatenate(xs_parts).astype(np.float64), proc)
+        return None if e is None else (i, e)
+
+    for t, x in store.iter_chunks(path):
+        if t.size == 0:
+            continue
+        ts = t + off
+        for i in list(parts):
+            a, b = spans[i]
+            if ts[-1] >= a and ts[0] < b:
+                keep = (ts >= a) & (ts < b)
+                if keep.any():
+                    parts[i][0].append(t[keep])
+                    parts[i][1].append(x[keep])
+            if ts.max() >= b:
+                got = done(i)
+                if got is not None:
+                    yield got
+    for i in list(parts):
+        got = done(i)
+        if got is not None:
+            yield got
+
+
+def _process(rec: EmgRecording, t: NDArray[np.float64], x: NDArray[np.float64],
+             proc: EmgProcessing) -> _Envelope | None:
+    """The envelope (volts) of raw samples on the session clock, or None if too few."""
+    if t.size < max(64, int(0.5 * rec.fs)):
+        return None
+    filled = False
+    if not np.isfinite(x).all():
+        x, _ = fill_non_finite(x)
+        filled = True
+    try:
+        env = process(x, rec.fs, proc)
+    except (ValueError, EmgSettingsError):
+        return None
+    return _Envelope(rec, t, env, filled)
+
+
+def session_trials(engine: Engine, db: Session, folder: Path, trials: Sequence[Trial],
+                   participant: str, proc: EmgProcessing,
+                   recs: Sequence[EmgRecording]) -> list[TrialEmg]:
+    """The session's trials' lifts measured in its stored EMG (volts), each recording
+    read once."""
+    prepared = [_prepare(engine, db, t, participant, recs) for t in trials]
+    for rec in recs:
+        if rec.t_start is None or rec.t_end is None:
+            continue
+        mine = [p for p in prepared if p.span is not None
+                and rec.t_start <= p.span[1] and rec.t_end >= p.span[0]]
+        spans = [p.span for p in mine if p.span is not None]
+        for i, e in _one_pass(folder, rec, spans, proc):
+            _apply(mine[i], e, proc)
+    return [_finish(p) for p in prepared]
+
+
+def trial_emg(engine: Engine, db: Session, folder: Path, trial: Trial, participant: str,
+              proc: EmgProcessing, recs: Sequence[EmgRecording]) -> TrialEmg:
+    """One trial's lifts measured in the session's stored EMG (volts)."""
+    return session_trials(engine, db, folder, [trial], participant, proc, recs)[0]
 
 
 def _mvc_reference(db: Session, folder: Path, recs: Sequence[EmgRecording],
@@ -711,7 +824,7 @@ def study_muscle_results(engine: Engine, db: Session, folder: Path, study_id: in
                 if not out.channels:
                     out.channels = [_channel_name(m, lb) for m, lb in
                                     zip(montage, labels, strict=False)] or labels
-            emg = [trial_emg(engine, db, folder, t, p.code, proc, recs) for t in trials]
+            emg = session_trials(engine, db, folder, trials, p.code, proc, recs)
             if recs and out.channels:
                 out.references[sess.id] = _session_reference(
                     db, folder, recs, emg, proc, out.channels, montage)

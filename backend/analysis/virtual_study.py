@@ -373,7 +373,7 @@ def _evaluate(d: _Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_i
             rate = RATE_SETTINGS[label]
             sub = _subscribe_emg(d, sessions[label]) if label in sessions else None
             for trial in plan:
-                if trial["task"] != script or sub is not None:
+                if trial["task"] != script or sub is not None or d.speed != cfg.speed:
                     # A baseline's lifts or back to the protocol; with EMG every trial
                     # from the script's start at full speed, the pause after it slow.
                     script = trial["task"]

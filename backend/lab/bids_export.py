@@ -25,7 +25,7 @@ Sessions are named by kind and order (`ses-evaluation1`, `ses-datacollection1`),
 visit has the same name for every subject. The blinding key leaves only in an owner's
 export (`unblind`): otherwise files are named by the blinded label (`acq-A`) and
 `*_scans.tsv` has neither `controller` nor `trial_id`. The sidecars of the tabular
-files come from `backend.analysis.data_dictionary`, the definition the export's README is
+files come from `backend.analysis.bids_dictionary`, the definition the export's README is
 written from.
 """
 
@@ -42,7 +42,7 @@ from typing import Any
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend.analysis import data_dictionary, tick_queries
+from backend.analysis import bids_dictionary, data_dictionary, tick_queries
 from backend.core.config import get_settings
 from backend.core.resources import version
 from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
@@ -232,10 +232,10 @@ def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None =
     if len(set(subs.values())) != len(subs):
         subs = {p.id: f"{label(p.code)}{p.id}" for p in participants}
     yield "participants.tsv", _tsv(
-        list(data_dictionary.BIDS_FILES["participants.tsv"][1]),
+        list(bids_dictionary.BIDS_FILES["participants.tsv"][1]),
         [[f"sub-{subs[p.id]}", p.age, p.sex, p.height_m, p.mass_kg]
          for p in participants]).encode()
-    yield "participants.json", _json(data_dictionary.bids_sidecar("participants.tsv")).encode()
+    yield "participants.json", _json(bids_dictionary.bids_sidecar("participants.tsv")).encode()
     info: dict[str, Any] = study.dataset_info or {}
     for p in participants:
         sessions = list(db.scalars(select(StudySession).where(
@@ -339,9 +339,9 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
                       *([trial.id, trial.controller] if unblind else []), blinded_label,
                       trial.status, trial.hardware_profile_id])
         ev_rows = _events(db, trial, float(t[0]), cols)
-        ev_cols = list(data_dictionary.BIDS_FILES["*_events.tsv"][1])
+        ev_cols = list(bids_dictionary.BIDS_FILES["*_events.tsv"][1])
         yield f"{folder}{base}_acq-{acq}_run-{k}_events.tsv", _tsv(ev_cols, ev_rows).encode()
-        events_doc: dict[str, Any] = data_dictionary.bids_sidecar("*_events.tsv")
+        events_doc: dict[str, Any] = bids_dictionary.bids_sidecar("*_events.tsv")
         events_doc["StimulusPresentation"] = {
             "SoftwareName": "ExoStudy", "SoftwareVersion": version(),
             "Code": "no stimuli are presented; events are the experimenter's lifts, the "
@@ -357,10 +357,10 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
             yield path, data
     if scans:
         prefix = f"sub-{sub}/{ses}/sub-{sub}_{ses}_scans"
-        scan_cols = [c for c in data_dictionary.BIDS_FILES["*_scans.tsv"][1]
+        scan_cols = [c for c in bids_dictionary.BIDS_FILES["*_scans.tsv"][1]
                      if unblind or ("*_scans.tsv", c) not in data_dictionary.BLINDING_KEY]
         yield f"{prefix}.tsv", _tsv(scan_cols, scans).encode()
-        yield f"{prefix}.json", _json(data_dictionary.bids_sidecar("*_scans.tsv", scan_cols)
+        yield f"{prefix}.json", _json(bids_dictionary.bids_sidecar("*_scans.tsv", scan_cols)
                                       ).encode()
     for att in db.scalars(select(XdfAttachment).where(XdfAttachment.session_id == sess.id)
                           .order_by(XdfAttachment.id)):
@@ -447,14 +447,14 @@ def _phenotype(db: Session, subs: dict[int, str]) -> Iterator[tuple[str, bytes]]
     for key, rs in by_key.items():
         items = sorted({str(k) for r in rs for k in r.answers})
         name = label(key).lower()
-        fixed = list(data_dictionary.BIDS_FILES["phenotype/*.tsv"][1])
+        fixed = list(bids_dictionary.BIDS_FILES["phenotype/*.tsv"][1])
         yield f"phenotype/{name}.tsv", _tsv(
             [*fixed, *items],
             [[f"sub-{subs[r.participant_id]}", r.condition_label, r.instrument_version,
               r.score, *[r.answers.get(i) for i in items]] for r in rs]).encode()
         doc: dict[str, Any] = {
             "MeasurementToolMetadata": {"Description": f"questionnaire {key}"},
-            **data_dictionary.bids_sidecar("phenotype/*.tsv"),
+            **bids_dictionary.bids_sidecar("phenotype/*.tsv"),
         }
         for i in items:
             doc[i] = {"Description": f"answer to item {i}"}

@@ -554,6 +554,11 @@ class Runtime:
             # The only address the device takes commands from: this machine's worker.
             "--host", "127.0.0.1" if host in ("127.0.0.1", "localhost") else host,
             "--key-file", str(self.settings.device_key_file),
+            # Real-time scheduling where allowed (root or CAP_SYS_NICE), as the worker's
+            # loop has: the simulator stands in for firmware on its own board. Normally
+            # scheduled, it stalled behind the server's start-up and judged the worker's
+            # prompt answers stale when it read them (`device_stale`, ~15 at a start).
+            "--realtime",
         ]
         self.device_process = device_process.spawn(
             cmd, port, pid_file, self.settings.run_dir / f"device-sim-{port}.log",

@@ -12,24 +12,14 @@ from datetime import date
 from typing import Any
 
 from sqlalchemy import select
-from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError
 from backend.db import audit
 from backend.db.models import ConditionLabel, ConsentDocument, Participant, User
 from backend.schemas.participants import ConditionIn, ParticipantIn, ParticipantUpdate
+from backend.study.writes import commit_or_conflict
 from controller.controllers.factory import controller_names
-
-
-def _commit_or_conflict(db: Session, field: str, problem: str) -> None:
-    """Commit; a unique constraint a concurrent request won is a conflict (the checks
-    before the write cannot see another transaction's row)."""
-    try:
-        db.commit()
-    except IntegrityError as exc:
-        db.rollback()
-        raise ConflictError(field, problem) from exc
 
 
 def _code_taken(db: Session, study_id: int, code: str, but: int | None = None) -> bool:
@@ -61,7 +51,7 @@ def enrol(db: Session, user: User, study_id: int, body: ParticipantIn,
     db.add(p)
     db.flush()
     audit.record(db, user, "create", "participant", p.id, body.model_dump(mode="json"))
-    _commit_or_conflict(db, "code", f"participant {body.code!r} exists in study {study_id}")
+    commit_or_conflict(db, "code", f"participant {body.code!r} exists in study {study_id}")
     return p
 
 
@@ -90,7 +80,7 @@ def correct(db: Session, user: User, p: Participant, body: ParticipantUpdate,
         setattr(p, field, value)
     audit.record(db, user, "update", "participant", p.id, {
         "before": before, "after": body.model_dump(mode="json", exclude_unset=True)})
-    _commit_or_conflict(db, "code", "this code exists in the study")
+    commit_or_conflict(db, "code", "this code exists in the study")
     return p
 
 
@@ -116,5 +106,5 @@ def add_condition(db: Session, user: User, participant_id: int, body: ConditionI
     db.flush()
     audit.record(db, user, "create", "condition_label", c.id,
                  {"participant_id": participant_id, **body.model_dump()})
-    _commit_or_conflict(db, "label", "this label or controller is already used")
+    commit_or_conflict(db, "label", "this label or controller is already used")
     return c

@@ -149,6 +149,11 @@ def _check_conditions(db: Session, body: TrialPlanIn, participant: Participant,
     fitted from the plan's demonstration block, or one the participant already has; a
     priors condition needs a prior set of this participant inside the safety bound of
     the plan's utility set."""
+    population = db.get(ModelSetRecord, body.model_set_id) if body.model_set_id else None
+    if population is not None and population.kind == "personal":
+        raise InvalidError.at(["body", "model_set_id"], f"model set {population.id} is a "
+                              "personal model set: name it as personal_model_set_id with a "
+                              '"personal" condition')
     personal_wanted = any(conditions.uses_personal(v) for v in body.conditions)
     priors_wanted = any(conditions.uses_priors(v) for v in body.conditions)
     if body.personal_model_set_id is not None and not personal_wanted:

@@ -13,13 +13,12 @@ What the worker does with each command, in each state, is `backend.worker.machin
 
 from __future__ import annotations
 
-import contextlib
 import signal
 from multiprocessing.connection import Connection
 from types import FrameType
 
 from backend.worker.devices import make_device
-from backend.worker.machine import BACKLOG_HOLD, BACKLOG_RESUME, Machine, build, let_go
+from backend.worker.machine import BACKLOG_HOLD, BACKLOG_RESUME, Machine, let_go
 from backend.worker.messages import WorkerConfig, WorkerError
 from backend.worker.outbox import OUTBOX_LIMIT, Outbox
 from backend.worker.scheduling import raise_priority
@@ -44,13 +43,6 @@ def worker_main(
     outbox = Outbox(out_conn)
     outbox.thread.start()
     raise_priority()
-    # Compile the controller's kernels (or load them from numba's cache) before the
-    # device joins: from the join on it streams 100 samples a second, and samples
-    # queued behind a slow first load (seconds on a loaded machine) were answered late,
-    # so the device dropped those commands as stale (`device_stale`, ~15 at every
-    # start). Nothing is driven here; the Machine builds its own controller, fast now.
-    with contextlib.suppress(Exception):  # a bad spec is reported by the Machine
-        build(config.spec)
     try:
         device = make_device(config)
         device.open()

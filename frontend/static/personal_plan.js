@@ -22,6 +22,16 @@ export function personalPlanFields() {
   return body;
 }
 
+// What a trial's condition adds to its controller's name ("" for the population models
+// with equal priors): " · personal models", " · learned priors", " · demonstrations".
+export function conditionNote(t) {
+  if (t.demonstrations) return " · demonstration block";
+  const parts = [];
+  if (t.models === "personal") parts.push("personal models");
+  if (t.prior_set_id) parts.push("learned priors");
+  return parts.length ? ` · ${parts.join(", ")}` : "";
+}
+
 async function fill() {
   if (!$("#plan-personal-set")) return;
   const session = await api.sessions.get(sessionId);

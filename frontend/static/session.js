@@ -16,7 +16,7 @@ import { Stillness } from "/static/stillness.js";
 import { createMarkerBar, createStreamPicker, markDrawn, noteMarker } from "/static/markers.js";
 import { controllerLabel, MODEL_NAMES, modelLabel, SCRIPTS, SEGMENT_LABELS } from "/static/names.js";
 import { categoryColour } from "/static/palette.js";
-import { personalPlanFields } from "/static/personal_plan.js";
+import { conditionNote, personalPlanFields } from "/static/personal_plan.js";
 
 const sessionId = Number(location.pathname.split("/").pop());
 
@@ -327,7 +327,8 @@ $("#fit-run").addEventListener("click", (ev) => act(ev.target, $("#fit-msg"), as
 
 async function loadModelSets(select) {
   const sets = await api.models.listModelSets(studyId);
-  const ready = sets.filter((s) => s.status === "ready");
+  // Personal sets are chosen per participant in the plan's conditions, not here.
+  const ready = sets.filter((s) => s.status === "ready" && s.kind !== "personal");
   for (const sel of [$("#ms-select"), $("#plan-ms")]) {
     const keep = select ?? sel.value;
     sel.replaceChildren(...(sel.id === "plan-ms" ? [h("option", { value: "" }, "none")] : []),
@@ -410,7 +411,8 @@ async function loadTrials() {
   if (trials.length) $("#plan-msg").textContent = "planned: the order below is fixed for this session";
   const running = trials.some((t) => t.status === "running");
   $("#trials tbody").replaceChildren(...trials.map((t) => h("tr", { "data-trial": t.id, "data-controller": t.controller, "data-status": t.status },
-    h("td", {}, t.planned_order + 1), h("td", {}, h("strong", {}, controllerLabel(t.controller))),
+    h("td", {}, t.planned_order + 1), h("td", {}, h("strong", {}, controllerLabel(t.controller)),
+      conditionNote(t)),
     h("td", {}, blind[t.controller] ? `setting ${blind[t.controller]}` : "–"), h("td", {}, t.task),
     h("td", {}, h("span", { class: "badge", "data-status": t.status }, t.status)),
     h("td", {}, ...trialButtons(t, running)))));
@@ -461,7 +463,7 @@ $("#plan-run").addEventListener("click", (ev) => act(ev.target, $("#plan-msg"), 
   await loadTrials();
   // The plan made the blinded condition labels: the questionnaire step offers them now.
   document.dispatchEvent(new CustomEvent("exostudy:planned", { detail: { trials } }));
-  const order = [...new Set(trials.map((t) => controllerLabel(t.controller)))].join(" → ");
+  const order = [...new Set(trials.map((t) => controllerLabel(t.controller) + conditionNote(t)))].join(" → ");
   return `planned ${trials.length} trials: ${order}`;
 }, () => { $("#plan-run").disabled = (page.trials || []).length > 0; }));
 

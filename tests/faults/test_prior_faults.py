@@ -49,8 +49,8 @@ from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
 
-#: Ticks per run (device time: 12 s of the wearer's movement).
-RUN_TICKS = 1200
+#: Ticks per run (device time: 20 s of the wearer's movement).
+RUN_TICKS = 2000
 STOOP_LEFT_SKEW = (0.05, 0.8, 0.05, 0.1)
 
 
@@ -167,7 +167,7 @@ def test_learned_priors_lock_no_more_than_equal_priors(
                                   utilities=utilities, priors=priors)
             records = _run(sup, runs, spec, "umc")
             s, p, acted = _evaluations(records)
-            assert s.shape[0] > 80, "too few evaluations to judge"
+            assert s.shape[0] > 150, "too few evaluations to judge"
             mine = lock_decided(table, s, p, priors.values)
             # The re-decision is the worker's own decision, evaluation for evaluation ...
             assert np.array_equal(mine, acted), (name, int(mine.sum()), int(acted.sum()))

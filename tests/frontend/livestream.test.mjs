@@ -14,7 +14,7 @@ const byType = Object.fromEntries(TEXTS.map((t) => [JSON.parse(t).type, t]));
 
 test("the server's messages are one of each type the client knows, and read back", () => {
   assert.deepEqual(Object.keys(byType).sort(), Object.keys(LIVE_MESSAGES).sort());
-  assert.deepEqual(Object.keys(byType).sort(), ["marker", "status", "ticks"]);
+  assert.deepEqual(Object.keys(byType).sort(), ["emg", "marker", "status", "ticks"]);
   for (const text of TEXTS) assert.deepEqual(readLiveMessage(text), JSON.parse(text));
   // Every field the reader expects is one the server wrote, and the reverse.
   for (const [type, text] of Object.entries(byType)) {
@@ -43,10 +43,10 @@ test("connectLive opens the live socket and hands each message to its callback",
     constructor(url) { this.url = url; sockets.push(this); }
     close() {}
   };
-  const got = { ticks: [], status: [], marker: [] };
+  const got = { ticks: [], status: [], marker: [], emg: [] };
   const live = connectLive({
     onTicks: (m) => got.ticks.push(m), onStatus: (h) => got.status.push(h),
-    onMarker: (m) => got.marker.push(m),
+    onMarker: (m) => got.marker.push(m), onEmg: (m) => got.emg.push(m),
   });
   assert.equal(sockets.length, 1);
   assert.equal(sockets[0].url, "ws://lab:8000/ws/live");
@@ -55,11 +55,13 @@ test("connectLive opens the live socket and hands each message to its callback",
   sockets[0].onmessage({ data: byType.ticks });
   sockets[0].onmessage({ data: byType.status });
   sockets[0].onmessage({ data: byType.marker });
+  sockets[0].onmessage({ data: byType.emg });
   // Two messages lost in between: the page counts the gap.
   sockets[0].onmessage({ data: JSON.stringify({ ...ticks, msg_seq: ticks.msg_seq + 3 }) });
   assert.equal(got.ticks.length, 2);
   assert.deepEqual(got.status, [JSON.parse(byType.status).health]);
   assert.deepEqual(got.marker, [JSON.parse(byType.marker).marker]);
+  assert.deepEqual(got.emg, [JSON.parse(byType.emg)]);
   assert.deepEqual(live.counts, { messages: 2, samples: 2 * n, gaps: 2, dropped: ticks.dropped });
   live.close();
 });

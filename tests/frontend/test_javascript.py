@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from backend.emg.live_envelope import LiveEnvelope
 from backend.live.stream import LiveStream
 from backend.schemas.lab import LiveMarker, MarkerOut
 from backend.schemas.live import (
@@ -69,6 +70,14 @@ def _ticks_message() -> str:
     return asyncio.run(send())
 
 
+def _emg_message() -> str:
+    """An EMG envelope message exactly as an EMG inlet publishes it."""
+    sent: list[dict[str, object]] = []
+    live = LiveEnvelope(2000.0, ["ES-L", "ES-R"], 2, 5, publish=sent.append)
+    live.push(np.arange(100) / 2000.0, np.random.default_rng(3).normal(0, 1e-4, (100, 2)))
+    return json.dumps(sent[0], allow_nan=False)
+
+
 def _live_messages(path: Path) -> None:
     """One message of each type the live WebSocket sends, as JSON text."""
     health = Health(status="ok", worker=WorkerHealth(alive=True),
@@ -78,7 +87,7 @@ def _live_messages(path: Path) -> None:
                        label="start", note="", source="console", stream_id=None,
                        created_at=datetime.now(UTC))
     path.write_text(json.dumps([_ticks_message(), LiveStatus(health=health).model_dump_json(),
-                                LiveMarker(marker=marker).model_dump_json()]))
+                                LiveMarker(marker=marker).model_dump_json(), _emg_message()]))
 
 
 def test_node_unit_tests_pass(tmp_path: Path) -> None:

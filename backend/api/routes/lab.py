@@ -5,17 +5,15 @@ concerns, so a study's access rules apply to it."""
 from __future__ import annotations
 
 import asyncio
-import hashlib
 import io
 import zipfile
-from datetime import UTC, datetime
 from pathlib import Path as PathType
 from typing import Annotated
 
 from fastapi import APIRouter, File, HTTPException, Path, Request, UploadFile
 from fastapi.responses import Response
-from sqlalchemy import Engine, select
-from sqlalchemy.orm import Session, defer
+from sqlalchemy import Engine
+from sqlalchemy.orm import Session
 
 from backend.analysis import markers as analysis_markers
 from backend.api.deps import (
@@ -35,16 +33,14 @@ from backend.api.errors import (
     NOT_FOUND,
     conflict,
     invalid,
-    not_found,
     one_or_404,
 )
 from backend.api.params import MAX_ID, SessionId, StudyId
-from backend.db import audit
 from backend.db.evidence_tables import Trial
-from backend.db.lab import Marker, MarkerStream, StudyMarkerLabels, XdfAttachment
+from backend.db.lab import Marker, MarkerStream, XdfAttachment
 from backend.db.models import Study, StudySession
 from backend.emg import store as emg_store
-from backend.lab import bids_export, markers, xdf_import
+from backend.lab import bids_export, markers, session_records, xdf_import
 from backend.lab.hub import Lab
 from backend.schemas.lab import (
     LslStreamOut,
@@ -55,6 +51,7 @@ from backend.schemas.lab import (
     MarkerStreamOut,
     XdfAttachmentOut,
 )
+from backend.study import studies
 from backend.study.access import may_unblind
 
 router = APIRouter(tags=["lab"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
@@ -77,14 +74,7 @@ def put_marker_labels(study_id: StudyId, body: MarkerLabels, user: CurrentUser,
                       db: SessionDep) -> MarkerLabels:
     """Replace the study's marker buttons."""
     one_or_404(db, Study, study_id, "study")
-    row = db.get(StudyMarkerLabels, study_id)
-    if row is None:
-        db.add(StudyMarkerLabels(study_id=study_id, labels=body.labels))
-    else:
-        row.labels = body.labels
-        row.updated_at = datetime.now(UTC)
-    audit.record(db, user, "update", "marker_labels", study_id, {"labels": body.labels})
-    db.commit()
+    session_records.set_marker_labels(db, user, study_id, body.labels)
     return body
 
 
@@ -113,8 +103,7 @@ def session_markers(session_id: SessionId, user: CurrentUser, db: SessionDep
                     ) -> list[Marker]:
     """The session's markers in the order they were stored."""
     one_or_404(db, StudySession, session_id, "session")
-    return list(db.scalars(select(Marker).where(Marker.session_id == session_id)
-                           .order_by(Marker.id)))
+    return session_records.session_markers(db, session_id)
 
 
 @router.get("/api/trials/{trial_id}/markers", response_model=list[MarkerOut])
@@ -160,9 +149,7 @@ def list_marker_streams(session_id: SessionId, user: CurrentUser, db: SessionDep
                         lab: LabDep) -> list[MarkerStreamOut]:
     """The session's subscriptions to other software's marker streams."""
     one_or_404(db, StudySession, session_id, "session")
-    subs = db.scalars(select(MarkerStream).where(MarkerStream.session_id == session_id)
-                      .order_by(MarkerStream.id))
-    return [_sub_out(lab, s) for s in subs]
+    return [_sub_out(lab, s) for s in session_records.subscriptions(db, session_id)]
 
 
 @router.post("/api/sessions/{session_id}/marker-streams", response_model=MarkerStreamOut,
@@ -173,17 +160,7 @@ def subscribe(session_id: SessionId, body: MarkerStreamIn, user: CurrentUser,
     now on. One session at a time listens to a given stream."""
     one_or_404(db, StudySession, session_id, "session")
     _lsl_on(lab)
-    key = body.source_id or body.name
-    for other in db.scalars(select(MarkerStream).where(MarkerStream.active)):
-        if (other.source_id or other.name) == key:
-            conflict("source_id", f"session {other.session_id} already listens to {key}; "
-                     "unsubscribe it there first")
-    sub = MarkerStream(session_id=session_id, name=body.name, source_id=body.source_id,
-                       stream_type="Markers", hostname="", active=True)
-    db.add(sub)
-    db.flush()
-    audit.record(db, user, "create", "marker_stream", sub.id, body.model_dump())
-    db.commit()
+    sub = session_records.subscribe(db, user, session_id, body)
     lab.subscribe(sub.id, sub.name, sub.source_id)
     return _sub_out(lab, sub)
 
@@ -193,13 +170,9 @@ def subscribe(session_id: SessionId, body: MarkerStreamIn, user: CurrentUser,
 def unsubscribe(session_id: SessionId, subscription_id: SubscriptionId, user: CurrentUser,
                 db: SessionDep, lab: LabDep) -> MarkerStreamOut:
     """Stop storing the stream's markers (those stored stay)."""
-    sub = db.get(MarkerStream, subscription_id)
-    if sub is None or sub.session_id != session_id:
-        not_found("marker stream subscription", subscription_id)
+    sub = session_records.subscription(db, session_id, subscription_id)
     lab.unsubscribe(sub.id)
-    sub.active = False
-    audit.record(db, user, "delete", "marker_stream", sub.id, {})
-    db.commit()
+    session_records.end_subscription(db, user, sub)
     return _sub_out(lab, sub)
 
 
@@ -228,26 +201,15 @@ async def attach_xdf(session_id: SessionId, engine: EngineDep, user: CurrentUser
                                           data, settings)
     except ValueError as exc:
         invalid(["body", "file"], str(exc))
-    att = XdfAttachment(session_id=session_id, filename=(file.filename or "recording.xdf")[:255],
-                        size_bytes=len(data), sha256=hashlib.sha256(data).hexdigest(),
-                        content=data, streams=summary,
-                        created_by=user.id)
-    db.add(att)
-    db.flush()
-    audit.record(db, user, "create", "xdf_attachment", att.id,
-                 {"filename": att.filename, "sha256": att.sha256, "streams": len(summary)})
-    db.commit()
-    return att
+    return session_records.attach_xdf(db, user, session_id,
+                                      file.filename or "recording.xdf", data, summary)
 
 
 @router.get("/api/sessions/{session_id}/xdf", response_model=list[XdfAttachmentOut])
 def list_xdf(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[XdfAttachment]:
     """The session's XDF files with their aligned streams."""
     one_or_404(db, StudySession, session_id, "session")
-    # The summaries only: the files, up to max_upload_bytes each, are not read.
-    return list(db.scalars(select(XdfAttachment).options(defer(XdfAttachment.content))
-                           .where(XdfAttachment.session_id == session_id)
-                           .order_by(XdfAttachment.id)))
+    return session_records.attachments(db, session_id)
 
 
 @router.get("/api/sessions/{session_id}/xdf/{attachment_id}/file", response_class=Response,
@@ -256,9 +218,7 @@ def list_xdf(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[X
 def download_xdf(session_id: SessionId, attachment_id: AttachmentId, user: CurrentUser,
                  db: SessionDep) -> Response:
     """The attached file, byte for byte."""
-    att = db.get(XdfAttachment, attachment_id)
-    if att is None or att.session_id != session_id:
-        not_found("XDF attachment", attachment_id)
+    att = session_records.attachment(db, session_id, attachment_id)
     return Response(att.content, media_type="application/octet-stream", headers={
         "Content-Disposition": f'attachment; filename="{att.id}.xdf"'})
 
@@ -295,7 +255,6 @@ def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: Curre
                         emg_store.emg_folder(settings))
     except bids_export.NothingToExportError as exc:
         conflict("study", str(exc))
-    audit.record(db, user, "export", "study", study_id, {"format": "bids", "bytes": len(data)})
-    db.commit()
+    studies.record_export(db, user, study_id, "export", {"format": "bids", "bytes": len(data)})
     return Response(data, media_type="application/zip", headers={
         "Content-Disposition": f'attachment; filename="study-{study_id}-bids.zip"'})

@@ -14,8 +14,8 @@ from sqlalchemy.orm import Session
 
 from backend.analysis import muscle_results
 from backend.core.config import Settings
-from backend.db.emg import EmgAnalysisSettings, EmgMontage, MvcStep
 from backend.db import migrate
+from backend.db.emg import EmgAnalysisSettings, EmgMontage, MvcStep
 from backend.db.engine import make_engine
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
@@ -65,7 +65,8 @@ def _activation(order: list[str], scale: float, mvc_level: float | None) -> np.n
 
 def _study(db_url: str, settings: Settings, participants: int = 3,
            normalisation: str = "task_peak", mvc_level: float | None = None,
-           keep_s: float | None = None, order: list[str] | None = None) -> dict[str, Any]:
+           keep_s: float | None = None, order: list[str] | None = None,
+           restart_s: float | None = None) -> dict[str, Any]:
     """Participants with one session each: four trials (rotated order), lifts marked by
     the experimenter, one EMG recording of the session (`keep_s`: only its first so
     many seconds, a stream that stopped)."""
@@ -121,8 +122,14 @@ def _study(db_url: str, settings: Settings, participants: int = 3,
             x = gen.push(act).samples
             if keep_s is not None:
                 x = x[:round(keep_s * FS)]
+            cut = round(restart_s * FS) if restart_s is not None else len(x)
             recordings.store_blocks(db, settings, sess.id, montage, "simulated", FS,
-                                    [(None, x)], BASE, "test: offset stated")
+                                    [(None, x[:cut])], BASE, "test: offset stated")
+            if restart_s is not None:  # the stream came back 0.5 s later: a new recording
+                resume = cut + round(0.5 * FS)
+                recordings.store_blocks(db, settings, sess.id, montage, "simulated", FS,
+                                        [(None, x[resume:])], BASE + resume / FS,
+                                        "test: offset stated", flags=["stream_restarted"])
     out["engine"] = engine
     return out
 
@@ -214,4 +221,23 @@ def test_mvc_study_without_mvc_reports_volts(db_url: str, settings: Settings) ->
     ref = res.references[made["sessions"][0]]
     assert ref.method == "none" and muscle_results.NO_MVC in ref.flags
     assert res.unit("mean") == "V"
+    made["engine"].dispose()
+
+
+def test_a_stream_that_restarts_mid_trial(db_url: str, settings: Settings) -> None:
+    """The stream drops 5.5 s into the second trial (inside its second lift) and comes
+    back half a second later as a second recording: the lift across the break has no
+    EMG and says so, every other lift is measured in the recording that holds it, and
+    the later trials carry the restart's flag."""
+    made = _study(db_url, settings, participants=1, restart_s=TRIAL_S + GAP_S + 5.5)
+    res = _results(made, settings)
+    by = {t.condition: t for t in res.trials}
+    second, third = by["pec"], by["springs_free"]
+    assert [lf.outcome is not None for lf in second.lifts] == [True, False]
+    assert second.lifts[1].flags == [muscle_results.NO_EMG]
+    assert len(set(second.recordings)) == 2
+    assert second.lifts[0].recording_id != third.lifts[0].recording_id
+    assert "stream_restarted" in third.flags
+    assert all(lf.outcome is not None for c in ("umc", "springs_free", "no_exoskeleton")
+               for lf in by[c].lifts)
     made["engine"].dispose()

@@ -170,6 +170,11 @@ def test_plan_fit_learn_and_condition_snapshot(client: TestClient, settings: Set
                ["squat"])
     listed = _ok(client.get(f"/api/studies/{ids['study']}/personal-model-sets"))
     assert [m["id"] for m in listed] == [fit["id"]]
+    # A personal set is not a population set for everyone.
+    s3 = _ok(client.post(f"/api/participants/{pid}/sessions",
+                         json={"kind": "evaluation", "precompression_pct": 25}), 201)["id"]
+    r = client.post(f"/api/sessions/{s3}/trials/plan", json={**base, "model_set_id": fit["id"]})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "model_set_id"]
 
     # Priors from the block's confirmed motions: a new version, inside the bound.
     learned = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
@@ -204,3 +209,43 @@ def test_plan_fit_learn_and_condition_snapshot(client: TestClient, settings: Set
     assert r.status_code == 409, r.text
     assert "outside the safety bound" in r.text and "stoop_left" in r.text
     assert _ok(client.get(f"/api/trials/{pp['id']}"))["status"] == "planned"
+
+
+def test_label_shift_priors_from_unconfirmed_use(client: TestClient, settings: Settings) -> None:
+    """The EM estimate from a completed UMC walking trial's own ticks (nothing
+    confirmed): a prior set inside the bound, with its sources and test in the record."""
+    from controller.controllers.umc import UMC
+    from controller.decision.utility_function import UtilitySet
+    from controller.intent.motion_model import ModelSet
+    from controller.runner.replay import records_from_columns, replay_columns
+
+    ids = _setup(client, settings)
+    pid, sid = ids["participants"][0], ids["sessions"][0]
+    r = client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "em", "method": "label-shift-em", "utility_set_id": ids["us"]})
+    assert r.status_code == 422 and "completed UMC or E-UMC trials" in r.text
+    p = VirtualParticipant.from_seed(3)
+    umc = UMC(ModelSet.load(Path(settings.models_path)),
+              UtilitySet.load(next(Path(settings.utilities_dir).glob("*.json"))))
+    records = records_from_columns(replay_columns(trial_recording(p, 3, "walking", 0), umc))
+    engine = make_engine(settings.database_url)
+    rec = TickRecorder(engine)
+    run = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
+    rec.add(TickBatch.from_records(1, records))
+    assert rec.flush() == len(records)
+    with make_session_factory(engine)() as db:
+        db.add(Trial(session_id=sid, controller="umc", task="walking", planned_order=0,
+                     status="completed", run_id=run, model_set_id=ids["ms"],
+                     utility_set_id=ids["us"], started_at=datetime(2026, 11, 2, tzinfo=UTC),
+                     config_snapshot={"settings": {"priors": [0.25] * 4}}))
+        db.commit()
+    engine.dispose()
+    em = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "em", "method": "label-shift-em", "utility_set_id": ids["us"],
+        "window_s": 2.0}), 201)
+    doc = em["document"]
+    assert doc["method"] == "label-shift-em" and doc["meta"]["converged"]
+    assert doc["meta"]["n_samples"] == em["params"]["motions"] == len(doc["sources"]) > 5
+    assert PriorBounds.for_table(ids["table"]).contains(doc["values"])
+    # Walking is "other": the estimate moves toward it, and the values never below 1/4.
+    assert doc["estimate"][3] > 0.25 and doc["values"][3] >= 0.25

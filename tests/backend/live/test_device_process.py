@@ -7,10 +7,14 @@ import socket
 import subprocess
 import sys
 from pathlib import Path
+from typing import Literal
 
 import pytest
 
+from backend.core.config import Settings
+from backend.db.engine import make_engine
 from backend.live import device_process
+from backend.live.runtime import Runtime
 
 
 def test_a_bound_udp_port_is_seen() -> None:
@@ -53,3 +57,24 @@ def test_die_with_parent_is_a_no_op_outside_a_spawned_simulator(monkeypatch:
     monkeypatch.setenv(device_process.PARENT_ENV, str(os.getppid() + 10**6))
     with pytest.raises(SystemExit):
         device_process.die_with_parent()
+
+
+@pytest.mark.parametrize("implementation", ["python", "c"])
+def test_the_server_spawns_its_simulator_asking_for_real_time(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        implementation: Literal["python", "c"]) -> None:
+    """Like the worker's loop, the simulated device asks for real-time scheduling, so
+    it does not stall behind the server's start-up and call prompt commands stale."""
+    settings = Settings(database_url=f"sqlite:///{tmp_path}/x.db", run_dir=tmp_path,  # type: ignore[call-arg]
+                        device_key_file=tmp_path / "device.key",
+                        device_implementation=implementation, _env_file=None)
+    spawned: list[list[str]] = []
+
+    def spawn(args: list[str], port: int, pid_file: Path, log_file: Path,
+              implementation: str = "python") -> None:
+        spawned.append(device_process.device_command(args, implementation))
+
+    monkeypatch.setattr(device_process, "spawn", spawn)
+    monkeypatch.setattr(device_process, "c_device_binary", lambda: Path("exostudy-device"))
+    Runtime(settings, make_engine(settings.database_url)).start_device_simulator()
+    assert len(spawned) == 1 and "--realtime" in spawned[0]

@@ -113,7 +113,7 @@ def test_free_text_marker_labels_are_replaced_in_the_deidentified_export(
 
 def test_the_dictionary_says_which_export_holds_what_and_the_sidecars_agree(
         client: TestClient, db_url: str) -> None:
-    from backend.analysis import data_dictionary
+    from backend.analysis import bids_dictionary, data_dictionary
 
     ids = make_study(client, db_url)
     readme = _zip(client.get(f"/api/studies/{ids['study']}/export.zip").content)["README.md"]
@@ -123,7 +123,7 @@ def test_the_dictionary_says_which_export_holds_what_and_the_sidecars_agree(
     files = _zip(client.get(f"/api/studies/{ids['study']}/export.bids.zip").content)
 
     checked = 0
-    for pattern, (_about, cols) in data_dictionary.BIDS_FILES.items():
+    for pattern, (_about, cols) in bids_dictionary.BIDS_FILES.items():
         tsv = next((n for n in files if fnmatch.fnmatch(n.split("/", 1)[1], pattern)
                     or fnmatch.fnmatch(n.rsplit("/", 1)[1], pattern)), None)
         if tsv is None:
