@@ -225,7 +225,7 @@ def _cohort(args: argparse.Namespace) -> int:
     import time
 
     from controller.decision.utility_function import UtilitySet
-    from controller.evaluation.cohort import CohortConfig, simulate_cohort
+    from controller.evaluation.cohort import CohortConfig, auto_processes, simulate_cohort
     from controller.evaluation.cohort_report import analyse, write_outputs
     from controller.intent.motion_model import ModelSet
 
@@ -237,8 +237,8 @@ def _cohort(args: argparse.Namespace) -> int:
     from backend.core.config import Settings
 
     t0 = time.monotonic()
-    if args.processes < 1:
-        raise ValueError("--processes: at least 1")
+    if args.processes < 0:
+        raise ValueError("--processes: at least 1, or 0 for one per core")
     # Without files named, the server's default sets (as its cohort jobs use them): fitted
     # from the simulated data collection once and kept in the data folder, not refitted
     # per cohort (that took a third of a 100-participant cohort's time).
@@ -249,7 +249,8 @@ def _cohort(args: argparse.Namespace) -> int:
                  else bootstrap.ensure_utilities(
                      bootstrap.utilities_path(server.utilities_dir, cfg.precompression_pct),
                      cfg.precompression_pct))
-    cohort = simulate_cohort(cfg, models, utilities, processes=args.processes)
+    cohort = simulate_cohort(cfg, models, utilities,
+                             processes=args.processes or auto_processes(cfg.participants))
     t1 = time.monotonic()
     paths = write_outputs(cohort, analyse(cohort, seed=args.seed), Path(args.out))
     print(f"cohort of {cfg.participants} simulated in {t1 - t0:.1f} s, statistics and files "
@@ -456,9 +457,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "in the data folder)")
     c.add_argument("--utilities", default=None, help="utility set JSON (default: the "
                    "server's default set, from the simulated reference human dataset)")
-    c.add_argument("--processes", type=int, default=1,
-                   help="spread the participants over this many processes (default 1: "
-                   "bench/bench_cohort.py found one process faster up to 100 participants)")
+    c.add_argument("--processes", type=int, default=0,
+                   help="spread the participants over this many processes (default 0: one "
+                   "per core, at most one per 20 participants; the workers are forked with "
+                   "the compiled kernels loaded, so they start at once)")
     c.add_argument("--emg", action="store_true",
                    help="also simulate muscle activity: sEMG of every lift trial, an MVC, "
                    "and the baseline conditions springs_free and no_exoskeleton (about "

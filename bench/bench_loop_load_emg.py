@@ -136,8 +136,9 @@ def main() -> int:
             amp.wait()
         sup.stop()
     note = (f"worker nice {nice} ({raised}); the EMG is written to "
-            f"{len(recs)} recording(s) in the chunked store (40,000 samples/s nominal "
-            "across 16 channels, 12 in the montage)")
+            f"{len(recs)} recording(s) in the chunked store (2,000 samples/s of 16 "
+            "channels nominal, 12 in the montage; the last column counts samples per "
+            "channel)")
     record("loop_load_emg", "bench/bench_loop_load_emg.py " + " ".join(sys.argv[1:]),
            COLUMNS, rows, load0, note)
     return 0

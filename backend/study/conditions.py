@@ -22,7 +22,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.core.errors import ConflictError, InvalidError
-from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
+from backend.db.evidence_tables import ModelSetRecord, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant
 from backend.db.personalisation import PriorSetRecord
 from backend.study.counterbalance import LABELS
@@ -46,11 +46,6 @@ def key(controller: str, variant: str) -> str:
     population models with equal priors, as before conditions existed)."""
     suffix = VARIANTS[variant]
     return f"{controller}+{suffix}" if suffix else controller
-
-
-def trial_key(trial: Trial) -> str:
-    """The blinding key of a trial's condition."""
-    return trial.condition or trial.controller
 
 
 def uses_personal(variant: str) -> bool:

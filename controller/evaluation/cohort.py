@@ -189,8 +189,9 @@ def participant_body(p: VirtualParticipant) -> dict[str, Any]:
 def trial_recording(p: VirtualParticipant, seed: int, script: str,
                     repetition: int) -> AngleRecording:
     """What the exoskeleton's encoders see in one trial: the wearer's hip flexion plus
-    the exoskeleton's donning offset and drift, with the simulation's ground truth."""
-    traj = realise(get_script(script), p, seed, repetition)
+    the exoskeleton's donning offset and drift, with the simulation's ground truth. The
+    hip moments are not simulated: nothing in the replay reads them."""
+    traj = realise(get_script(script), p, seed, repetition, moments=False)
     q = traj.theta + p.encoder_offset(traj.t)
     return AngleRecording(traj.t, q, traj.activity_names().tolist(),
                           traj.lift.astype(np.int64))
@@ -335,6 +336,31 @@ def _pool_participant(j: int) -> ParticipantResult:
     return simulate_participant(cfg, j, models, utilities, docs)
 
 
+def _start_method() -> str:
+    """"fork" where the platform has it and this process runs no other thread (the
+    command line): the workers start at once with the modules and the compiled kernels
+    the parent has already loaded, where "spawn" re-imports and reloads them in each
+    (about a second of CPU per worker). Beside other threads (the server's jobs) a fork
+    could copy a lock that one of them holds, so there: "spawn"."""
+    import multiprocessing as mp
+    import threading
+
+    if threading.active_count() == 1 and "fork" in mp.get_all_start_methods():
+        return "fork"
+    return "spawn"
+
+
+def auto_processes(participants: int) -> int:
+    """Processes worth starting for a cohort of `participants` on this machine: one per
+    core the process may use, but one per 20 participants at most (below that a worker
+    does too little to repay its start)."""
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+    return max(1, min(cores, participants // 20))
+
+
 def simulate_cohort(
     cfg: CohortConfig,
     models: ModelSet | None = None,
@@ -346,9 +372,10 @@ def simulate_cohort(
 
     `progress(fraction)` is called after each participant (models and utilities, when
     fitted here, take the first tenth). `processes` > 1 spreads the participants over
-    that many processes (each pays about a second to start and load the compiled
-    kernels, so it pays from a few dozen participants on); the result is the same,
-    participant by participant, as with one.
+    that many processes (`_start_method`: forked from a single-threaded caller, which
+    simulates the first participant itself before, so that the workers inherit the
+    compiled kernels it loaded); the result is the same, participant by participant,
+    as with one.
     """
     report = progress or (lambda _f: None)
     if models is None:
@@ -362,16 +389,21 @@ def simulate_cohort(
     cohort = Cohort(cfg, models_version=str(models.version),
                     utilities_version=str(getattr(utilities, "version", "")))
     docs = (models.to_json(), utilities.to_json())
-    if processes > 1 and cfg.participants > 1:
+    if processes > 1 and cfg.participants > 2:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(max_workers=processes, mp_context=mp.get_context("spawn"),
+        cohort.participants.append(simulate_participant(cfg, 0, models, utilities, docs))
+        report(0.1 + 0.9 / cfg.participants)
+        rest = range(1, cfg.participants)
+        chunk = max(1, min(4, len(rest) // (4 * processes)))
+        with ProcessPoolExecutor(max_workers=processes,
+                                 mp_context=mp.get_context(_start_method()),
                                  initializer=_pool_init, initargs=(cfg, *docs)) as pool:
-            for j, result in enumerate(pool.map(_pool_participant, range(cfg.participants),
-                                                chunksize=4)):
+            for j, result in enumerate(pool.map(_pool_participant, rest, chunksize=chunk),
+                                       start=2):
                 cohort.participants.append(result)
-                report(0.1 + 0.9 * (j + 1) / cfg.participants)
+                report(0.1 + 0.9 * j / cfg.participants)
         return cohort
     for j in range(cfg.participants):
         cohort.participants.append(simulate_participant(cfg, j, models, utilities, docs))

@@ -109,20 +109,30 @@ def _labels(n: int, activity: str, in_lift: bool) -> tuple[NDArray[np.int8], NDA
     return act, lift
 
 
+def _no_moments(n: int) -> FloatArray:
+    """The torque of a segment generated without hip moments (`moments=False`): NaN, so
+    that nothing can mistake it for a computed moment."""
+    return np.full((n, 2), np.nan)
+
+
 def _vary(rng: np.random.Generator, sd: float) -> float:
     """A multiplicative repetition factor, truncated at 2 SD."""
     return float(1.0 + np.clip(rng.normal(0.0, sd), -2.0 * sd, 2.0 * sd))
 
 
 def stand(
-    p: VirtualParticipant, duration: float, box_kg: float = 0.0
+    p: VirtualParticipant, duration: float, box_kg: float = 0.0, *, moments: bool = True
 ) -> Segment:
-    """Quiet standing (optionally holding the box against the body)."""
+    """Quiet standing (optionally holding the box against the body). `moments=False`
+    skips the hip moments (torque NaN): the angles alone cost a fraction of them."""
     n = _n_samples(duration)
     theta = np.tile(p.stand_flexion, (n, 1))
-    body = Anthropometrics.from_body(p.mass_kg, p.height_m)
-    total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), SAMPLE_PERIOD_S)
-    torque = split_moment(total, 0.5)  # feet parallel, load on the midline
+    if moments:
+        body = Anthropometrics.from_body(p.mass_kg, p.height_m)
+        total = lift_hip_moment(body, np.zeros(n), np.full(n, box_kg), SAMPLE_PERIOD_S)
+        torque = split_moment(total, 0.5)  # feet parallel, load on the midline
+    else:
+        torque = _no_moments(n)
     act, lift = _labels(n, "stand", False)
     return Segment(theta, torque, act, lift, np.full(n, np.nan))
 
@@ -184,13 +194,14 @@ def draw_lift(p: VirtualParticipant, rng: np.random.Generator, kind: str) -> Lif
 
 
 def lift(
-    p: VirtualParticipant, shape: LiftShape, box_kg: float, pick_up: bool
+    p: VirtualParticipant, shape: LiftShape, box_kg: float, pick_up: bool, *,
+    moments: bool = True,
 ) -> Segment:
     """One lift from standing to standing: pick the box up (`pick_up`) or put it down.
 
     Progress runs 0..1 over the whole segment, so the hip-flexion half is about its
     first 40-45 %. The box weighs on the hands after lift-off when picking up, until
-    touch-down when putting down.
+    touch-down when putting down. `moments=False` skips the hip moments (torque NaN).
     """
     n = _n_samples(shape.duration)
     t = (np.arange(n) * SAMPLE_PERIOD_S).astype(np.float64)
@@ -198,6 +209,19 @@ def lift(
     stand_flex = p.stand_flexion
     delta = np.radians(np.asarray(shape.peak_deg)) - stand_flex
     theta = stand_flex[None, :] + s * delta[None, :]
+    torque = (_lift_moments(p, shape, box_kg, pick_up, t, s, delta) if moments
+              else _no_moments(n))
+    act, lift_idx = _labels(n, shape.kind, True)
+    progress = np.clip(t / shape.duration, 0.0, 1.0)
+    return Segment(theta, torque, act, lift_idx, progress)
+
+
+def _lift_moments(
+    p: VirtualParticipant, shape: LiftShape, box_kg: float, pick_up: bool, t: FloatArray,
+    s: FloatArray, delta: FloatArray,
+) -> FloatArray:
+    """The hip extension moments (K, 2) of one lift, from its profile `s` (fraction of
+    the way to the peak per hip) and `delta` (peak minus standing flexion, rad)."""
     if shape.kind == "squat":
         ref = int(np.argmin(shape.lag_s))
     else:
@@ -223,9 +247,7 @@ def lift(
         bottom = np.array([STOOP_TRUNK_RATIO * float(delta[ref])])
         reach = float(body.box_distance(bottom)[0])
         torque = stoop_leg_moments(body, trunk, box_kg * held, SAMPLE_PERIOD_S, ref, reach)
-    act, lift_idx = _labels(n, shape.kind, True)
-    progress = np.clip(t / shape.duration, 0.0, 1.0)
-    return Segment(theta, torque, act, lift_idx, progress)
+    return torque
 
 
 def _periodic_deg(points: list[tuple[float, float]]) -> CubicSpline:
@@ -279,24 +301,29 @@ def _moment_kind(kind: str) -> tuple[str, float]:
 
 
 def gait_cycle_values(
-    p: VirtualParticipant, piece: GaitPiece, phase_left: FloatArray
+    p: VirtualParticipant, piece: GaitPiece, phase_left: FloatArray, *, moments: bool = True
 ) -> tuple[FloatArray, FloatArray]:
     """Steady-state hip flexion above standing (rad) and hip moment (Nm), shape (K, 2),
-    of `piece` at the left leg's gait phase; the right leg is half a cycle later."""
+    of `piece` at the left leg's gait phase; the right leg is half a cycle later.
+    `moments=False` skips the moments (NaN)."""
     kind, moment_scale = _moment_kind(piece.kind)
     dtheta = np.empty((phase_left.size, 2))
-    moment = np.empty((phase_left.size, 2))
+    moment = np.empty((phase_left.size, 2)) if moments else _no_moments(phase_left.size)
     for leg in range(2):
         frac = np.mod(phase_left + 0.5 * leg, 1.0)
         amp = piece.amplitude[leg]
         dtheta[:, leg] = amp * GAIT_ANGLE[piece.kind](frac)
-        moment[:, leg] = gait_moment(kind, frac, p.mass_kg, p.torque_scale * moment_scale * amp)
+        if moments:
+            moment[:, leg] = gait_moment(kind, frac, p.mass_kg,
+                                         p.torque_scale * moment_scale * amp)
     return dtheta, moment
 
 
-def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left") -> Segment:
+def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left", *,
+         moments: bool = True) -> Segment:
     """A continuous gait bout from standing to standing through the given pieces; the
-    `lead` leg takes the first step (its swing comes first)."""
+    `lead` leg takes the first step (its swing comes first). `moments=False` skips the
+    hip moments (torque NaN)."""
     if lead not in ("left", "right"):
         raise ValueError(f"lead must be 'left' or 'right', got {lead!r}")
     if not pieces:
@@ -319,11 +346,12 @@ def gait(p: VirtualParticipant, pieces: list[GaitPiece], lead: str = "left") -> 
     ramp_out = RAMP_STRIDES * pieces[-1].stride_s
     env = min_jerk(t / ramp_in) * (1.0 - min_jerk((t - (total - ramp_out)) / ramp_out))
     theta = np.tile(p.stand_flexion, (n, 1))
-    torque = np.zeros((n, 2))
+    torque = np.zeros((n, 2)) if moments else _no_moments(n)
     for w, pc in zip(weights, pieces, strict=True):
-        dtheta, moment = gait_cycle_values(p, pc, phase_left)
+        dtheta, moment = gait_cycle_values(p, pc, phase_left, moments=moments)
         theta += (env * w)[:, None] * dtheta
-        torque += (env * w)[:, None] * moment
+        if moments:
+            torque += (env * w)[:, None] * moment
     which = np.clip(np.searchsorted(bounds, t, side="right") - 1, 0, len(pieces) - 1)
     codes = np.array([ACTIVITY_CODE[pc.kind] for pc in pieces], dtype=np.int8)
     act = codes[which]

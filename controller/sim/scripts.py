@@ -233,7 +233,7 @@ def _gait_pieces(
     return pieces
 
 
-def _hip_flex(p: VirtualParticipant, step: HipFlexStep) -> Segment:
+def _hip_flex(p: VirtualParticipant, step: HipFlexStep, moments: bool = True) -> Segment:
     """One hip up by `step.degrees` and back (minimum jerk each way), the other standing."""
     n = max(2, round(step.seconds / SAMPLE_PERIOD_S))
     half = np.linspace(0.0, 2.0, n)
@@ -241,7 +241,8 @@ def _hip_flex(p: VirtualParticipant, step: HipFlexStep) -> Segment:
     theta = np.tile(p.stand_flexion, (n, 1))
     theta[:, step.side] += np.radians(step.degrees) * shape
     stand_code = ACTIVITIES.index("stand")
-    return Segment(theta, np.zeros((n, 2)), np.full(n, stand_code, dtype=np.int8),
+    torque = np.zeros((n, 2)) if moments else np.full((n, 2), np.nan)
+    return Segment(theta, torque, np.full(n, stand_code, dtype=np.int8),
                    np.full(n, -1, dtype=np.int32), np.full(n, np.nan))
 
 
@@ -252,9 +253,13 @@ def realise(
     repetition: int = 0,
     t0: float = 0.0,
     lift_offset: int = 0,
+    *,
+    moments: bool = True,
 ) -> Trajectory:
     """Draw one realisation of `script` (deterministic in seed and repetition), starting
-    at absolute time `t0` and numbering lifts from `lift_offset`."""
+    at absolute time `t0` and numbering lifts from `lift_offset`. `moments=False` leaves
+    the hip moments out (`torque` NaN) for callers that only need the angles (a cohort's
+    replay): the same draws and angles, at well under half the cost."""
     rng = np.random.default_rng(np.random.SeedSequence([0x5C_21, int(seed), int(repetition)]))
     p = participant
     segments: list[Segment] = []
@@ -263,19 +268,19 @@ def realise(
     for step in script.steps:
         if isinstance(step, Stand):
             box = script.box_kg if step.holding_box else 0.0
-            seg = stand(p, float(rng.uniform(*step.seconds)), box)
+            seg = stand(p, float(rng.uniform(*step.seconds)), box, moments=moments)
             lift_ids.append(-1)
         elif isinstance(step, HipFlexStep):
-            seg = _hip_flex(p, step)
+            seg = _hip_flex(p, step, moments)
             lift_ids.append(-1)
         elif isinstance(step, LiftStep):
             shape = draw_lift(p, rng, step.kind)
-            seg = lift(p, shape, script.box_kg, step.pick_up)
+            seg = lift(p, shape, script.box_kg, step.pick_up, moments=moments)
             lift_ids.append(lift_offset + n_lifts)
             n_lifts += 1
         else:
             lead = "left" if rng.random() < 0.5 else "right"
-            seg = gait(p, _gait_pieces(p, step, rng), lead)
+            seg = gait(p, _gait_pieces(p, step, rng), lead, moments=moments)
             lift_ids.append(-1)
         segments.append(seg)
     n = sum(s.n for s in segments)

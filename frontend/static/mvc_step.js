@@ -122,12 +122,9 @@ function renderPlan() {
 async function init() {
   const session = await api.sessions.get(sessionId);
   const participant = await api.participants.get(session.participant_id);
-  let montage = null;
-  try {
-    montage = await api.emg.getMontage(participant.study_id);
-  } catch {
-    montage = null;
-  }
+  // Every version (an empty list, not a 404, for a study without EMG); the newest counts.
+  const versions = await api.emg.listMontages(participant.study_id);
+  const montage = versions.length ? versions[versions.length - 1] : null;
   state.montage = montage;
   await load();
   const section = $("#mvc-step");
