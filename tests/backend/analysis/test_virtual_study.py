@@ -55,7 +55,7 @@ def test_a_small_virtual_study_writes_its_tables_and_figures(
                   else "paper-evaluation")
         assert t.ticks == round((_script_s(seed, script) + 4.0) * 100)
         assert t.gaps == 0
-    assert report.trials[2].calibration_attempts >= 1
+    assert report.trials[4].calibration_attempts >= 1  # P01's E-UMC
 
     folder = out / "paper-rates"
     for name in ("performance.csv", "performance.md", "false_positives.csv",
@@ -102,8 +102,15 @@ def test_muscle_activity_is_recorded_from_lsl_and_reduced_by_the_springs(
     assert doc["method"]["processing"]["notch_hz"] == 50
     assert doc["baselines"] == ["springs_free", "no_exoskeleton"]
     assert len(doc["channels"]) == 12
+    # Every lift is listed; one whose samples LSL lost on a loaded machine says so
+    # (flag and note) instead of vanishing, and such losses stay rare.
+    measured = listed = 0
     for t in doc["trials"]:
-        assert t["recordings"] and t["lifts"] >= 18 and t["lifts_without_emg"] == 0, t
+        assert t["recordings"] and t["lifts"] + t["lifts_without_emg"] >= 18, t
+        assert not t["lifts_without_emg"] or "have no EMG" in t["note"], t
+        measured += t["lifts"]
+        listed += t["lifts"] + t["lifts_without_emg"]
+    assert measured >= 0.9 * listed, (measured, listed)
     reds = {(r["condition"], r["baseline"], r["channel"]): r for r in doc["reductions"]
             if r["group"] == "all" and r["metric"] == "mean"}
     for side in ("left", "right"):
@@ -111,6 +118,7 @@ def test_muscle_activity_is_recorded_from_lsl_and_reduced_by_the_springs(
             r = reds[(ctl, "no_exoskeleton", f"erector_spinae_lumbar_{side}")]
             assert r["n"] == 2 and r["mean_pct"] > 5.0, r
             assert r["ci_low"] is not None and r["ci_low"] < r["mean_pct"] < r["ci_high"]
+            assert r["test"].startswith("one-sample t-test")
         same = reds[("springs_free", "no_exoskeleton", f"erector_spinae_lumbar_{side}")]
         assert abs(same["mean_pct"]) < 5.0, same
     lifts = list(csv.DictReader(line for line in io.StringIO(

@@ -111,3 +111,52 @@ def test_processes_give_the_same_cohort(sets: tuple[ModelSet, UtilitySet]) -> No
     assert (json.dumps([p.metrics for p in two.participants], sort_keys=True)
             == json.dumps([p.metrics for p in one.participants], sort_keys=True))
     assert [p.seed for p in two.participants] == [cfg.participant_seed(j) for j in range(3)]
+
+
+#: Participants 1 and 2 of the seed-1 cohort on the default sets, computed before the
+#: cohort's simulation was made cheaper (trajectories without hip moments, forked
+#: workers): faster must not mean different.
+PINNED: list[tuple[int, dict[str, dict[str, float]]]] = [
+    (1, {"umc": {"recognised_pct": 100.0, "correct_pct": 75.0, "correct_sq_pct": 100.0,
+                 "correct_as_pct": 50.0, "wrong": 5.0, "missed": 0.0, "fp_walking": 3.0,
+                 "fp_stairs": 4.0, "fp_total": 7.0, "onset_to_lock_s": 0.4050000000000056,
+                 "peak_torque_squat_nm": 27.530750074020055,
+                 "support_asymmetry_nm": 14.734279565403066},
+         "eumc": {"recognised_pct": 95.0, "correct_pct": 95.0, "correct_sq_pct": 100.0,
+                  "correct_as_pct": 90.0, "wrong": 1.0, "missed": 0.0, "fp_walking": 0.0,
+                  "fp_stairs": 0.0, "fp_total": 0.0, "onset_to_lock_s": 0.375,
+                  "peak_torque_squat_nm": 28.551037896798857,
+                  "support_asymmetry_nm": 14.541198536709368},
+         "pec": {"recognised_pct": math.nan, "correct_pct": 50.0, "correct_sq_pct": 100.0,
+                 "correct_as_pct": 0.0, "wrong": 10.0, "missed": 0.0, "fp_walking": 0.0,
+                 "fp_stairs": 0.0, "fp_total": 0.0, "onset_to_lock_s": 0.35499999999999865,
+                 "peak_torque_squat_nm": 29.392902656628525,
+                 "support_asymmetry_nm": 7.091600884451654}}),
+    (1, {"umc": {"recognised_pct": 100.0, "correct_pct": 95.0, "correct_sq_pct": 100.0,
+                 "correct_as_pct": 90.0, "wrong": 1.0, "missed": 0.0, "fp_walking": 1.0,
+                 "fp_stairs": 1.0, "fp_total": 2.0, "onset_to_lock_s": 0.4200000000000008,
+                 "peak_torque_squat_nm": 22.431094857182618,
+                 "support_asymmetry_nm": 18.907067046568354},
+         "eumc": {"recognised_pct": 80.0, "correct_pct": 80.0, "correct_sq_pct": 100.0,
+                  "correct_as_pct": 60.0, "wrong": 3.0, "missed": 1.0, "fp_walking": 0.0,
+                  "fp_stairs": 0.0, "fp_total": 0.0, "onset_to_lock_s": 0.33000000000000185,
+                  "peak_torque_squat_nm": 26.253879866519043,
+                  "support_asymmetry_nm": 11.885658536578664},
+         "pec": {"recognised_pct": math.nan, "correct_pct": 50.0, "correct_sq_pct": 100.0,
+                 "correct_as_pct": 0.0, "wrong": 10.0, "missed": 0.0, "fp_walking": 0.0,
+                 "fp_stairs": 0.0, "fp_total": 0.0, "onset_to_lock_s": 0.3400000000000034,
+                 "peak_torque_squat_nm": 27.66907798675485,
+                 "support_asymmetry_nm": 12.053033897730073}}),
+]
+
+
+def test_small_cohort_matches_its_pinned_numbers(sets: tuple[ModelSet, UtilitySet]) -> None:
+    cohort = simulate_cohort(CohortConfig(participants=2, seed=1), *sets)
+    got = [(p.calibration_attempts, p.metrics) for p in cohort.participants]
+    # Exact, NaN-aware (json writes NaN as NaN on both sides).
+    assert json.dumps(got, sort_keys=True) == json.dumps(PINNED, sort_keys=True)
+    # The recording itself, what every controller sees: participant 1's first trial.
+    seed = CohortConfig(seed=1).participant_seed(0)
+    rec = trial_recording(VirtualParticipant.from_seed(seed), seed, "paper-evaluation", 0)
+    assert rec.t.size == 19738 and float(rec.q.sum()) == 12508.165438560658
+    assert float(rec.q[5000, 0]) == 1.6348601079739506
