@@ -189,8 +189,10 @@ def evaluate_lift(
         if k is not None:
             recognised_s = float(t[lift.start + k] - t[lift.start])
 
-    decided = lock_decisions(cols)[half]
+    # `lock_decisions` on the first half only: over the whole recording, once per lift,
+    # it was a tenth of a virtual cohort's cost.
     actions = cols.int_("action")[half]
+    decided = cols.bool_("controller_ran")[half] & np.isin(actions, _LOCK_ACTIONS)
     k = _first(decided)
     sides = ""
     if k is None:
