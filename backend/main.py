@@ -149,7 +149,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         interrupted = jobs.recover(app.state.sessions)
         if interrupted:
             log.warning("interrupted by the restart: %s", ", ".join(interrupted))
-        runtime = Runtime(settings, engine)
+        # The tick writer has an engine (a pool) of its own: no number of API reads
+        # holding the app's connections can keep a running trial's ticks from the disk.
+        writer_engine = make_engine(settings.database_url)
+        runtime = Runtime(settings, writer_engine)
         attach_to_live_path(app, runtime, settings, engine)
         app.state.runtime = runtime
         app.state.jobs = jobs.JobRunner(app.state.sessions)
@@ -162,6 +165,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             app.state.jobs.begin_shutdown()  # jobs stop while the worker stops
             await runtime.stop()
             app.state.jobs.shutdown()
+            writer_engine.dispose()
             engine.dispose()
 
     app = FastAPI(

@@ -8,6 +8,7 @@ import io
 import json
 import secrets
 import zipfile
+from collections.abc import Sequence
 from datetime import date, datetime, timedelta
 from typing import Any
 
@@ -89,13 +90,18 @@ def _shift(v: Any, days: int) -> Any:
 
 
 def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
-              site: str | None = None, unblind: bool = False) -> bytes:
+              site: str | None = None, unblind: bool = False,
+              muscle_files: Sequence[tuple[str, str]] = ()) -> bytes:
     """The export archive of one study (withdrawn-and-excluded participants are left
     out). `deidentified`: without direct identifiers and free text, participants
     re-coded, dates shifted by each participant's stored shift (see `DEID_NOTE`).
     `site`: only that site's participants, for a member limited to it. `unblind`: the
     blinding key (which controller each label stands for) is written; only an owner's
-    export may set it, anyone else's leaves the `controller` of condition_labels empty."""
+    export may set it, anyone else's leaves the `controller` of condition_labels empty.
+    `muscle_files`: (name, text) written under `muscle_activity/` of an unblinded,
+    identified export (the tables name controllers and codes); the caller reads them
+    from the stored EMG (`backend.emg.muscle_results.export_files`), a layer above this
+    one."""
     rng = secrets.SystemRandom()
     buf = io.BytesIO()
     with engine.connect() as conn, zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -179,26 +185,9 @@ def study_zip(engine: Engine, study_id: int, deidentified: bool = False,
         zf.writestr("README.md", readme + f"\nExported by ExoStudy {version()}.\n")
         zf.writestr("data_dictionary.csv", _dictionary_csv(deidentified))
         if unblind and not deidentified:  # muscle tables name controllers and codes
-            for name, text in _muscle_files(engine, study_id, site):
+            for name, text in muscle_files:
                 zf.writestr(f"muscle_activity/{name}", text)
     return buf.getvalue()
-
-
-def _muscle_files(engine: Engine, study_id: int, site: str | None) -> list[tuple[str, str]]:
-    """The study's muscle-activity tables from its stored EMG, with the method; a study
-    whose EMG cannot be read gets a note saying why instead (the export never fails on
-    it)."""
-    from sqlalchemy.orm import Session
-
-    from backend.analysis import muscle_results
-    from backend.lab.bids_export import emg_folder
-
-    try:
-        with Session(engine) as db:
-            res = muscle_results.CACHE.get(engine, db, emg_folder(engine), study_id, site)
-            return list(muscle_results.iter_export(res))
-    except Exception as exc:  # a note in the archive, never a failed export
-        return [("README.txt", f"muscle activity not computed: {exc}\n")]
 
 
 def _of_included(t: Table, participants: list[int]) -> list[Any]:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 from sqlalchemy import Engine, func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend.analysis import tick_queries
@@ -339,10 +340,34 @@ def unconfirmed_posteriors(engine: Engine, db: Session, participant: Participant
     return arr, train.pop(), sources
 
 
+#: Attempts at a prior set's version number when other requests take it first.
+VERSION_ATTEMPTS = 5
+
+
 def learn_prior_set(db: Session, engine: Engine, user: User, participant: Participant,
                     body: PriorSetIn) -> PriorSetRecord:
     """A new version of the participant's priors, inside the bound of `utility_set_id`
-    (learned ones projected onto it, imported ones refused outside it); commits."""
+    (learned ones projected onto it, imported ones refused outside it); commits.
+
+    The version is the participant's highest plus one, kept unique by the table: when
+    another request stored that version first, this one starts again from the new
+    highest (the document names its version, so it is learned again); after
+    `VERSION_ATTEMPTS` such races, 409."""
+    pid, code = participant.id, participant.code
+    for _ in range(VERSION_ATTEMPTS):
+        try:
+            return _learn_prior_set(db, engine, user, participant, body)
+        except IntegrityError:
+            db.rollback()
+            if db.scalar(select(func.count()).select_from(Participant)
+                         .where(Participant.id == pid)) == 0:
+                raise
+    raise ConflictError("prior_set", f"other prior sets of participant {code} were being "
+                        "stored at the same time; try again")
+
+
+def _learn_prior_set(db: Session, engine: Engine, user: User, participant: Participant,
+                     body: PriorSetIn) -> PriorSetRecord:
     utilities = _utility_set(db, body.utility_set_id, participant.study_id)
     bounds = PriorBounds.for_table(_table(utilities), (body.floor,) * N_CATEGORIES)
     previous = _previous(db, body.previous_prior_set_id, participant)
@@ -358,7 +383,11 @@ def learn_prior_set(db: Session, engine: Engine, user: User, participant: Partic
                                     body.gait_trials_as_other)
         before = None
         if previous is not None and previous.document is not None:
-            before = LearnedPriors.from_json(previous.document)
+            try:
+                before = LearnedPriors.from_json(previous.document)
+            except ValueError as exc:
+                raise ConflictError("previous_prior_set_id", f"prior set {previous.id} is "
+                                    f"not a valid priors document: {exc}") from None
         seen = set(before.sources) if before is not None else set()
         new = [(s, lab) for s, lab in motions if s not in seen]
         if not new and before is None:

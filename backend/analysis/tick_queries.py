@@ -4,18 +4,25 @@ Plain SQL over the tick table in id order; the columns are `TickRecord`'s fields
 every value read goes through `controller.tick_codec` (one NULL rule). A caller that
 needs a few fields names them: a 10-minute trial is 60,000 rows, and an output that
 reads 3 of the 55 columns reads a twentieth of the values.
+
+Every reader takes an engine or a connection. A request that already holds a
+connection (its session's, `Session.connection()`) passes that one: a request then
+uses one pooled connection, never a second while holding the first (with many
+requests at once, each holding one and waiting for another, the pool runs dry).
 """
 
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 from numpy.typing import NDArray
-from sqlalchemy import Engine, func, select, text
+from sqlalchemy import Connection, Engine, func, select, text
 
 from backend.db.models import ticks_table
+from controller.evaluation.columns import TickData
 from controller.tick_codec import (
     FIELD_KINDS,
     FIELD_NAMES,
@@ -28,8 +35,30 @@ from controller.tick_codec import (
 #: Rows fetched from the driver at a time.
 _CHUNK = 20_000
 
+#: Where ticks are read from: an engine (a connection of its own per read) or a
+#: connection the caller already holds.
+Bind = Engine | Connection
 
-def _sql(engine: Engine, names: Sequence[str], first_id: int | None,
+
+@contextmanager
+def _driver(bind: Bind) -> Iterator[Any]:
+    """The driver's own connection: the caller's (left open) or one from the pool."""
+    if isinstance(bind, Connection):
+        yield bind.connection.driver_connection
+        return
+    conn = bind.raw_connection()
+    try:
+        yield conn
+    finally:
+        conn.close()
+
+
+def _connect(bind: Bind) -> Any:
+    """A context giving a SQLAlchemy connection: the caller's, or a new one."""
+    return nullcontext(bind) if isinstance(bind, Connection) else bind.connect()
+
+
+def _sql(engine: Bind, names: Sequence[str], first_id: int | None,
          last_id: int | None) -> tuple[str, tuple[Any, ...]]:
     """The driver-level SELECT of `names` of one run in id order, and its parameters
     after the run id."""
@@ -50,7 +79,7 @@ def _sql(engine: Engine, names: Sequence[str], first_id: int | None,
     return sql + " ORDER BY id", params
 
 
-def columns(engine: Engine, run_id: int, first_id: int | None = None,
+def columns(engine: Bind, run_id: int, first_id: int | None = None,
             last_id: int | None = None,
             fields: Sequence[str] | None = None) -> dict[str, NDArray[Any]]:
     """A run's ticks (ids `first_id..last_id` if given) as one typed array per field,
@@ -59,18 +88,30 @@ def columns(engine: Engine, run_id: int, first_id: int | None = None,
     names = tuple(fields) if fields is not None else FIELD_NAMES
     sql, params = _sql(engine, names, first_id, last_id)
     # The driver's own cursor: SQLAlchemy's result rows cost more than the query.
-    conn = engine.raw_connection()
-    try:
+    with _driver(engine) as conn:
         cur = conn.cursor()
         cur.execute(sql, (run_id, *params))
         rows = cur.fetchall()
         cur.close()
-    finally:
-        conn.close()
     return columns_from_rows(rows, names)
 
 
-def csv_text(engine: Engine, run_id: int, first_id: int | None = None,
+def run_ticks(bind: Bind, run_id: int | None) -> TickData:
+    """A run's stored ticks as checked columns, each read when first needed, up to the
+    last tick stored now (so every column has the same ticks); empty without a run."""
+    if run_id is None:
+        return TickData({})
+    last = tick_id_range(bind, run_id)[1]
+    if last is None:
+        return TickData({})
+    t = columns(bind, run_id, last_id=last, fields=("t",))["t"]
+    return TickData.on_demand(
+        len(t), FIELD_NAMES,
+        lambda name: columns(bind, run_id, last_id=last, fields=(name,))[name],
+    ).with_columns({"t": t})
+
+
+def csv_text(engine: Bind, run_id: int, first_id: int | None = None,
              last_id: int | None = None) -> str:
     """A run's ticks as CSV (header of field names; empty cell where not computed), in
     the codec's CSV form, read and written a chunk of rows at a time."""
@@ -78,8 +119,7 @@ def csv_text(engine: Engine, run_id: int, first_id: int | None = None,
     ready = engine.dialect.name == "sqlite" and not _null_outside_floats(
         engine, run_id, first_id, last_id)
     buf = io.StringIO()
-    conn = engine.raw_connection()
-    try:
+    with _driver(engine) as conn:
         cur = conn.cursor()
         cur.execute(sql, (run_id, *params))
         write_csv(columns_from_rows([], FIELD_NAMES), buf)  # the header
@@ -89,12 +129,10 @@ def csv_text(engine: Engine, run_id: int, first_id: int | None = None,
             else:
                 write_csv(columns_from_rows(part, FIELD_NAMES), buf, header=False)
         cur.close()
-    finally:
-        conn.close()
     return buf.getvalue()
 
 
-def _null_outside_floats(engine: Engine, run_id: int, first_id: int | None,
+def _null_outside_floats(engine: Bind, run_id: int, first_id: int | None,
                          last_id: int | None) -> bool:
     """Whether any stored tick of the range has NULL in a field that is not a float
     (a row an older schema left): those cells need the codec's NULL rule."""
@@ -106,13 +144,13 @@ def _null_outside_floats(engine: Engine, run_id: int, first_id: int | None,
         q = q.where(ticks_table.c.id >= first_id)
     if last_id is not None:
         q = q.where(ticks_table.c.id <= last_id)
-    with engine.connect() as conn:
+    with _connect(engine) as conn:
         return bool(conn.execute(q).scalar_one())
 
 
-def tick_id_range(engine: Engine, run_id: int) -> tuple[int | None, int | None]:
+def tick_id_range(engine: Bind, run_id: int) -> tuple[int | None, int | None]:
     """First and last stored tick id of a run."""
-    with engine.connect() as conn:
+    with _connect(engine) as conn:
         lo, hi = conn.execute(
             select(func.min(ticks_table.c.id), func.max(ticks_table.c.id))
             .where(ticks_table.c.run_id == run_id)
@@ -120,8 +158,8 @@ def tick_id_range(engine: Engine, run_id: int) -> tuple[int | None, int | None]:
     return lo, hi
 
 
-def count(engine: Engine, run_id: int) -> int:
+def count(engine: Bind, run_id: int) -> int:
     """How many ticks a run has stored."""
-    with engine.connect() as conn:
+    with _connect(engine) as conn:
         return int(conn.execute(select(func.count()).select_from(ticks_table)
                                 .where(ticks_table.c.run_id == run_id)).scalar_one())

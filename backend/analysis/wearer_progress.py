@@ -27,11 +27,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from sqlalchemy import Engine, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.analysis.markers import trial_markers
-from backend.analysis.results import ground_truth, trial_columns, trial_segments
+from backend.analysis.results import ground_truth, trial_segments
+from backend.analysis.tick_queries import run_ticks
 from backend.core.errors import ConflictError, NotFoundError
 from backend.db.evidence_tables import Trial
 from backend.db.models import Participant, StudySession
@@ -123,10 +124,13 @@ class _Session:
     incomplete: int = 0
 
 
-def wearer_progress(engine: Engine, db: Session, participant_id: int,
+def wearer_progress(db: Session, participant_id: int,
                     controller: str | None = None) -> WearerProgressOut:
     """The participant's long-use sessions in time order (those with a counted trial,
-    of `controller` if given), each session's counts, and the learning curves."""
+    of `controller` if given), each session's counts, and the learning curves.
+
+    Ticks are read on the session's own connection: one request, one pooled
+    connection (a second one per request starves the pool under load)."""
     part = db.get(Participant, participant_id)
     if part is None:
         raise NotFoundError("participant", participant_id)
@@ -149,7 +153,7 @@ def wearer_progress(engine: Engine, db: Session, participant_id: int,
                 skipped.append({"trial_id": trial.id, "session_id": sess.id,
                                 "reason": f"trial is {trial.status}"})
                 continue
-            cols = trial_columns(engine, trial)
+            cols = run_ticks(db.connection(), trial.run_id)
             marks = [(m.t, m.label) for m in trial_markers(db, trial.id)
                      if m.t is not None and m.source != "system"]
             truth = long_use_truth(cols, trial_segments(db, trial.id), marks)

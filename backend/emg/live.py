@@ -36,10 +36,10 @@ from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
 from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgStream
+from backend.db.sessions import study_of_session
 from backend.emg import recordings
 from backend.emg.live_envelope import LiveEnvelope, Publish
 from backend.emg.quality_summary import STREAM_LOST, STREAM_RESTARTED
-from backend.lab.markers import study_of_session
 from backend.lsl.backoff import backoff_delays
 from backend.lsl.names import Property, lsl_errors, predicate
 from controller.emg.processing import EmgProcessing, EmgSettingsError
@@ -269,7 +269,19 @@ class EmgInlet:
                     if not ts:
                         continue
                     correction = inlet.time_correction(timeout=1.0)
-                    x = np.asarray(chunk, dtype=np.float64)[:, cols] * volts
+                    raw = np.asarray(chunk, dtype=np.float64)
+                    import os as _os
+                    if _os.environ.get("EMGDBG"):
+                        seq = raw[:, 15]
+                        prev = getattr(self, "_dbg_prev", None)
+                        jumps = np.diff(np.concatenate([[prev], seq]) if prev is not None else seq)
+                        bad = np.nonzero(jumps != 1)[0]
+                        with open("/tmp/emgdbg/inlet.log", "a") as _f:
+                            for b in bad[:5]:
+                                _f.write(f"gap rec {rec.row.id} after {seq[0]} jump {jumps[b]} at {b} n {len(seq)}\n")
+                        self._dbg_prev = seq[-1]
+                        self._dbg_n = getattr(self, "_dbg_n", 0) + len(seq)
+                    x = raw[:, cols] * volts
                     t = np.asarray(ts, dtype=np.float64) + correction
                     rec.append(t, x)
                     self.samples += len(ts)
@@ -289,6 +301,10 @@ class EmgInlet:
                     inlet.close_stream()
                 except Exception:
                     pass
+                import os as _os
+                if _os.environ.get("EMGDBG"):
+                    with open("/tmp/emgdbg/inlet.log", "a") as _f:
+                        _f.write(f"finish rec {rec.row.id} pulled {getattr(self, '_dbg_n', 0)} appended {rec.writer.appended}\n")
                 if rec.writer.appended:
                     rec.finish()
                 else:

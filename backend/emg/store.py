@@ -35,9 +35,10 @@ from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
+from sqlalchemy import Engine
 
 from backend.core import config
-from backend.core.config import Settings
+from backend.core.config import Settings, get_settings
 from backend.core.data_folder import sqlite_file
 from controller.private_files import make_private_dir
 
@@ -175,6 +176,14 @@ def emg_folder(settings: Settings) -> Path:
     db_file = sqlite_file(settings.database_url)
     base = db_file.parent if db_file is not None else Path(config.DATA_DIR)
     return base / "emg"
+
+
+def engine_emg_folder(engine: Engine) -> Path:
+    """The EMG recordings' folder of the database `engine` is connected to (beside its
+    SQLite file, or `emg_dir` of this installation's settings): an export of another
+    database file (`exostudy export --db`) reads that database's recordings."""
+    url = engine.url.render_as_string(hide_password=False)
+    return emg_folder(get_settings().model_copy(update={"database_url": url}))
 
 
 def recording_path(settings: Settings, recording_id: int) -> Path:

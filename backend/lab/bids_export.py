@@ -43,7 +43,6 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import bids_dictionary, data_dictionary, tick_queries
-from backend.core.config import get_settings
 from backend.core.resources import version
 from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
@@ -215,7 +214,7 @@ def dataset_files(engine: Engine, db: Session, study_id: int, site: str | None =
     the study has no trial with ticks. `emg_dir`: the EMG recordings' folder (default:
     the one of the database `engine` is connected to)."""
     check_exportable(engine, db, study_id, site)
-    emg = emg_dir if emg_dir is not None else emg_folder(engine)
+    emg = emg_dir if emg_dir is not None else store.engine_emg_folder(engine)
     study = db.get(Study, study_id)
     assert study is not None
     yield "dataset_description.json", _json(_description(study)).encode()
@@ -402,14 +401,6 @@ def _emg_files(db: Session, recs: list[EmgRecording], trial: Trial, folder: str,
     shifted = [[r[0] - shift, *r[1:]] for r in ev_rows if r[0] - shift >= 0]
     yield f"{folder}{stem}_events.tsv", _tsv(ev_cols, shifted).encode()
     yield f"{folder}{stem}_events.json", _json(events_doc).encode()
-
-
-def emg_folder(engine: Engine) -> Path:
-    """The EMG recordings' folder of the database `engine` is connected to (beside its
-    SQLite file, or `emg_dir` of this installation's settings): an export of another
-    database file (`exostudy export --db`) reads that database's recordings."""
-    url = engine.url.render_as_string(hide_password=False)
-    return store.emg_folder(get_settings().model_copy(update={"database_url": url}))
 
 
 def _events(db: Session, trial: Trial, t0: float, cols: dict[str, Any]) -> list[list[Any]]:

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, StudyMarkerLabels
-from backend.db.models import ConditionLabel, Participant, StudySession
+from backend.db.models import ConditionLabel, StudySession
 from backend.lab.lsl_outlets import TickTime
 from backend.schemas.lab import DEFAULT_MARKER_LABELS
 
@@ -42,13 +42,6 @@ def store(db: Session, session_id: int, label: str, note: str, source: str,
     if flush:
         db.flush()
     return marker
-
-
-def study_of_session(db: Session, session_id: int) -> int | None:
-    """The study a session belongs to."""
-    return db.scalar(select(Participant.study_id).join(
-        StudySession, StudySession.participant_id == Participant.id)
-        .where(StudySession.id == session_id))
 
 
 def labels(db: Session, study_id: int) -> list[str]:

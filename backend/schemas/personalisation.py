@@ -8,7 +8,11 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from backend.schemas.fields import MAX_ID, UtcDatetime
-from controller.intent.learned_priors import DEFAULT_FORGETTING, DEFAULT_PSEUDO_COUNT
+from controller.intent.learned_priors import (
+    DEFAULT_FORGETTING,
+    DEFAULT_PSEUDO_COUNT,
+    LearnedPriors,
+)
 from controller.intent.personal_models import DEFAULT_TAU, MIN_PARTICIPANT_DEMOS
 from controller.intent.prior_safety import DEFAULT_FLOOR
 
@@ -73,7 +77,9 @@ class PriorSetIn(BaseModel):
     gait_trials_as_other: bool = True
     pseudo_count: float = Field(default=DEFAULT_PSEUDO_COUNT, gt=0.0, le=1e6)
     forgetting: float = Field(default=DEFAULT_FORGETTING, gt=0.0, le=1.0)
-    floor: float = Field(default=DEFAULT_FLOOR, gt=0.0, le=0.25)
+    floor: float = Field(default=DEFAULT_FLOOR, ge=DEFAULT_FLOOR, le=0.25, description=(
+        "least prior of every motion; at least the default, so every motion stays "
+        "recognisable"))
     window_s: float = Field(default=5.0, ge=0.5, le=600.0)
     values: list[float] | None = Field(default=None, min_length=4, max_length=4, description=(
         "import only: squat, stoop_left, stoop_right, other"))
@@ -110,6 +116,25 @@ class PriorSetOut(BaseModel):
     document: dict[str, Any] | None
     error: str
     created_at: UtcDatetime
+    problem: str | None = Field(default=None, description=(
+        "why the stored document is not a valid priors document (then `document` is "
+        "null and no plan or trial can use the set); null when it is valid"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _checked_document(cls, data: Any) -> Any:
+        """A stored row altered into an invalid document is listed as such, not a
+        failed answer: one bad row never hides the others."""
+        if not isinstance(data, dict):
+            data = {k: getattr(data, k) for k in cls.model_fields if hasattr(data, k)}
+        doc = data.get("document")
+        if doc is None:
+            return data
+        try:
+            LearnedPriors.from_json(doc)
+        except ValueError as exc:
+            return {**data, "document": None, "problem": str(exc)}
+        return data
 
 
 class PersonalModelSetOut(BaseModel):

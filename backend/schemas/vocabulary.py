@@ -77,6 +77,13 @@ class ControllerName(Named):
         description="planned only when the plan includes the optional controllers")
     idle: bool = Field(description="the resting controller: never locks; the worker "
                        "starts with it and returns to it")
+    baseline: bool = Field(
+        description="a baseline condition (springs never locked, no exoskeleton): planned "
+        "only when a plan asks for baselines, never locks, not compared in the paper's "
+        "controller tables; the reference muscle-activity reductions are measured against")
+    exoskeleton_worn: bool = Field(
+        description="false for the 'no exoskeleton' baseline: its lifts come from the "
+        "experimenter's markers, not the device")
 
 
 class ActionName(Named):
@@ -144,7 +151,9 @@ def _controller(name: str) -> ControllerName:
                           needs_calibration=r.needs_calibration,
                           estimates_intent=r.estimates_intent, colour=r.colour or None,
                           in_plan=r.plan is not None,
-                          plan_optional=r.plan is not None and r.plan.optional, idle=r.idle)
+                          plan_optional=r.plan is not None and r.plan.optional, idle=r.idle,
+                          baseline=r.plan is not None and r.plan.baseline,
+                          exoskeleton_worn=r.exoskeleton_worn)
 
 
 def vocabulary() -> Vocabulary:

@@ -105,7 +105,7 @@ class LearnedPriors:
         if self.method not in METHODS:
             raise ValueError(f"method: must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.floors or self.roles:
-            problem = self.bounds.violation(self.values)
+            problem = self.bounds.violation(self.values)  # ValueError for bad roles/floors
             if problem is not None:
                 raise ValueError(f"values: outside their safety bound: {problem}")
         object.__setattr__(self, "sources", tuple(str(s) for s in self.sources))
@@ -128,24 +128,51 @@ class LearnedPriors:
 
     @classmethod
     def from_json(cls, data: Any) -> LearnedPriors:
-        """Inverse of `to_json`; refuses other formats and names a missing field."""
+        """Inverse of `to_json`; refuses other formats and, with `ValueError` naming the
+        field, a missing field or one of the wrong type (a stored document may have been
+        altered: a caller answers a clear refusal, never a crash)."""
         if not isinstance(data, dict):
             raise ValueError(f"priors: must be a JSON object, got {type(data).__name__}")
         if data.get("format") != FORMAT_NAME:
             raise ValueError(f"not an {FORMAT_NAME} document (format={data.get('format')!r})")
         if data.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"unsupported format_version {data.get('format_version')!r}")
-        try:
-            return cls(
-                version=str(data["version"]), values=tuple(data["values"]),
-                estimate=tuple(data["estimate"]), method=str(data["method"]),
-                classes=tuple(data["classes"]), pseudo_counts=tuple(data["pseudo_counts"]),
-                counts=tuple(data["counts"]), forgetting=data["forgetting"],
-                floors=tuple(data.get("floors", ())), roles=tuple(data.get("roles", ())),
-                sources=tuple(data.get("sources", ())), created=str(data.get("created", "")),
-                meta=dict(data.get("meta", {})))
-        except KeyError as exc:
-            raise ValueError(f"priors document lacks field {exc}") from None
+        missing = [k for k in _REQUIRED if k not in data]
+        if missing:
+            raise ValueError(f"priors document lacks field {missing[0]!r}")
+        for name in ("version", "method", "created"):
+            v = data.get(name, "")
+            if isinstance(v, bool) or not isinstance(v, str | int):
+                raise ValueError(f"{name}: must be a string, got {v!r}")
+        lists = ("values", "estimate", "classes", "pseudo_counts", "counts", "floors",
+                 "roles", "sources")
+        for name in lists:
+            if name in data and not isinstance(data[name], list):
+                raise ValueError(f"{name}: must be a list, got {data[name]!r}")
+        for name in ("classes", "roles", "sources"):
+            if any(not isinstance(x, str) for x in data.get(name, ())):
+                raise ValueError(f"{name}: must be strings, got {data[name]!r}")
+        if data.get("floors"):
+            _floats("floors", data["floors"])
+        f = data["forgetting"]
+        if isinstance(f, bool) or not isinstance(f, int | float):
+            raise ValueError(f"forgetting: must be a number in (0, 1], got {f!r}")
+        meta = data.get("meta", {})
+        if not isinstance(meta, dict):
+            raise ValueError(f"meta: must be a JSON object, got {meta!r}")
+        return cls(
+            version=str(data["version"]), values=tuple(data["values"]),
+            estimate=tuple(data["estimate"]), method=str(data["method"]),
+            classes=tuple(data["classes"]), pseudo_counts=tuple(data["pseudo_counts"]),
+            counts=tuple(data["counts"]), forgetting=float(f),
+            floors=tuple(data.get("floors", ())), roles=tuple(data.get("roles", ())),
+            sources=tuple(data.get("sources", ())), created=str(data.get("created", "")),
+            meta=dict(meta))
+
+
+#: Fields every document has (the others default).
+_REQUIRED = ("version", "values", "estimate", "method", "classes", "pseudo_counts",
+             "counts", "forgetting")
 
 
 def equal_priors(version: str = "equal") -> LearnedPriors:

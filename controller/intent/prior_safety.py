@@ -57,7 +57,8 @@ N_CATEGORIES = len(CATEGORY_NAMES)
 #: Default floor of every category: a fifth of the equal prior. A stated choice: it keeps
 #: each lift recognisable (a class at its floor against an accepted rival at the largest
 #: safe prior, 0.3, still gets a sixth of that rival's posterior for the same
-#: likelihood) and is far below 1/4, so the equal priors are always safe.
+#: likelihood) and is far below 1/4, so the equal priors are always safe. It is also the
+#: least floor allowed: a floor below it (1e-12, say) would let a motion all but vanish.
 DEFAULT_FLOOR = 0.05
 _BISECT = 200
 
@@ -100,8 +101,9 @@ class PriorBounds:
             raise ValueError(f"roles and floors need {N_CATEGORIES} entries each")
         object.__setattr__(self, "roles", tuple(ClassRole(r) for r in self.roles))
         fl = tuple(float(f) for f in self.floors)
-        if not all(0.0 < f <= 0.25 for f in fl):
-            raise ValueError(f"floors must lie in (0, 0.25] so equal priors stay safe, got {fl}")
+        if not all(DEFAULT_FLOOR <= f <= 0.25 for f in fl):
+            raise ValueError(f"floors must lie in [{DEFAULT_FLOOR:g}, 0.25] (every motion "
+                             f"recognisable, equal priors safe), got {fl}")
         object.__setattr__(self, "floors", fl)
 
     @classmethod

@@ -73,6 +73,7 @@ class _Stamps:
 
 #: Shared outlets by stream name: (outlet, its last stamp).
 _SHARED: dict[str, tuple[Any, _Stamps]] = {}
+_DBG = [0]
 
 
 class WearerModel(Protocol):
@@ -252,6 +253,10 @@ class EmgTap:
             self.stats.onsets += 1
         self._activity = activity
         block = self.generator.push(self.activation())
+        import os as _os
+        if _os.environ.get("EMGDBG"):
+            n0 = _DBG[0]; k = block.samples.shape[0]
+            block.samples[:, 15] = np.arange(n0, n0 + k); _DBG[0] += k
         self.stats.ticks += 1
         if self.keep:
             self.blocks.append(block)

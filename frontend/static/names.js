@@ -11,8 +11,12 @@ export const MODEL_NAMES = names(VOCABULARY.models);
 export const CATEGORY_NAMES = names(VOCABULARY.categories);
 export const SEGMENT_LABELS = names(VOCABULARY.segment_labels);
 export const CONTROLLER_NAMES = names(VOCABULARY.controllers);
-// The controllers a study compares (every one but the idle one, which never locks).
-export const STUDY_CONTROLLERS = VOCABULARY.controllers.filter((c) => !c.idle).map((c) => c.name);
+// The controllers the paper's tables compare: every one but the idle one and the
+// baselines (springs free, no exoskeleton), which never lock.
+export const STUDY_CONTROLLERS = VOCABULARY.controllers.filter((c) => !c.idle && !c.baseline).map((c) => c.name);
+// The baseline conditions, in plan order: plan entries the muscle-activity tables measure
+// each controller's reduction against.
+export const BASELINES = VOCABULARY.controllers.filter((c) => c.baseline).map((c) => c.name);
 // The resting controller the worker starts with and returns to (it never locks).
 export const IDLE_CONTROLLER = VOCABULARY.controllers.find((c) => c.idle)?.name ?? null;
 export const SCRIPTS = VOCABULARY.scripts;
@@ -32,9 +36,12 @@ export function controllerLabel(name) {
   return controllers.get(name)?.label ?? name;
 }
 
-// Controller cells read "UMC", "E-UMC", "umc", "eumc": one key for all of them.
+// Controller cells read "UMC", "E-UMC", "umc", "eumc", "springs free", "springs_free":
+// one key for all of them, the controller's name (a cell no controller has is squashed).
+const squash = (cell) => String(cell ?? "").toLowerCase().replace(/[^a-z]/g, "");
+const keys = new Map(VOCABULARY.controllers.flatMap((c) => [[squash(c.label), c.name], [squash(c.name), c.name]]));
 export function controllerKey(cell) {
-  return String(cell ?? "").toLowerCase().replace(/[^a-z]/g, "");
+  return keys.get(squash(cell)) ?? squash(cell);
 }
 
 // "stoop_left" -> "stoop left" (models, categories and segment labels).

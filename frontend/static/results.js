@@ -7,7 +7,9 @@ import { showTrialEmg } from "/static/emgpanel.js";
 import { CONTROLLER_NAMES, controllerInfo, controllerKey, controllerLabel, correctAction, SEGMENT_LABELS, STUDY_CONTROLLERS } from "/static/names.js";
 
 const studyId = Number(location.pathname.split("/").at(-2));
-$("#whatif-controller").replaceChildren(...CONTROLLER_NAMES.map((c) => h("option", { value: c }, controllerLabel(c))));
+// A baseline replays like the idle controller (it never locks): not offered as a what-if.
+$("#whatif-controller").replaceChildren(...CONTROLLER_NAMES.filter((c) => !controllerInfo(c).baseline)
+  .map((c) => h("option", { value: c }, controllerLabel(c))));
 // `wide`: the JSON table is the paper's layout, participants as columns from index 2;
 // the long form (one row per participant, controller and motion) is its CSV download.
 const TABLES = [

@@ -21,7 +21,9 @@ import numpy as np
 import pylsl
 import pytest
 
+from backend.core.config import Settings
 from tests.browser.login_page import log_in_through
+from tests.live_server import running_server
 from tests.polling import wait_for
 
 FS = 2000.0
@@ -39,6 +41,41 @@ MONTAGE = {"placement_scheme": "SENIAM", "channels": [
 AMPLITUDE_V = 200e-6
 SETTLED_UV = 2 * AMPLITUDE_V / np.pi * 1e6
 NAN_SAMPLES = 10
+
+
+@pytest.fixture(scope="module")
+def shared_server(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path]
+                  ) -> Iterator[tuple[str, str, dict[str, str]]]:
+    """One server (real worker, simulated exoskeleton) on one database for this module:
+    (URL, database URL, the experimenter's login). Each test makes its own study and
+    session, so none needs a fresh database, and a server with its worker process
+    started per test was most of this module's CPU."""
+    from tests.databases import fresh_database
+    from tests.login import create_experimenter
+
+    models, folder = default_sets
+    with fresh_database(tmp_path_factory.mktemp("emg-console")) as url:
+        login = create_experimenter(url)
+        settings = Settings(  # type: ignore[call-arg]
+            database_url=url, start_worker=True, models_path=models, utilities_dir=folder,
+            device_kind="sim", demo=False, _env_file=None)
+        with running_server(settings) as base:
+            yield base, url, login
+
+
+@pytest.fixture
+def server(shared_server: tuple[str, str, dict[str, str]]) -> str:
+    return shared_server[0]
+
+
+@pytest.fixture
+def db_url(shared_server: tuple[str, str, dict[str, str]]) -> str:
+    return shared_server[1]
+
+
+@pytest.fixture
+def experimenter(shared_server: tuple[str, str, dict[str, str]]) -> dict[str, str]:
+    return shared_server[2]
 
 
 def _ok(r: httpx.Response) -> Any:

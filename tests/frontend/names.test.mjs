@@ -2,18 +2,22 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 import {
-  action, actionLabel, CATEGORY_NAMES, controllerInfo, controllerKey, controllerLabel,
+  action, actionLabel, BASELINES, CATEGORY_NAMES, controllerInfo, controllerKey, controllerLabel,
   CONTROLLER_NAMES, correctAction, IDLE_CONTROLLER, MODEL_NAMES, modelColumns, modelLabel, plausibilityReasons, SEGMENT_LABELS,
   STUDY_CONTROLLERS, tickColumn, VOCABULARY,
 } from "/static/names.js";
 
-test("controllers: the paper's three by their labels, 'none' last and not compared", () => {
-  assert.deepEqual(CONTROLLER_NAMES, ["umc", "eumc", "pec", "none"]);
+test("controllers: the paper's three by their labels, then the baselines, 'none' last; only the three compared", () => {
+  assert.deepEqual(CONTROLLER_NAMES, ["umc", "eumc", "pec", "springs_free", "no_exoskeleton", "none"]);
   assert.deepEqual(STUDY_CONTROLLERS, ["umc", "eumc", "pec"]);
+  assert.deepEqual(BASELINES, ["springs_free", "no_exoskeleton"]);
+  assert.equal(controllerLabel("no_exoskeleton"), "no exoskeleton");
   assert.equal(controllerLabel("eumc"), "E-UMC");
   assert.equal(controllerLabel("mystery"), "mystery");
   assert.equal(controllerLabel(null), null);
   assert.equal(controllerKey("E-UMC"), "eumc");
+  assert.equal(controllerKey("Springs Free"), "springs_free");
+  assert.equal(controllerKey("Mystery-1"), "mystery");
   for (const c of CONTROLLER_NAMES) assert.equal(controllerKey(controllerLabel(c)), c);
 });
 
@@ -24,6 +28,9 @@ test("controllers declare their capabilities; pages read them, not names", () =>
   assert.deepEqual(STUDY_CONTROLLERS.map((c) => controllerInfo(c).estimates_intent), [true, true, false]);
   assert.equal(controllerInfo("pec").colour, "#ff7f0e");
   assert.equal(controllerInfo("eumc").plan_optional, true);
+  assert.deepEqual(CONTROLLER_NAMES.map((c) => controllerInfo(c).baseline), [false, false, false, true, true, false]);
+  assert.deepEqual(BASELINES.map((c) => controllerInfo(c).exoskeleton_worn), [true, false]);
+  assert.equal(controllerInfo("springs_free").in_plan, true);
   assert.equal(controllerInfo("mystery"), null);
 });
 

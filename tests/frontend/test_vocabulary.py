@@ -69,7 +69,7 @@ def test_a_registered_controller_reaches_the_browser(client: TestClient) -> None
         assert added == [{"name": "trivial_vocab", "label": "trivial_vocab", "needs_models": True,
                           "needs_calibration": True, "estimates_intent": False,
                           "colour": "#123456", "in_plan": False, "plan_optional": False,
-                          "idle": False}]
+                          "idle": False, "baseline": False, "exoskeleton_worn": True}]
         assert v["controllers"][-1]["name"] == "none"
         assert "trivial_vocab" in client.get("/static/vocabulary.js").text
     finally:

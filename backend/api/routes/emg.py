@@ -293,7 +293,7 @@ async def unsubscribe_emg(session_id: SessionId, emg_stream_id: EmgStreamId,
 
 # Files -------------------------------------------------------------------------------------
 def _mains(db: Session, session_id: int) -> int:
-    from backend.lab.markers import study_of_session
+    from backend.db.sessions import study_of_session
 
     sid = study_of_session(db, session_id)
     row = db.get(EmgAnalysisSettings, sid) if sid is not None else None

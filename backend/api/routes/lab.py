@@ -39,6 +39,7 @@ from backend.api.params import MAX_ID, SessionId, StudyId
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, MarkerStream, XdfAttachment
 from backend.db.models import Study, StudySession
+from backend.db.sessions import study_of_session
 from backend.emg import store as emg_store
 from backend.lab import bids_export, markers, session_records, xdf_import
 from backend.lab.hub import Lab
@@ -83,7 +84,7 @@ def session_marker_labels(session_id: SessionId, user: CurrentUser, db: SessionD
                           ) -> MarkerLabels:
     """The marker buttons of the study the session belongs to."""
     one_or_404(db, StudySession, session_id, "session")
-    study_id = markers.study_of_session(db, session_id)
+    study_id = study_of_session(db, session_id)
     return MarkerLabels(labels=markers.labels(db, study_id) if study_id is not None else [])
 
 

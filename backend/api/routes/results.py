@@ -165,7 +165,7 @@ MuscleFigure = Annotated[Literal["muscle_envelopes", "muscle_reduction"],
 
 def _muscle(db: SessionDep, runtime: RuntimeDep, engine: EngineDep, settings: SettingsDep,
             site: SiteDep, study_id: int) -> Any:
-    from backend.analysis import muscle_results
+    from backend.emg import muscle_results
     from backend.emg.store import emg_folder
 
     one_or_404(db, Study, study_id, "study")

@@ -133,10 +133,12 @@ def export_study(study_id: StudyId, engine: EngineDep, site: SiteDep, user: Curr
     """The whole study as a zip (see README.md inside for every column's meaning)."""
     from backend.analysis.export import study_zip
     from backend.db.models import Study
+    from backend.emg.muscle_results import export_files
 
     one_or_404(db, Study, study_id, "study")
     runtime.recorder.flush()
-    data = study_zip(engine, study_id, site=site, unblind=True)  # owners only
+    data = study_zip(engine, study_id, site=site, unblind=True,  # owners only
+                     muscle_files=export_files(engine, study_id, site))
     audit.record(db, user, "export", "study", study_id, {"bytes": len(data)})
     db.commit()
     return Response(data, media_type="application/zip", headers={

@@ -8,7 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from backend.analysis import wearer_progress
-from backend.api.deps import CurrentUser, EngineDep, LabDep, RuntimeDep, SessionDep, access
+from backend.api.deps import CurrentUser, LabDep, RuntimeDep, SessionDep, access
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, NOT_FOUND
 from backend.api.params import ParticipantId, SessionId
 from backend.core.errors import InvalidError
@@ -34,7 +34,7 @@ async def start_long_use(session_id: SessionId, body: LongUseStartIn, user: Curr
 
 @router.get("/api/participants/{participant_id}/progress", response_model=WearerProgressOut,
             responses=CONFLICT)
-def get_progress(participant_id: ParticipantId, engine: EngineDep, user: CurrentUser,
+def get_progress(participant_id: ParticipantId, user: CurrentUser,
                  db: SessionDep, runtime: RuntimeDep,
                  controller: Annotated[str | None, Query(
                      max_length=32, description="only this controller's long-use trials")
@@ -47,4 +47,4 @@ def get_progress(participant_id: ParticipantId, engine: EngineDep, user: Current
         raise InvalidError.at(["query", "controller"], f"unknown controller {controller!r}; "
                               f"choose one of {', '.join(long_use.controllers())}")
     runtime.recorder.flush()  # the newest ticks of a just-stopped trial
-    return wearer_progress.wearer_progress(engine, db, participant_id, controller)
+    return wearer_progress.wearer_progress(db, participant_id, controller)

@@ -6,13 +6,16 @@ confirmed motions inside the safety bound, and priors from outside refused."""
 from __future__ import annotations
 
 import json
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fastapi.testclient import TestClient
-from sqlalchemy import update
+from sqlalchemy import event, update
+from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
@@ -249,3 +252,52 @@ def test_label_shift_priors_from_unconfirmed_use(client: TestClient, settings: S
     assert PriorBounds.for_table(ids["table"]).contains(doc["values"])
     # Walking is "other": the estimate moves toward it, and the values never below 1/4.
     assert doc["estimate"][3] > 0.25 and doc["values"][3] >= 0.25
+
+
+def test_a_prior_set_version_taken_meanwhile_is_retried_not_a_500(
+        client: TestClient, settings: Settings) -> None:
+    """Another request stores the version this one computed, between its count and its
+    insert: this one takes the next version (UNIQUE(participant, version) is no 500)."""
+    ids = _setup(client, settings)
+    pid = ids["participants"][0]
+    other = make_engine(settings.database_url)
+    taken: list[int] = []
+
+    def meanwhile(session: Any, *_: Any) -> None:
+        rows = [o for o in session.new if isinstance(o, PriorSetRecord)]
+        if rows and not taken:
+            taken.append(rows[0].version)
+            with make_session_factory(other)() as db:
+                db.add(PriorSetRecord(study_id=ids["study"], participant_id=pid,
+                                      version=rows[0].version, name="meanwhile",
+                                      method="equal", utility_set_id=ids["us"],
+                                      document=None, status="ready"))
+                db.commit()
+
+    event.listen(Session, "before_flush", meanwhile)
+    try:
+        row = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+            "name": "equal", "method": "equal", "utility_set_id": ids["us"]}), 201)
+    finally:
+        event.remove(Session, "before_flush", meanwhile)
+        other.dispose()
+    assert taken == [1]
+    assert row["version"] == 2 and row["document"]["version"].endswith("-priors-2")
+
+
+def test_prior_sets_posted_at_once_get_distinct_versions(client: TestClient,
+                                                         settings: Settings) -> None:
+    ids = _setup(client, settings)
+    pid = ids["participants"][0]
+    n = 4
+    barrier = threading.Barrier(n)
+
+    def post(i: int) -> Any:
+        barrier.wait()
+        return client.post(f"/api/participants/{pid}/prior-sets", json={
+            "name": f"equal {i}", "method": "equal", "utility_set_id": ids["us"]})
+
+    with ThreadPoolExecutor(n) as pool:
+        answers = list(pool.map(post, range(n)))
+    assert [r.status_code for r in answers] == [201] * n, [r.text for r in answers]
+    assert sorted(r.json()["version"] for r in answers) == [1, 2, 3, 4]

@@ -3,11 +3,13 @@ the learning curves of three seeded real-study sessions checked against hand cou
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import select
+from sqlalchemy import event, select
 from sqlalchemy.orm import Session
 
 from backend.db.engine import make_engine
@@ -135,3 +137,54 @@ def test_progress_of_three_sessions_matches_the_hand_counts(client: TestClient,
                               params={"controller": "pec"}))
     assert only_pec["sessions"] == [] and only_pec["controller"] == "pec"
     assert LONG_USE_TASK == "long_use"
+
+
+def test_progress_uses_one_connection_and_the_tick_writer_has_its_own_pool(
+        client: TestClient, db_url: str) -> None:
+    """A progress request holds one pooled connection (its session's), never a second
+    while holding the first; the tick writer draws from a pool of its own."""
+    app: Any = client.app
+    _, pid, sid = _wearer(client)
+    add_long_use_trial(make_engine(db_url), sid, 2, 1, 1)
+    out = {"now": 0, "most": 0}
+    lock = threading.Lock()
+
+    def checkout(*_: Any) -> None:
+        with lock:
+            out["now"] += 1
+            out["most"] = max(out["most"], out["now"])
+
+    def checkin(*_: Any) -> None:
+        with lock:
+            out["now"] -= 1
+
+    pool = app.state.engine.pool
+    event.listen(pool, "checkout", checkout)
+    event.listen(pool, "checkin", checkin)
+    try:
+        doc = _ok(client.get(f"/api/participants/{pid}/progress"))
+    finally:
+        event.remove(pool, "checkout", checkout)
+        event.remove(pool, "checkin", checkin)
+    assert doc["sessions"][0]["confirmed_lifts"] == 3
+    assert out["most"] == 1
+    writer = app.state.runtime.recorder.engine
+    assert writer is not app.state.engine and writer.pool is not pool
+
+
+def test_twenty_progress_requests_at_once_all_answer(client: TestClient,
+                                                      db_url: str) -> None:
+    """More requests at once than the pool has connections: each waits for one
+    connection and answers (two per request deadlocked the pool into 500s)."""
+    _, pid, sid = _wearer(client)
+    add_long_use_trial(make_engine(db_url), sid, 2, 1, 1)
+    n = 20
+    barrier = threading.Barrier(n)
+
+    def ask(_: int) -> int:
+        barrier.wait()
+        return int(client.get(f"/api/participants/{pid}/progress").status_code)
+
+    with ThreadPoolExecutor(n) as pool:
+        codes = list(pool.map(ask, range(n)))
+    assert codes == [200] * n

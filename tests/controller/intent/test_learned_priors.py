@@ -70,3 +70,38 @@ def test_bad_records_are_refused_by_name() -> None:
         LearnedPriors.from_json(doc)
     assert equal_priors().values == (0.25,) * 4
     assert np.isclose(sum(equal_priors().estimate), 1.0)
+
+
+@pytest.mark.parametrize(("field", "value", "named"), [
+    ("values", 5, "values"), ("meta", 5, "meta"), ("forgetting", None, "forgetting"),
+    ("forgetting", True, "forgetting"), ("estimate", "0.25", "estimate"),
+    ("classes", [1, 2, 3, 4], "classes"), ("roles", ["x"] * 4, "x"),
+    ("floors", [1e-12] * 4, "floors"), ("floors", ["a"] * 4, "floors"),
+    ("sources", 7, "sources"), ("version", [], "version"), ("counts", {}, "counts"),
+])
+def test_forged_documents_are_refused_with_a_value_error_naming_the_field(
+        field: str, value: object, named: str) -> None:
+    doc = learn_from_confirmed(["squat"], BOUNDS).to_json()
+    doc[field] = value
+    with pytest.raises(ValueError, match=named):
+        LearnedPriors.from_json(doc)
+
+
+@settings(max_examples=60, deadline=None)
+@given(doc=st.one_of(
+    st.lists(st.integers(), max_size=3),
+    st.dictionaries(st.sampled_from(["version", "values", "estimate", "method", "classes",
+                                     "pseudo_counts", "counts", "forgetting", "floors",
+                                     "roles", "sources", "created", "meta"]),
+                    st.one_of(st.none(), st.booleans(), st.integers(), st.floats(),
+                              st.text(max_size=3), st.lists(st.floats(), max_size=5),
+                              st.dictionaries(st.text(max_size=2), st.integers(),
+                                              max_size=2)))))
+def test_any_document_is_a_record_or_a_value_error(doc: object) -> None:
+    """Whatever a stored row holds, reading it raises ValueError or succeeds."""
+    if isinstance(doc, dict):
+        doc = {**learn_from_confirmed(["squat"], BOUNDS).to_json(), **doc}
+    try:
+        LearnedPriors.from_json(doc)
+    except ValueError:
+        pass

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from sqlalchemy.orm import Session
 
-from backend.analysis import muscle_results
 from backend.core.config import Settings
 from backend.db import migrate
 from backend.db.emg import EmgAnalysisSettings, EmgMontage, MvcStep
@@ -20,7 +19,7 @@ from backend.db.engine import make_engine
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, Study, StudySession
-from backend.emg import recordings, store
+from backend.emg import muscle_results, recordings, store
 from controller.emg.processing import EmgProcessing
 from controller.sim.muscles import CHANNELS, channel_label
 from controller.sim.surface_emg import SurfaceEmgGenerator

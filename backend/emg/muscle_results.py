@@ -901,3 +901,15 @@ def iter_export(res: MuscleResults) -> Iterable[tuple[str, str]]:
     for name in TABLES:
         yield f"muscle_{name}.csv", res.csv(name)
     yield "muscle_method.json", json.dumps(res.method(), indent=1)
+
+
+def export_files(engine: Engine, study_id: int, site: str | None) -> list[tuple[str, str]]:
+    """(file name, text) of the study's muscle-activity tables from its stored EMG, with
+    the method, for the owner's trial-data export; a study whose EMG cannot be read gets
+    a note saying why instead (the export never fails on it)."""
+    try:
+        with Session(engine) as db:
+            res = CACHE.get(engine, db, store.engine_emg_folder(engine), study_id, site)
+            return list(iter_export(res))
+    except Exception as exc:  # a note in the archive, never a failed export
+        return [("README.txt", f"muscle activity not computed: {exc}\n")]
