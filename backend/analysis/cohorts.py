@@ -13,14 +13,15 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import update
+from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend.analysis.job_process import run_in_child
 from backend.analysis.jobs import JobRunner, QuotaFullError, Reporter
-from backend.core.errors import ConflictError
+from backend.core.errors import ConflictError, NotFoundError
 from backend.db import audit
 from backend.db.cohorts import CohortRecord
+from backend.db.evidence_tables import Job
 from backend.db.models import User
 from backend.schemas.cohorts import CohortIn, CohortOut
 from controller.evaluation.cohort import CohortConfig
@@ -100,3 +101,25 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
 
     jobs.enqueue(job_id, work, failed, target_id=cohort_id)
     return CohortOut.model_validate(row).model_copy(update={"job_id": job_id})
+
+
+def newest_first(db: Session) -> list[CohortRecord]:
+    """Every cohort, the newest first."""
+    return list(db.scalars(select(CohortRecord).order_by(CohortRecord.id.desc())))
+
+
+def current(db: Session, cohort_id: int) -> CohortRecord:
+    """The cohort as its job last wrote it (the job writes from its own session, so
+    what this session loaded before is stale); `NotFoundError` if there is none."""
+    db.expire_all()
+    row = db.get(CohortRecord, cohort_id)
+    if row is None:
+        raise NotFoundError("cohort", cohort_id)
+    return row
+
+
+def progress(db: Session, cohort_id: int) -> dict[str, Any]:
+    """`job_id` and `progress` of the cohort's latest job ({} if it has none)."""
+    job = db.scalars(select(Job).where(Job.kind == "cohort", Job.target_id == cohort_id)
+                     .order_by(Job.id.desc())).first()
+    return {} if job is None else {"job_id": job.id, "progress": job.progress}

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.db.models import AuditEntry, User
@@ -26,3 +27,15 @@ def record(session: Session, actor: User | str, action: str, entity: str,
     )
     session.add(entry)
     return entry
+
+
+def entries(session: Session, entity: str | None, entity_id: str | None, limit: int,
+            offset: int) -> list[AuditEntry]:
+    """The log newest first, optionally of one entity (and id): what the admin page
+    pages through."""
+    q = select(AuditEntry)
+    if entity is not None:
+        q = q.where(AuditEntry.entity == entity)
+    if entity_id is not None:
+        q = q.where(AuditEntry.entity_id == entity_id)
+    return list(session.scalars(q.order_by(AuditEntry.id.desc()).limit(limit).offset(offset)))

@@ -38,6 +38,20 @@ def holders(db: Session) -> list[tuple[User, DeviceGrant]]:
     return [(u, g) for u, g in rows]
 
 
+def parties(db: Session, g: DeviceGrant) -> tuple[User, str | None]:
+    """The account holding `g` and the name of the one who gave it (None: given from
+    the command line, or that account is gone)."""
+    holder = db.get(User, g.user_id)
+    assert holder is not None  # the grant's row goes with its account
+    return holder, granter(db, g)
+
+
+def granter(db: Session, g: DeviceGrant) -> str | None:
+    """The name of the account that gave `g`, if any is left."""
+    by = None if g.granted_by is None else db.get(User, g.granted_by)
+    return None if by is None else by.username
+
+
 def _account(db: Session, username: str) -> User:
     user = db.scalars(select(User).where(User.username == username)).first()
     if user is None:

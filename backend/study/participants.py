@@ -84,6 +84,21 @@ def correct(db: Session, user: User, p: Participant, body: ParticipantUpdate,
     return p
 
 
+def of_study(db: Session, study_id: int, site: str | None) -> list[Participant]:
+    """The study's participants by code (`site`: only that site's)."""
+    q = select(Participant).where(Participant.study_id == study_id)
+    if site is not None:
+        q = q.where(Participant.site == site)
+    return list(db.scalars(q.order_by(Participant.code)))
+
+
+def conditions_of(db: Session, participant_id: int) -> list[ConditionLabel]:
+    """The participant's blinded labels with the controllers, by label (the caller
+    decides who may see the controllers)."""
+    return list(db.scalars(select(ConditionLabel).where(
+        ConditionLabel.participant_id == participant_id).order_by(ConditionLabel.label)))
+
+
 def add_condition(db: Session, user: User, participant_id: int, body: ConditionIn
                   ) -> ConditionLabel:
     """Blind a controller behind a label for this participant; a label or controller

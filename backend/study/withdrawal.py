@@ -41,7 +41,14 @@ def _erase_ticks(db: Session, participant_id: int) -> None:
 
 
 def withdraw(db: Session, p: Participant, actor: User) -> Outcome:
-    """Apply the study's withdrawal policy to `p` (not committed)."""
+    """Apply the study's withdrawal policy to `p` and commit."""
+    outcome = _apply(db, p, actor)
+    db.commit()
+    return outcome
+
+
+def _apply(db: Session, p: Participant, actor: User) -> Outcome:
+    """The policy's changes and the audit entry, not committed."""
     study = db.get(Study, p.study_id)
     policy = study.withdrawal_policy if study is not None else "erase"
     pid, study_id = p.id, p.study_id

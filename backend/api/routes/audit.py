@@ -5,10 +5,10 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep, access
 from backend.api.errors import AUTH_RESPONSES, INVALID
+from backend.db import audit
 from backend.db.models import AuditEntry
 from backend.schemas.audit import AuditOut
 
@@ -26,9 +26,4 @@ def list_audit(
     offset: Annotated[int, Query(ge=0, le=1_000_000)] = 0,
 ) -> list[AuditEntry]:
     """Who created or changed what; filter by entity and id."""
-    q = select(AuditEntry)
-    if entity is not None:
-        q = q.where(AuditEntry.entity == entity)
-    if entity_id is not None:
-        q = q.where(AuditEntry.entity_id == entity_id)
-    return list(db.scalars(q.order_by(AuditEntry.id.desc()).limit(limit).offset(offset)))
+    return audit.entries(db, entity, entity_id, limit, offset)

@@ -14,7 +14,6 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Response
 from fastapi import Path as PathParam
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.analysis import cohorts
@@ -54,25 +53,16 @@ def start_cohort(body: CohortIn, sessions: SessionFactoryDep, jobs: JobsDep,
 @router.get("/api/cohorts", response_model=list[CohortOut], openapi_extra=access("login"))
 def list_cohorts(user: CurrentUser, db: SessionDep) -> list[CohortOut]:
     """Every cohort, newest first, without their results."""
-    rows = db.scalars(select(CohortRecord).order_by(CohortRecord.id.desc()))
+    rows = cohorts.newest_first(db)
     return [CohortOut.model_validate(r).model_copy(update={"result": None}) for r in rows]
-
-
-def _job(db: Session, cohort_id: int) -> dict[str, Any]:
-    from backend.db.evidence_tables import Job
-
-    job = db.scalars(select(Job).where(Job.kind == "cohort", Job.target_id == cohort_id)
-                     .order_by(Job.id.desc())).first()
-    return {} if job is None else {"job_id": job.id, "progress": job.progress}
 
 
 @router.get("/api/cohorts/{cohort_id}", response_model=CohortOut,
             openapi_extra=access("login"))
 def get_cohort(cohort_id: CohortId, user: CurrentUser, db: SessionDep) -> CohortOut:
     """One cohort with its analysis (`result`, the cohort.json document) once ready."""
-    db.expire_all()
-    row = one_or_404(db, CohortRecord, cohort_id, "cohort")
-    return CohortOut.model_validate(row).model_copy(update=_job(db, row.id))
+    row = cohorts.current(db, cohort_id)
+    return CohortOut.model_validate(row).model_copy(update=cohorts.progress(db, row.id))
 
 
 def _ready(db: Session, cohort_id: int) -> dict[str, Any]:

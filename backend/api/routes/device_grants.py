@@ -17,16 +17,14 @@ router = APIRouter(prefix="/api/device-grants", tags=["accounts"],
                    dependencies=[Depends(current_user)], responses=AUTH_RESPONSES)
 
 
-def _out(db: SessionDep, user: User, g: DeviceGrant) -> DeviceGrantOut:
-    by = None if g.granted_by is None else db.get(User, g.granted_by)
-    return DeviceGrantOut(username=user.username, granted_at=g.granted_at,
-                          granted_by=None if by is None else by.username)
+def _out(user: User, g: DeviceGrant, by: str | None) -> DeviceGrantOut:
+    return DeviceGrantOut(username=user.username, granted_at=g.granted_at, granted_by=by)
 
 
 @router.get("", response_model=list[DeviceGrantOut], openapi_extra=access("admin"))
 def list_device_grants(db: SessionDep) -> list[DeviceGrantOut]:
     """Every account holding the device grant (admins hold it without one)."""
-    return [_out(db, u, g) for u, g in device_grants.holders(db)]
+    return [_out(u, g, device_grants.granter(db, g)) for u, g in device_grants.holders(db)]
 
 
 @router.put("/{username}", response_model=DeviceGrantOut, responses=NOT_FOUND,
@@ -34,9 +32,8 @@ def list_device_grants(db: SessionDep) -> list[DeviceGrantOut]:
 def grant_device(username: str, user: CurrentUser, db: SessionDep) -> DeviceGrantOut:
     """Give the account the device grant (unchanged if it holds one)."""
     g = device_grants.grant(db, user, username)
-    target = db.get(User, g.user_id)
-    assert target is not None
-    return _out(db, target, g)
+    holder, by = device_grants.parties(db, g)
+    return _out(holder, g, by)
 
 
 @router.delete("/{username}", status_code=204, responses=NOT_FOUND,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Request
-from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep, SiteDep, access
 from backend.api.errors import (
@@ -34,10 +33,7 @@ def list_participants(study_id: StudyId, site: SiteDep, user: CurrentUser,
                       db: SessionDep) -> list[Participant]:
     """The participants of a study, by code (a site-limited member: that site's)."""
     one_or_404(db, Study, study_id, "study")
-    q = select(Participant).where(Participant.study_id == study_id)
-    if site is not None:
-        q = q.where(Participant.site == site)
-    return list(db.scalars(q.order_by(Participant.code)))
+    return participants.of_study(db, study_id, site)
 
 
 @router.post("/api/studies/{study_id}/participants", response_model=ParticipantOut,
@@ -73,8 +69,7 @@ def list_conditions(participant_id: ParticipantId, request: Request, user: Curre
     """The participant's blinded labels; the blinding key (which controller each label
     stands for) only for the study's owners, `null` for everyone else."""
     one_or_404(db, Participant, participant_id, "participant")
-    rows = db.scalars(select(ConditionLabel).where(
-        ConditionLabel.participant_id == participant_id).order_by(ConditionLabel.label))
+    rows = participants.conditions_of(db, participant_id)
     unblind = may_unblind(request.state)
     return [ConditionOut.model_validate(c).model_copy(
         update={} if unblind else {"controller": None}) for c in rows]
@@ -99,5 +94,4 @@ def withdraw(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
     audit entry names the participant id only, never the erased data."""
     p = one_or_404(db, Participant, participant_id, "participant")
     outcome = withdrawal.withdraw(db, p, user)
-    db.commit()
     return WithdrawalOut(participant_id=participant_id, outcome=outcome)

@@ -2,18 +2,14 @@
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
-
 from fastapi import APIRouter
-from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, BODY, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId, SessionId
-from backend.db import audit
 from backend.db.models import Participant, StudySession
 from backend.schemas.sessions import SessionIn, SessionOut, SessionUpdate
-from backend.study import hardware_profiles
+from backend.study import visits
 
 router = APIRouter(tags=["sessions"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
 
@@ -23,9 +19,7 @@ def list_sessions(participant_id: ParticipantId, user: CurrentUser, db: SessionD
                   ) -> list[StudySession]:
     """A participant's sessions in the order they happened."""
     one_or_404(db, Participant, participant_id, "participant")
-    return list(db.scalars(select(StudySession).where(
-        StudySession.participant_id == participant_id)
-        .order_by(StudySession.started_at, StudySession.id)))
+    return visits.of_participant(db, participant_id)
 
 
 @router.post("/api/participants/{participant_id}/sessions", response_model=SessionOut,
@@ -34,16 +28,7 @@ def create_session(participant_id: ParticipantId, body: SessionIn, user: Current
                    db: SessionDep) -> StudySession:
     """Start a session record with the exoskeleton's settings."""
     one_or_404(db, Participant, participant_id, "participant")
-    s = StudySession(participant_id=participant_id, kind=body.kind,
-                     precompression_pct=body.precompression_pct,
-                     started_at=body.started_at or datetime.now(UTC), notes=body.notes,
-                     hardware_profile_id=hardware_profiles.active_id(db))
-    db.add(s)
-    db.flush()
-    audit.record(db, user, "create", "session", s.id,
-                 {"participant_id": participant_id, **body.model_dump(mode="json")})
-    db.commit()
-    return s
+    return visits.start(db, user, participant_id, body)
 
 
 @router.get("/api/sessions/{session_id}", response_model=SessionOut)
@@ -57,9 +42,4 @@ def update_session(session_id: SessionId, body: SessionUpdate, user: CurrentUser
                    db: SessionDep) -> StudySession:
     """Correct the precompression or the notes."""
     s = one_or_404(db, StudySession, session_id, "session")
-    changes = body.model_dump(mode="json", exclude_unset=True, exclude_none=True)
-    for field, value in changes.items():
-        setattr(s, field, value)
-    audit.record(db, user, "update", "session", s.id, changes)
-    db.commit()
-    return s
+    return visits.correct(db, user, s, body)

@@ -301,3 +301,46 @@ def test_prior_sets_posted_at_once_get_distinct_versions(client: TestClient,
         answers = list(pool.map(post, range(n)))
     assert [r.status_code for r in answers] == [201] * n, [r.text for r in answers]
     assert sorted(r.json()["version"] for r in answers) == [1, 2, 3, 4]
+
+
+def test_forged_prior_documents_are_refusals_and_listed_as_invalid(
+        client: TestClient, settings: Settings) -> None:
+    """Rows altered into documents of the wrong types: the lists still answer (the row
+    marked invalid), a plan naming one is 422, learning on from one is 409."""
+    ids = _setup(client, settings)
+    pid, sid = ids["participants"][0], ids["sessions"][0]
+    made = [_ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": f"equal {i}", "method": "equal", "utility_set_id": ids["us"]}), 201)
+        for i in range(4)]
+    good = made[0]["document"]
+    forged = [{**good, "values": 5}, {**good, "meta": 5}, {**good, "forgetting": None},
+              [1, 2, 3]]
+    engine = make_engine(settings.database_url)
+    with make_session_factory(engine)() as db:
+        for row, doc in zip(made, forged, strict=True):
+            db.execute(update(PriorSetRecord).where(PriorSetRecord.id == row["id"])
+                       .values(document=doc))
+        db.commit()
+    engine.dispose()
+    listed = _ok(client.get(f"/api/participants/{pid}/prior-sets"))
+    assert [r["document"] for r in listed] == [None] * 4
+    assert ["values" in listed[0]["problem"], "meta" in listed[1]["problem"],
+            "forgetting" in listed[2]["problem"], "object" in listed[3]["problem"]] == [
+        True] * 4
+    assert len(_ok(client.get(f"/api/studies/{ids['study']}/prior-sets"))) == 4
+    assert _ok(client.get(f"/api/prior-sets/{made[2]['id']}"))["problem"] is not None
+    for row in made:
+        r = client.post(f"/api/sessions/{sid}/trials/plan", json={
+            "tasks": TASKS, "include_eumc": False, "model_set_id": ids["ms"],
+            "utility_set_id": ids["us"], "conditions": ["population", "population+priors"],
+            "prior_set_id": row["id"]})
+        assert r.status_code == 422, r.text
+        assert "not a valid priors document" in r.text
+        r = client.post(f"/api/participants/{pid}/prior-sets", json={
+            "name": "on", "method": "dirichlet", "utility_set_id": ids["us"],
+            "previous_prior_set_id": row["id"]})
+        assert r.status_code == 409 and "not a valid priors document" in r.text, r.text
+    # The floor: at least the documented one (0.05).
+    r = client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "tiny", "method": "equal", "utility_set_id": ids["us"], "floor": 1e-300})
+    assert r.status_code == 422 and "floor" in r.text
