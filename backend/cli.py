@@ -214,7 +214,7 @@ def _virtual_study(args: argparse.Namespace) -> int:
         data_participants=args.data_participants, eumc=args.eumc, seed=args.seed,
         speed=args.speed, collection_speed=args.collection_speed,
         rates=tuple(args.rates.split(",")), model_evaluation=not args.no_model_evaluation,
-        emg=not args.no_emg)
+        emg=args.emg)
     report = run(cfg, log=lambda m: print(m, flush=True))
     print(f"virtual study done in {report.wall_s:.0f} s; {len(report.trials)} trials; "
           f"wrote {len(report.files)} files to {args.out} (see README.md there)")
@@ -436,8 +436,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulator speed-up while demonstrations are recorded")
     v.add_argument("--rates", default="paper-rates,100hz",
                    help="comma-separated rate settings: paper-rates, 100hz")
-    v.add_argument("--no-emg", action="store_true",
-                   help="no EMG and no baseline conditions (the paper's protocol alone)")
+    v.add_argument("--emg", action="store_true",
+                   help="also the two baseline conditions and the simulated wearer's EMG, "
+                        "recorded over LSL, with the muscle-activity results (slower); "
+                        "without it, the paper's protocol alone")
     v.add_argument("--no-model-evaluation", action="store_true",
                    help="skip the leave-one-participant-out evaluation of the models")
     v.add_argument("--out", required=True)

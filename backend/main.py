@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from backend import console_pages
 from backend.analysis import jobs
 from backend.api import docs_assets, guide, json_text, log_redaction, viewer, web_surface
-from backend.api.deps import authorize, document_access
+from backend.api.deps import authorize, document_access, heavy_reads_gate
 from backend.api.errors import install_handlers
 from backend.api.openapi import document_framework_errors, name_operations
 from backend.api.routes import (
@@ -184,6 +184,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(json_text.StorableJsonText)
     # WebSockets end with their login: revoking routes wake their watchers.
     app.state.socket_logins = SocketLogins()
+    # Reads of ticks beside a request's session, a few at a time (backend/api/deps.py).
+    app.state.heavy_reads = heavy_reads_gate()
     # Routes that take a file allow max_upload_bytes, all others max_body_bytes; the
     # list is filled below, once the routes are included.
     upload_paths: list[str] = []

@@ -10,6 +10,7 @@ the utility set it names.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -249,7 +250,12 @@ def _previous(db: Session, ref: int | None, participant: Participant) -> PriorSe
 def confirmed_motions(db: Session, participant: Participant, include_recordings: bool,
                       gait_trials_as_other: bool) -> list[tuple[str, str]]:
     """(source id, category) of the participant's confirmed motions, oldest first:
-    labelled trial segments, labelled recording segments and completed gait trials."""
+    labelled trial segments, labelled recording segments and completed gait trials.
+
+    A source id names the motion, not the row that holds it: a lift is its trial (or
+    recording) and its first and last sample (`trial:12:300-399`). Saving a trial's
+    segments replaces their rows; the lifts keep their ids, so a later prior set
+    neither skips them nor counts them again."""
     sessions = _participant_sessions(db, participant.id)
     timed: list[tuple[float, str, str]] = []
     trials = list(db.scalars(select(Trial).where(Trial.session_id.in_(sessions or [-1]),
@@ -259,7 +265,8 @@ def confirmed_motions(db: Session, participant: Participant, include_recordings:
         t0 = trial.started_at.timestamp()
         for s in db.scalars(select(TrialSegment).where(TrialSegment.trial_id == trial.id)):
             if s.label in CATEGORY_NAMES:
-                timed.append((t0 + s.peak / 100.0, f"trial-segment:{s.id}", s.label))
+                timed.append((t0 + s.peak / 100.0, f"trial:{trial.id}:{s.start}-{s.end}",
+                              s.label))
         if gait_trials_as_other and trial.task in GAIT_TASKS and trial.status == "completed":
             timed.append((t0, f"gait-trial:{trial.id}", "other"))
     if include_recordings:
@@ -267,19 +274,33 @@ def confirmed_motions(db: Session, participant: Participant, include_recordings:
             t0 = rec.started_at.timestamp()
             for ls in db.scalars(select(LiftSegment).where(LiftSegment.recording_id == rec.id)):
                 if ls.label in CATEGORY_NAMES:
-                    timed.append((t0 + ls.peak / 100.0, f"segment:{ls.id}", ls.label))
+                    timed.append((t0 + ls.peak / 100.0,
+                                  f"recording:{rec.id}:{ls.start}-{ls.end}", ls.label))
     timed.sort()
-    return [(src, lab) for _, src, lab in timed]
+    return list(dict((src, lab) for _, src, lab in timed).items())
 
 
 def _trial_priors(trial: Trial) -> tuple[float, ...]:
+    """The priors a trial ran with (its snapshot's; equal ones if it names none).
+
+    Raises:
+        ConflictError: the snapshot's priors are not 4 positive finite values summing
+            to 1 (the EM estimate divides by them), naming the trial."""
     snap = (trial.config_snapshot or {}).get("settings") or {}
-    pr = snap.get("priors")
-    return tuple(float(x) for x in pr) if isinstance(pr, list) and len(pr) == 4 \
-        else tuple(EQUAL_PRIORS)
+    pr = snap.get("priors") if isinstance(snap, dict) else None
+    if pr is None:
+        return tuple(EQUAL_PRIORS)
+    ok = isinstance(pr, list) and len(pr) == N_CATEGORIES and all(
+        isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+        for x in pr) and abs(sum(pr) - 1.0) <= 1e-6
+    if not ok:
+        raise ConflictError("method", f"trial {trial.id} ran with priors {pr!r} in its "
+                            "configuration snapshot; label-shift-em needs 4 positive "
+                            "values summing to 1 for every trial it learns from")
+    return tuple(float(x) for x in pr)
 
 
-def unconfirmed_posteriors(engine: Engine, db: Session, participant: Participant,
+def unconfirmed_posteriors(db: Session, participant: Participant,
                            window_s: float) -> tuple[np.ndarray, tuple[float, ...], list[str]]:
     """One posterior per motion of the participant's completed UMC and E-UMC trials
     (every segmented lift at its peak, and one per `window_s` of ticks outside lifts, at
@@ -305,7 +326,8 @@ def unconfirmed_posteriors(engine: Engine, db: Session, participant: Participant
               "post_stoop_right", "post_other")
     for trial in trials:
         assert trial.run_id is not None
-        cols = tick_queries.columns(engine, trial.run_id, fields=fields)
+        # The session's connection: one per request (tick_queries' docstring).
+        cols = tick_queries.columns(db.connection(), trial.run_id, fields=fields)
         post = np.column_stack([cols[f] for f in fields[4:]]).astype(np.float64)
         ok = np.asarray(cols["controller_ran"], dtype=bool) & np.isfinite(post).all(axis=1)
         evaluated = np.flatnonzero(ok)
@@ -344,7 +366,7 @@ def unconfirmed_posteriors(engine: Engine, db: Session, participant: Participant
 VERSION_ATTEMPTS = 5
 
 
-def learn_prior_set(db: Session, engine: Engine, user: User, participant: Participant,
+def learn_prior_set(db: Session, user: User, participant: Participant,
                     body: PriorSetIn) -> PriorSetRecord:
     """A new version of the participant's priors, inside the bound of `utility_set_id`
     (learned ones projected onto it, imported ones refused outside it); commits.
@@ -356,7 +378,7 @@ def learn_prior_set(db: Session, engine: Engine, user: User, participant: Partic
     pid, code = participant.id, participant.code
     for _ in range(VERSION_ATTEMPTS):
         try:
-            return _learn_prior_set(db, engine, user, participant, body)
+            return _learn_prior_set(db, user, participant, body)
         except IntegrityError:
             db.rollback()
             if db.scalar(select(func.count()).select_from(Participant)
@@ -366,7 +388,7 @@ def learn_prior_set(db: Session, engine: Engine, user: User, participant: Partic
                         "stored at the same time; try again")
 
 
-def _learn_prior_set(db: Session, engine: Engine, user: User, participant: Participant,
+def _learn_prior_set(db: Session, user: User, participant: Participant,
                      body: PriorSetIn) -> PriorSetRecord:
     utilities = _utility_set(db, body.utility_set_id, participant.study_id)
     bounds = PriorBounds.for_table(_table(utilities), (body.floor,) * N_CATEGORIES)
@@ -388,23 +410,44 @@ def _learn_prior_set(db: Session, engine: Engine, user: User, participant: Parti
             except ValueError as exc:
                 raise ConflictError("previous_prior_set_id", f"prior set {previous.id} is "
                                     f"not a valid priors document: {exc}") from None
-        seen = set(before.sources) if before is not None else set()
-        new = [(s, lab) for s, lab in motions if s not in seen]
+        current = dict(motions)
+        known = _source_labels(before)
+        relabelled = sorted(s for s, lab in known.items() if current.get(s, lab) != lab)
+        continued = before
+        if relabelled and before is not None:
+            # A motion the previous set counted has a new label: its old label is in
+            # the previous counts, so every motion is counted afresh (once, with its
+            # label now), with the previous set's pseudo-counts and forgetting.
+            continued = None
+            if before.method == "dirichlet":
+                body = body.model_copy(update={"pseudo_count": before.pseudo_counts[0],
+                                               "forgetting": before.forgetting})
+            new = motions
+        else:
+            seen = set(before.sources) if before is not None else set()
+            new = [(s, lab) for s, lab in motions if s not in seen]
         if not new and before is None:
             raise InvalidError.at(["body", "method"], f"participant {participant.code} has "
                                   "no confirmed motions yet: label trial or recording "
                                   "segments, or complete walking or stairs trials")
+        labels = {**(known if continued is not None else {}), **dict(new)}
         priors = learn_from_confirmed(
-            [lab for _, lab in new], bounds, sources=[s for s, _ in new], previous=before,
+            [lab for _, lab in new], bounds, sources=[s for s, _ in new], previous=continued,
             pseudo_counts=(body.pseudo_count,) * N_CATEGORIES, forgetting=body.forgetting,
-            version=label, meta=meta)
+            version=label, meta={**meta, SOURCE_LABELS: labels})
         params.update(pseudo_count=priors.pseudo_counts[0], forgetting=priors.forgetting,
                       new_motions=len(new), include_recordings=body.include_recordings,
-                      gait_trials_as_other=body.gait_trials_as_other)
+                      gait_trials_as_other=body.gait_trials_as_other,
+                      relabelled=relabelled[:50], recounted=continued is None
+                      and before is not None)
     elif body.method == "label-shift-em":
-        posts, train, sources = unconfirmed_posteriors(engine, db, participant, body.window_s)
-        priors = learn_from_unconfirmed(posts, train, bounds, sources=tuple(sources),
-                                        version=label)
+        posts, train, sources = unconfirmed_posteriors(db, participant, body.window_s)
+        try:
+            priors = learn_from_unconfirmed(posts, train, bounds, sources=tuple(sources),
+                                            version=label)
+        except ValueError as exc:
+            raise ConflictError("method", f"label-shift-em cannot learn from participant "
+                                f"{participant.code}'s trials: {exc}") from None
         priors = LearnedPriors.from_json({**priors.to_json(),
                                           "meta": {**priors.meta, **meta}})
         params.update(window_s=body.window_s, motions=len(sources))
@@ -431,6 +474,18 @@ def _learn_prior_set(db: Session, engine: Engine, user: User, participant: Parti
                   "values": list(priors.values), "estimate": list(priors.estimate)})
     db.commit()
     return row
+
+
+#: Where a learned set's document keeps each source's label when it was counted.
+SOURCE_LABELS = "source_labels"
+
+
+def _source_labels(priors: LearnedPriors | None) -> dict[str, str]:
+    """Each counted source's label as counted (empty for a set that kept none)."""
+    got = priors.meta.get(SOURCE_LABELS) if priors is not None else None
+    if not isinstance(got, dict):
+        return {}
+    return {str(k): str(v) for k, v in got.items()}
 
 
 def _table(utilities: UtilitySetRecord) -> np.ndarray:

@@ -37,15 +37,17 @@ Protocol (paper, "User study set-up"), and the choices made here:
   device-time gaps are reported.
 - Questionnaires are left out: a virtual participant has no opinion, and invented
   answers would only look like data. The outputs say so.
-- Muscle activity (`emg`, on by default): the first rate setting's study also plans the
-  two baseline conditions (springs free, no exoskeleton), counterbalanced and blinded
-  with the controllers, each one repetition of the `lift-evaluation` script (the lifts
-  of the paper's evaluation: baselines are measured in lifts only). The simulator
-  publishes the wearer's EMG on LSL as a 16-channel 2 kHz amplifier
-  (`controller.sim.emg_amplifier`); each participant's session of that study
-  subscribes to the stream (12 muscles by the study's montage, 4 spare inputs ignored)
-  for its trials and records it through the server's inlet into the EMG store, and the
-  results read it back (`backend.analysis.muscle_results`), normalised to the task peak
+- Muscle activity (`emg`, `--emg`; off by default: the paper's protocol alone, several
+  times faster): the first rate setting's study also plans the two baseline conditions
+  (springs free, no exoskeleton), counterbalanced and blinded with the controllers,
+  each one repetition of the `lift-evaluation` script (the lifts of the paper's
+  evaluation: baselines are measured in lifts only). The simulator publishes the
+  wearer's EMG on LSL as a 16-channel 2 kHz amplifier (`controller.sim.emg_amplifier`);
+  each participant's session of that study subscribes to the stream by its source id
+  (this process is the server, so the id names this study's simulator and no other on
+  the machine; 12 muscles by the study's montage, 4 spare inputs ignored) for its
+  trials and records it through the server's inlet into the EMG store, and the results
+  read it back (`backend.emg.muscle_results`), normalised to the task peak
   (a virtual participant performs no MVC). The simulation runs faster than real time,
   so the stream's timestamps are closer together than 2 kHz: every recording carries
   the `rate_mismatch` flag, which says exactly that; samples are processed at the
@@ -128,8 +130,9 @@ class VirtualStudyConfig:
     rates: tuple[str, ...] = tuple(RATE_SETTINGS)
     margin_s: float = 6.0
     model_evaluation: bool = True
-    #: EMG on LSL and the baseline conditions in the first rate setting's study.
-    emg: bool = True
+    #: EMG on LSL and the baseline conditions in the first rate setting's study (off:
+    #: the paper's protocol alone, which is several times faster).
+    emg: bool = False
     baseline_script: str = "lift-evaluation"
     #: Simulator speed-up in the pause after a trial that records EMG, while the
     #: server's inlet catches up with what the sped-up trial produced (LSL buffers it).
@@ -431,11 +434,17 @@ def _drain_emg(d: _Driver, session_id: int, sub: int, until: float) -> None:
 def _subscribe_emg(d: _Driver, session_id: int) -> int:
     """Record the simulated amplifier with the session (as an experimenter subscribes
     the lab's amplifier); the subscription's id. The stream appears once the simulator
-    runs; a subscription is refused (409) until it is visible."""
+    runs; a subscription is refused (409) until it is visible. By source id: this
+    process is the server, the worker's parent, so the id names this study's simulator
+    alone; by name, the inlet could record another simulator on the machine (another
+    virtual study, a test), whose samples then stand in for this one's."""
+    from controller.sim.emg_amplifier import server_source_id
+
     deadline = time.monotonic() + STALL_S
     while True:
         r = d.c.post(f"/api/sessions/{session_id}/emg-streams",
-                     json={"name": EMG_STREAM, "ignore_labels": list(EMG_SPARE)})
+                     json={"name": EMG_STREAM, "source_id": server_source_id(os.getpid()),
+                           "ignore_labels": list(EMG_SPARE)})
         if r.status_code == 201:
             sub = int(r.json()["id"])
             break

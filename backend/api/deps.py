@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import threading
 from collections.abc import Iterator
 from typing import Annotated, Any, Literal, NoReturn
 
@@ -88,10 +89,35 @@ def get_settings_of_app(request: Request) -> Settings:
 SettingsDep = Annotated[Settings, Depends(get_settings_of_app)]
 
 
-def get_engine(request: Request) -> Engine:
-    """The database engine, for reads that stream ticks outside the request's session."""
-    engine: Engine = request.app.state.engine
-    return engine
+#: Requests holding the engine (reads of ticks beside the request's session) at once.
+#: Each may hold two pooled connections (its session's and the read's); four hold at
+#: most eight of the pool's fifteen, so they cannot wait on each other for the pool,
+#: and the tick writer has a pool of its own (backend/main.py).
+HEAVY_READS = 4
+#: Seconds a refused heavy read is told to wait.
+HEAVY_RETRY_S = 2
+
+
+def heavy_reads_gate() -> threading.BoundedSemaphore:
+    """The app's gate of `HEAVY_READS` (set on `app.state.heavy_reads`)."""
+    return threading.BoundedSemaphore(HEAVY_READS)
+
+
+def get_engine(request: Request) -> Iterator[Engine]:
+    """The database engine, for reads that stream ticks outside the request's session;
+    at most `HEAVY_READS` requests at once, others answered 503 with `Retry-After`
+    (never left to wait for a pool connection while holding one)."""
+    gate: threading.BoundedSemaphore | None = getattr(request.app.state, "heavy_reads",
+                                                       None)
+    if gate is not None and not gate.acquire(blocking=False):
+        raise HTTPException(503, f"{HEAVY_READS} analysis or export requests are running; "
+                            f"try again in {HEAVY_RETRY_S} s",
+                            headers={"Retry-After": str(HEAVY_RETRY_S)})
+    try:
+        yield request.app.state.engine
+    finally:
+        if gate is not None:
+            gate.release()
 
 
 EngineDep = Annotated[Engine, Depends(get_engine)]

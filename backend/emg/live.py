@@ -269,19 +269,7 @@ class EmgInlet:
                     if not ts:
                         continue
                     correction = inlet.time_correction(timeout=1.0)
-                    raw = np.asarray(chunk, dtype=np.float64)
-                    import os as _os
-                    if _os.environ.get("EMGDBG"):
-                        seq = raw[:, 15]
-                        prev = getattr(self, "_dbg_prev", None)
-                        jumps = np.diff(np.concatenate([[prev], seq]) if prev is not None else seq)
-                        bad = np.nonzero(jumps != 1)[0]
-                        with open("/tmp/emgdbg/inlet.log", "a") as _f:
-                            for b in bad[:5]:
-                                _f.write(f"gap rec {rec.row.id} after {seq[0]} jump {jumps[b]} at {b} n {len(seq)}\n")
-                        self._dbg_prev = seq[-1]
-                        self._dbg_n = getattr(self, "_dbg_n", 0) + len(seq)
-                    x = raw[:, cols] * volts
+                    x = np.asarray(chunk, dtype=np.float64)[:, cols] * volts
                     t = np.asarray(ts, dtype=np.float64) + correction
                     rec.append(t, x)
                     self.samples += len(ts)
@@ -301,10 +289,6 @@ class EmgInlet:
                     inlet.close_stream()
                 except Exception:
                     pass
-                import os as _os
-                if _os.environ.get("EMGDBG"):
-                    with open("/tmp/emgdbg/inlet.log", "a") as _f:
-                        _f.write(f"finish rec {rec.row.id} pulled {getattr(self, '_dbg_n', 0)} appended {rec.writer.appended}\n")
                 if rec.writer.appended:
                     rec.finish()
                 else:

@@ -129,6 +129,7 @@ class Lab:
         insert may wait for the tick recorder's write lock; LabRecorder should not),
         then it is stored (committed) and shown on the consoles."""
         tick = self.outlets.latest()
+        markers.check_console_tick(db, session_id, tick)
         marker = markers.store(db, session_id, label, note, "console", tick,
                                lsl_time=None if tick else self.outlets.now(), user_id=user_id,
                                flush=False)

@@ -11,6 +11,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from backend.core.errors import ConflictError
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker, StudyMarkerLabels
 from backend.db.models import ConditionLabel, StudySession
@@ -24,6 +25,21 @@ def trial_of(db: Session, session_id: int, run_id: int | None) -> int | None:
         return None
     return db.scalar(select(Trial.id).where(Trial.session_id == session_id,
                                             Trial.run_id == run_id))
+
+
+def check_console_tick(db: Session, session_id: int, tick: TickTime | None) -> None:
+    """Refuse (409) a console marker whose newest tick is not of the session's running
+    trial: a timed trial's run ends at its duration while the trial stays running
+    until stopped, and the newest tick is then another run's. Stored, the marker
+    would belong to neither the trial nor its time axis."""
+    trial = db.scalar(select(Trial).where(Trial.session_id == session_id,
+                                          Trial.status == "running"))
+    if trial is None or trial.run_id is None or tick is None or tick.run_id == trial.run_id:
+        return
+    raise ConflictError("trial", f"trial {trial.id} is still running but its ticks have "
+                        "ended (a timed trial's duration is over): stop it with "
+                        f"POST /api/trials/{trial.id}/stop; a marker now would fall "
+                        "outside it")
 
 
 def store(db: Session, session_id: int, label: str, note: str, source: str,

@@ -180,7 +180,7 @@ def spec_priors_problem(spec: ControllerSpec) -> str | None:
         table = np.asarray(load_utilities(spec).table.values)
     except (OSError, ValueError) as exc:
         return f"the utility set cannot be read to check them: {exc}"
-    problem = PriorBounds.for_table(table).violation(spec.settings.priors, floors=False)
+    problem = PriorBounds.for_table(table).violation(spec.settings.priors)
     if problem is None:
         return None
     return (f"{list(spec.settings.priors)} could make the controller lock where equal "

@@ -35,14 +35,21 @@ def controllers() -> tuple[str, ...]:
     return tuple(r.name for r in registry.planned())
 
 
-def _set_of(db: Session, study_id: int, model: type[ModelSetRecord] | type[UtilitySetRecord],
+def _set_of(db: Session, part: Participant,
+            model: type[ModelSetRecord] | type[UtilitySetRecord],
             ref: int | None, key: str, entity: str) -> int | None:
+    """A set the wearer may run: of their study, ready, and a personal model set only
+    if it is their own (422 as in a plan)."""
     if ref is None:
         return None
     row: ModelSetRecord | UtilitySetRecord | None = (
         db.get(ModelSetRecord, ref) if model is ModelSetRecord else db.get(UtilitySetRecord, ref))
-    if row is None or row.study_id != study_id:
+    if row is None or row.study_id != part.study_id:
         raise InvalidError.at(["body", key], f"{entity} {ref} does not exist in this study")
+    if isinstance(row, ModelSetRecord) and row.kind == "personal" \
+            and row.participant_id != part.id:
+        raise InvalidError.at(["body", key], f"model set {ref} is a personal model set of "
+                              f"another participant, not {part.code}")
     if row.status != "ready" or row.document is None:
         raise ConflictError(key, f"{entity} {ref} is {row.status}, not ready")
     return ref
@@ -65,9 +72,9 @@ async def start(db: Session, user: User, runtime: Runtime, lab: Lab, session_id:
     part = db.get(Participant, sess.participant_id)
     assert part is not None
     sets = needs_models(name)
-    ms = _set_of(db, part.study_id, ModelSetRecord, body.model_set_id, "model_set_id",
+    ms = _set_of(db, part, ModelSetRecord, body.model_set_id, "model_set_id",
                  "model set")
-    us = _set_of(db, part.study_id, UtilitySetRecord, body.utility_set_id, "utility_set_id",
+    us = _set_of(db, part, UtilitySetRecord, body.utility_set_id, "utility_set_id",
                  "utility set")
     if sets and (ms is None or us is None):
         missing = "model_set_id" if ms is None else "utility_set_id"

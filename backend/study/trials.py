@@ -212,6 +212,45 @@ def _discard_plan(db: Session, sess: StudySession, trials: list[Trial]) -> None:
                             "trial of it has just started")
 
 
+def _check_sets_belong(db: Session, trial: Trial, sess: StudySession, ms: ModelSetRecord,
+                       us: UtilitySetRecord) -> None:
+    """Re-checked at start, whatever the trial row says (a row may have been altered
+    since it was planned): the model, utility and prior sets are of the participant's
+    study, a personal model set and a prior set are the participant's own, and the
+    trial's condition is one that runs them (409 naming the mismatch)."""
+    part = db.get(Participant, sess.participant_id)
+    assert part is not None
+    for key, row, entity in (("model_set_id", ms, "model set"),
+                             ("utility_set_id", us, "utility set")):
+        if row.study_id != part.study_id:
+            raise ConflictError(key, f"{entity} {row.id} of trial {trial.id} is of study "
+                                f"{row.study_id}, not the participant's study "
+                                f"{part.study_id}")
+    personal_condition = trial.models == "personal" or "+personal" in trial.condition
+    if ms.kind == "personal" and ms.participant_id != part.id:
+        raise ConflictError("model_set_id", f"model set {ms.id} of trial {trial.id} is a "
+                            f"personal model set of another participant, not {part.code}")
+    if personal_condition and ms.kind != "personal":
+        raise ConflictError("model_set_id", f"trial {trial.id}'s condition "
+                            f"{trial.condition!r} runs personal models but model set "
+                            f"{ms.id} is a {ms.kind} model set")
+    if trial.condition and not personal_condition and ms.kind == "personal":
+        raise ConflictError("model_set_id", f"trial {trial.id}'s condition "
+                            f"{trial.condition!r} runs population models but model set "
+                            f"{ms.id} is a personal model set")
+    if trial.prior_set_id is None:
+        return
+    if not trial.condition.endswith("+priors"):
+        raise ConflictError("prior_set_id", f"trial {trial.id}'s condition "
+                            f"{trial.condition!r} runs the equal priors but the trial names "
+                            f"prior set {trial.prior_set_id}")
+    prior = db.get(PriorSetRecord, trial.prior_set_id)
+    if prior is not None and (prior.participant_id != part.id
+                              or prior.study_id != part.study_id):
+        raise ConflictError("prior_set_id", f"prior set {prior.id} of trial {trial.id} is "
+                            f"another participant's, not {part.code}'s")
+
+
 def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
                rate_hz: float | None) -> tuple[ControllerSpec, dict[str, Any]]:
     """The trial's controller configuration and the snapshot stored with the trial:
@@ -250,6 +289,7 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
             raise ConflictError("model_set_id", "the trial needs a fitted model set")
         if us is None or us.document is None:
             raise ConflictError("utility_set_id", "the trial needs a computed utility set")
+        _check_sets_belong(db, trial, sess, ms, us)
         if abs(us.precompression_pct - sess.precompression_pct) > 1e-9:
             raise ConflictError("utility_set_id", f"utilities were computed for "
                                 f"{us.precompression_pct:g} % but the session runs at "

@@ -9,6 +9,9 @@ from controller.device.base import Device
 def make_device(config: WorkerConfig) -> Device:
     """The configured device; imports lazily so the worker only loads what it uses."""
     if config.device_kind == "sim":
+        import os
+
+        from controller.sim.emg_amplifier import server_source_id
         from controller.sim.simulated_device import SimulatedDevice
 
         return SimulatedDevice(
@@ -19,6 +22,8 @@ def make_device(config: WorkerConfig) -> Device:
             precompression_pct=config.precompression_pct,
             speed=config.device_speed,
             emg_lsl=config.device_emg_lsl,
+            # The server (this worker's parent) subscribes its own simulator by this id.
+            emg_source_id=server_source_id(os.getppid()),
         )
     if config.device_kind == "udp":
         from pathlib import Path

@@ -19,7 +19,7 @@ from controller.controllers.factory import load_models, load_utilities
 from controller.controllers.registry import PlanPlace, register
 from controller.controllers.spec import ControllerSpec
 from controller.decision import expected_utility as decision
-from controller.decision.expected_utility import decide_fast
+from controller.decision.expected_utility import LOCK_MARGIN, decide_fast
 from controller.decision.utility_function import UtilitySet
 from controller.intent.motion_model import ModelSet
 from controller.intent.onset import ModelBank, OnsetCriteria, bank_kernel, window_start
@@ -65,7 +65,8 @@ def evaluate(window, pos, radius, data, row) -> tuple[bool, int, int]:  # type: 
     if bank_kernel(obs, prm, radius, crit, acc, dist, ints, prog, ok) != 0:
         return False, NO_LOCK, CONTROLLER_ERROR  # a NaN in the window; not from counts
     intent_kernel(dist, ints[0], ok, priors, p_obs, post)
-    action = decide_fast(table, prog[1], post, eu)
+    equal = priors[0] == priors[1] and priors[1] == priors[2] and priors[2] == priors[3]
+    action = decide_fast(table, prog[1], post, eu, 0.0 if equal else LOCK_MARGIN)
     row.d_squat = dist[0]
     row.d_stoop_left = dist[1]
     row.d_stoop_right = dist[2]
@@ -135,7 +136,7 @@ class UMC(KernelController):
         if self.bank.max_window < c.window:
             raise ValueError(f"model bank window {self.bank.max_window} < window {c.window}")
         self.table = np.ascontiguousarray(utilities.table.values, dtype=np.float64)
-        unsafe = PriorBounds.for_table(self.table).violation(c.priors, floors=False)
+        unsafe = PriorBounds.for_table(self.table).violation(c.priors)
         if unsafe is not None:
             raise SettingError("priors", f"{list(c.priors)} could make the controller lock "
                                f"where equal priors would not ({unsafe}); see "

@@ -10,6 +10,10 @@ the controller takes `argmax_a EU(a)`.
   progress with a positive posterior is an error.
 - Ties go to the action with the lower number, so no lock (`a1`) wins any tie: when
   locking is not strictly better the safe choice is to leave the side free.
+- Under priors that are not all equal (learned ones), a lock must beat no lock by
+  `LOCK_MARGIN` of the terms' size, `sum_c P(c | obs) (|U(a, c)| + |U(a1, c)|)`: then
+  rounding cannot make learned priors lock where equal priors do not
+  (docs/personalisation.md, "Floating point"). Equal priors decide exactly as before.
 
 Two implementations share these rules: `expected_utilities`/`decide` (NumPy, checked
 inputs, for analysis and tests) and `decide_fast` (numba, no allocation, for the tick;
@@ -32,6 +36,19 @@ FloatArray = NDArray[np.float64]
 N_ACTIONS = 4
 N_CATEGORIES = 4
 N_MODELS = 3
+
+
+#: Relative margin a lock needs under unequal priors. The rounding of the EU sums is a
+#: few times 1e-16 of the terms' size; the safety proof under floating point needs the
+#: margin above that times (1 + lambda / floor) <= 21 (docs/personalisation.md): 1e-9
+#: leaves four orders of magnitude and changes no decision that is not a tie to 1e-9.
+LOCK_MARGIN = 1e-9
+
+
+def lock_margin(priors: NDArray[np.float64] | tuple[float, ...] | list[float]) -> float:
+    """The margin a lock needs under `priors`: none under equal priors."""
+    p = [float(x) for x in priors]
+    return 0.0 if all(x == p[0] for x in p) else LOCK_MARGIN
 
 
 def progress_index(s: float) -> int:
@@ -105,19 +122,40 @@ def expected_utilities_into(
 
 
 @numba.njit(cache=True, nogil=True)
+def _terms_size(table: FloatArray, s_curr: FloatArray, posteriors: FloatArray,
+                a: int) -> float:  # pragma: no cover - compiled
+    """`sum_c P(c | obs) (|U(a, c)| + |U(a1, c)|)`: what the rounding of EU(a) - EU(a1)
+    is relative to."""
+    n_last = table.shape[2] - 1
+    size = posteriors[3] * (abs(table[a, 3, 0]) + abs(table[0, 3, 0]))
+    for j in range(3):
+        pj = posteriors[j]
+        if pj == 0.0:
+            continue
+        n = math.floor(s_curr[j] * n_last + 0.5)
+        n = min(max(n, 0), n_last)
+        size += pj * (abs(table[a, j, n]) + abs(table[0, j, n]))
+    return size
+
+
+@numba.njit(cache=True, nogil=True)
 def decide_fast(
-    table: FloatArray, s_curr: FloatArray, posteriors: FloatArray, out: FloatArray
+    table: FloatArray, s_curr: FloatArray, posteriors: FloatArray, out: FloatArray,
+    margin: float = 0.0,
 ) -> int:  # pragma: no cover - compiled
     """Fill `out` with the EUs and return the chosen action number (1..4).
 
-    Strict `>` keeps the first (lowest-numbered) action on ties. Inputs are not
-    checked (the tick has no time for it); a NaN posterior makes every EU NaN, no
-    comparison succeeds and the result is 1, no lock.
+    Strict `>` keeps the first (lowest-numbered) action on ties. With `margin`
+    (`lock_margin(priors)`), a lock action counts only if it beats no lock by `margin`
+    times the terms' size. Inputs are not checked (the tick has no time for it); a NaN
+    posterior makes every EU NaN, no comparison succeeds and the result is 1, no lock.
     """
     expected_utilities_into(table, s_curr, posteriors, out)
     best = 0
     for a in range(1, 4):
-        if out[a] > out[best]:
+        if out[a] > out[best] and (
+                margin == 0.0
+                or out[a] - out[0] > margin * _terms_size(table, s_curr, posteriors, a)):
             best = a
     return best + 1
 
@@ -127,3 +165,4 @@ def warm_up() -> None:
     table = np.zeros((N_ACTIONS, N_CATEGORIES, N_PROGRESS))
     out = np.zeros(N_ACTIONS)
     decide_fast(table, np.zeros(N_MODELS), np.array([0.0, 0.0, 0.0, 1.0]), out)
+    decide_fast(table, np.zeros(N_MODELS), np.array([0.0, 0.0, 0.0, 1.0]), out, LOCK_MARGIN)

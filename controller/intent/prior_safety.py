@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from controller.decision.expected_utility import lock_margin
 from controller.tick_record import CATEGORY_NAMES
 
 FloatArray = npt.NDArray[np.float64]
@@ -259,8 +260,8 @@ def lock_decided(table: FloatArray, s_curr: FloatArray, p_obs: FloatArray,
         priors: `(4,)` priors.
 
     The same rules as `expected_utility` and `posteriors` (ties to no lock, other read
-    at `n = 0`), vectorised for property tests and for re-deciding recorded
-    evaluations under other priors.
+    at `n = 0`, a lock under unequal priors only by `lock_margin`), vectorised for
+    property tests and for re-deciding recorded evaluations under other priors.
     """
     pr = np.asarray(priors, dtype=np.float64)
     p = np.asarray(p_obs, dtype=np.float64)
@@ -277,7 +278,15 @@ def lock_decided(table: FloatArray, s_curr: FloatArray, p_obs: FloatArray,
     for j in range(3):
         u = table[:, j, :][:, idx[:, j]].T  # (m, 4)
         eu = eu + np.where(post[:, j:j + 1] != 0.0, post[:, j:j + 1] * u, 0.0)
+    margin = lock_margin(pr)
     best = np.zeros(m, dtype=int)
     for a in range(1, 4):
-        best = np.where(eu[:, a] > eu[np.arange(m), best], a, best)
+        wins = eu[:, a] > eu[np.arange(m), best]
+        if margin:
+            size = post[:, 3] * (abs(table[a, 3, 0]) + abs(table[0, 3, 0]))
+            for j in range(3):
+                u = np.abs(table[a, j, idx[:, j]]) + np.abs(table[0, j, idx[:, j]])
+                size = size + np.where(post[:, j] != 0.0, post[:, j] * u, 0.0)
+            wins &= eu[:, a] - eu[:, 0] > margin * size
+        best = np.where(wins, a, best)
     return np.asarray(best > 0)

@@ -73,7 +73,6 @@ class _Stamps:
 
 #: Shared outlets by stream name: (outlet, its last stamp).
 _SHARED: dict[str, tuple[Any, _Stamps]] = {}
-_DBG = [0]
 
 
 class WearerModel(Protocol):
@@ -99,6 +98,14 @@ class WearerModel(Protocol):
     def true_torques(self) -> tuple[float, float]:
         """The exoskeleton's extension torques (Nm) at the last sample."""
         ...
+
+
+def server_source_id(server_pid: int) -> str:
+    """The LSL source id of the amplifier a server's in-process simulator publishes
+    (`server_pid`: the server process, the worker's parent). Unique on the machine, and
+    known to the server before its worker starts: a virtual study subscribes its own
+    simulator by it, never another process's stream of the same name."""
+    return f"exostudy-simemg-server-{server_pid}"
 
 
 def channel_labels() -> list[str]:
@@ -253,10 +260,6 @@ class EmgTap:
             self.stats.onsets += 1
         self._activity = activity
         block = self.generator.push(self.activation())
-        import os as _os
-        if _os.environ.get("EMGDBG"):
-            n0 = _DBG[0]; k = block.samples.shape[0]
-            block.samples[:, 15] = np.arange(n0, n0 + k); _DBG[0] += k
         self.stats.ticks += 1
         if self.keep:
             self.blocks.append(block)

@@ -35,6 +35,7 @@ class SimulatedDevice(Device):
         layout: EncoderLayout = DEFAULT_LAYOUT,
         speed: float = 1.0,
         emg_lsl: bool = False,
+        emg_source_id: str | None = None,
     ) -> None:
         if not 0.1 <= speed <= MAX_SPEED:
             raise ValueError(
@@ -57,7 +58,8 @@ class SimulatedDevice(Device):
         if emg_lsl:
             from controller.sim.emg_amplifier import EmgTap
 
-            self.emg = EmgTap(self.exo, source_id=f"exostudy-simemg-{os.getpid()}",
+            self.emg = EmgTap(self.exo,
+                              source_id=emg_source_id or f"exostudy-simemg-{os.getpid()}",
                               stamping="spread", only_when_consumed=True, shared=True)
         self._command: LockCommand | None = None
         self._start: float | None = None

@@ -939,7 +939,7 @@ export const results = Object.freeze({
    * the reduction against each baseline and the repeated-measures test, with every
    * processing parameter (`method`) and each trial's quality flags.
    * @param {number} studyId
-   * @returns {Promise<object>}
+   * @returns {Promise<MuscleResultsOut>}
    */
   studyMuscle: operation("results.studyMuscle", "GET", "/api/studies/{study_id}/muscle-results", {"params": ["study_id"], "query": [], "body": false}),
   /**

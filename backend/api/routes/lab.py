@@ -89,12 +89,14 @@ def session_marker_labels(session_id: SessionId, user: CurrentUser, db: SessionD
 
 
 # Markers ------------------------------------------------------------------------------------
-@router.post("/api/sessions/{session_id}/markers", response_model=MarkerOut, status_code=201)
+@router.post("/api/sessions/{session_id}/markers", response_model=MarkerOut, status_code=201,
+             responses=CONFLICT)
 def add_marker(session_id: SessionId, body: MarkerIn, user: CurrentUser, db: SessionDep,
                lab: LabDep) -> Marker:
     """An event marker now: stamped with the newest tick, stored with the session's
     running trial (if that tick is the trial's), drawn on the consoles and sent on the
-    LSL marker stream."""
+    LSL marker stream. 409 while a trial runs whose ticks have ended (a timed trial
+    past its duration: stop it first)."""
     one_or_404(db, StudySession, session_id, "session")
     return lab.console_marker(db, session_id, body.label, body.note, user.id)
 

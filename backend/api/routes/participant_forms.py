@@ -12,20 +12,10 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path
 from fastapi.responses import FileResponse
-from sqlalchemy import select
-from sqlalchemy.exc import IntegrityError
 
 from backend.api.deps import SessionDep, SettingsDep, access
 from backend.api.errors import BODY, CONFLICT, ErrorMessage, conflict, invalid, invalid_many
-from backend.core.security import token_digest
-from backend.db import audit
-from backend.db.models import (
-    Participant,
-    ParticipantLink,
-    Preference,
-    QuestionnaireInstrument,
-    QuestionnaireResponse,
-)
+from backend.db.models import ParticipantLink, QuestionnaireInstrument
 from backend.questionnaires.definition import InstrumentDefinition
 from backend.questionnaires.scoring import AnswerError, score
 from backend.schemas.questionnaires import (
@@ -36,7 +26,9 @@ from backend.schemas.questionnaires import (
     PreferenceView,
     SubmissionOut,
 )
+from backend.study import participant_links, questionnaire_answers
 from backend.study.blinding import labels_of
+from backend.study.participant_links import form_key
 
 router = APIRouter(prefix="/api/participant-forms", tags=["participant forms"], responses={
     404: {"model": ErrorMessage, "description": "no such link"},
@@ -56,8 +48,7 @@ def _aware(t: datetime) -> datetime:
 
 def open_link(db: SessionDep, token: str) -> ParticipantLink:
     """The link behind a token, if it is still open (404 unknown, 410 expired/used)."""
-    link = db.scalars(select(ParticipantLink).where(
-        ParticipantLink.token_hash == token_digest(token))).first()
+    link = participant_links.by_token(db, token)
     if link is None:
         raise HTTPException(404, "link does not exist")
     if link.used_at is not None:
@@ -67,59 +58,18 @@ def open_link(db: SessionDep, token: str) -> ParticipantLink:
     return link
 
 
-def _submitted(db: SessionDep, link: ParticipantLink) -> tuple[set[tuple[str, str, str | None]],
-                                                               bool]:
-    done = {(r.instrument_key, r.instrument_version, r.condition_label)
-            for r in db.scalars(select(QuestionnaireResponse).where(
-                QuestionnaireResponse.link_id == link.id))}
-    pref = db.scalars(select(Preference.id).where(Preference.link_id == link.id)).first()
-    return done, pref is not None
-
-
-def _form_key(form: dict[str, str | None]) -> tuple[str, str, str | None]:
-    return (str(form["instrument_key"]), str(form["instrument_version"]),
-            form["condition_label"])
-
-
 def _choices(link: ParticipantLink, db: SessionDep) -> list[str]:
     return [*sorted(labels_of(db, link.participant_id)), NO_PREFERENCE]
 
 
 def _instrument(db: SessionDep, link: ParticipantLink, form: dict[str, Any]
                 ) -> QuestionnaireInstrument:
-    """The instrument row the link pinned for this form: a built-in or one of the
-    participant's study, never another study's row with the same key and version."""
-    row = db.get(QuestionnaireInstrument, form["instrument_id"]) if form.get(
-        "instrument_id") is not None else None
-    if row is not None and not row.built_in:
-        participant = db.get(Participant, link.participant_id)
-        if participant is None or row.study_id != participant.study_id:
-            row = None
+    """The instrument row the link pinned for this form (410 when it is gone)."""
+    row = participant_links.instrument_of(db, link, form)
     if row is None:
         raise HTTPException(410, "a form of this link is no longer available; ask the "
                             "experimenter for a new link")
     return row
-
-
-def _flush_or_conflict(db: SessionDep, field: str, problem: str) -> None:
-    """Write now: a parallel submission that got there first makes the database refuse
-    this one (unique link and form), which is a 409, not a second stored answer."""
-    try:
-        db.flush()
-    except IntegrityError as exc:
-        db.rollback()
-        raise HTTPException(409, f"{field}: {problem}") from exc
-
-
-def _receipt(db: SessionDep, link: ParticipantLink) -> SubmissionOut:
-    """Close the link when everything due is in; the caller commits."""
-    done, pref_done = _submitted(db, link)
-    forms_left = sum(1 for f in link.forms_due if _form_key(f) not in done)
-    pref_left = link.preference_due and not pref_done
-    if forms_left == 0 and not pref_left:
-        link.used_at = datetime.now(UTC)
-    return SubmissionOut(forms_remaining=forms_left, preference_remaining=pref_left,
-                         link_closed=link.used_at is not None)
 
 
 @router.get("/{token}", response_model=ParticipantFormsOut,
@@ -127,10 +77,10 @@ def _receipt(db: SessionDep, link: ParticipantLink) -> SubmissionOut:
 def get_forms(token: Token, db: SessionDep) -> ParticipantFormsOut:
     """The forms due on this link, with blinded condition labels only."""
     link = open_link(db, token)
-    done, pref_done = _submitted(db, link)
+    done, pref_done = participant_links.submitted(db, link)
     forms = []
     for i, form in enumerate(link.forms_due):
-        key, version, label = _form_key(form)
+        key, version, label = form_key(form)
         d = InstrumentDefinition.model_validate(_instrument(db, link, form).definition)
         forms.append(FormView(index=i, instrument_key=key, instrument_version=version,
                               title=d.title, instructions=d.instructions,
@@ -152,8 +102,8 @@ def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionO
     if body.form >= len(link.forms_due):
         invalid(["body", "form"], f"this link has {len(link.forms_due)} form(s): "
                 f"0..{len(link.forms_due) - 1}" if link.forms_due else "this link has no forms")
-    key, version, label = _form_key(link.forms_due[body.form])
-    done, _ = _submitted(db, link)
+    key, version, label = form_key(link.forms_due[body.form])
+    done, _ = participant_links.submitted(db, link)
     if (key, version, label) in done:
         conflict("form", "this form was already answered")
     inst = _instrument(db, link, link.forms_due[body.form])
@@ -163,20 +113,8 @@ def submit_answers(token: Token, body: AnswersIn, db: SessionDep) -> SubmissionO
     except AnswerError as exc:
         invalid_many([(["body", "answers", item], msg) for item, msg in exc.problems.items()])
     stored = {k: int(v) if float(v).is_integer() else v for k, v in result.answers.items()}
-    resp = QuestionnaireResponse(
-        participant_id=link.participant_id, link_id=link.id, instrument_id=inst.id,
-        instrument_key=key, instrument_version=version, condition_label=label,
-        answers=stored, score=result.score, subscale_scores=result.subscales,
-        link_form=body.form)
-    db.add(resp)
-    _flush_or_conflict(db, "form", "this form was already answered")
-    audit.record(db, f"participant link {link.id}", "submit", "questionnaire_response",
-                 resp.id, {"participant_id": link.participant_id, "instrument": key,
-                           "version": version, "condition_label": label,
-                           "substituted": list(result.substituted)})
-    receipt = _receipt(db, link)
-    db.commit()
-    return receipt
+    return questionnaire_answers.store_response(db, link, body.form, inst, stored, result.score,
+                                                result.subscales, list(result.substituted))
 
 
 @router.post("/{token}/preference", response_model=SubmissionOut, status_code=201,
@@ -186,20 +124,13 @@ def submit_preference(token: Token, body: PreferenceIn, db: SessionDep) -> Submi
     link = open_link(db, token)
     if not link.preference_due:
         conflict("preference", "this link does not ask for a preference")
-    _, pref_done = _submitted(db, link)
+    _, pref_done = participant_links.submitted(db, link)
     if pref_done:
         conflict("preference", "the preference was already given")
     choices = _choices(link, db)
     if body.choice not in choices:
         invalid(["body", "choice"], f"choose one of {choices}")
-    pref = Preference(participant_id=link.participant_id, link_id=link.id, choice=body.choice)
-    db.add(pref)
-    _flush_or_conflict(db, "preference", "the preference was already given")
-    audit.record(db, f"participant link {link.id}", "submit", "preference", pref.id,
-                 {"participant_id": link.participant_id, "choice": body.choice})
-    receipt = _receipt(db, link)
-    db.commit()
-    return receipt
+    return questionnaire_answers.store_preference(db, link, body.choice)
 
 
 pages = APIRouter()

@@ -65,14 +65,14 @@ def list_study_personal_model_sets(study_id: StudyId, user: CurrentUser, db: Ses
 
 @router.post("/api/participants/{participant_id}/prior-sets", response_model=PriorSetOut,
              status_code=201, responses=CONFLICT)
-def learn_prior_set(participant_id: ParticipantId, body: PriorSetIn, engine: EngineDep,
+def learn_prior_set(participant_id: ParticipantId, body: PriorSetIn,
                     user: CurrentUser, db: SessionDep) -> PriorSetRecord:
     """A new version of the participant's priors: learned from confirmed motions
     (`dirichlet`) or unconfirmed use (`label-shift-em`) and projected onto the safety
     bound of the utility set; the equal priors; or imported `values`, refused (422)
     outside that bound."""
     participant = one_or_404(db, Participant, participant_id, "participant")
-    return personal_sets.learn_prior_set(db, engine, user, participant, body)
+    return personal_sets.learn_prior_set(db, user, participant, body)
 
 
 @router.get("/api/participants/{participant_id}/prior-sets", response_model=list[PriorSetOut])

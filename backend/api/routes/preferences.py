@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Request
-from sqlalchemy import select
 
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import AUTH_RESPONSES, INVALID, NOT_FOUND, one_or_404
 from backend.api.params import ParticipantId
-from backend.db.models import Participant, Preference
+from backend.db.models import Participant
 from backend.schemas.questionnaires import PreferenceOut
+from backend.study import questionnaire_answers
 from backend.study.access import may_unblind
 from backend.study.blinding import labels_of
 
@@ -24,8 +24,7 @@ def list_preferences(participant_id: ParticipantId, request: Request, user: Curr
     the study's owners; null for other roles)."""
     one_or_404(db, Participant, participant_id, "participant")
     labels = labels_of(db, participant_id) if may_unblind(request.state) else {}
-    rows = db.scalars(select(Preference).where(Preference.participant_id == participant_id)
-                      .order_by(Preference.id))
+    rows = questionnaire_answers.preferences_of(db, participant_id)
     return [PreferenceOut(id=p.id, participant_id=p.participant_id, choice=p.choice,
                           controller=labels.get(p.choice), submitted_at=p.submitted_at)
             for p in rows]

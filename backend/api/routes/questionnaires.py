@@ -8,11 +8,9 @@ some forms, each about a blinded condition; responses come back through the link
 
 from __future__ import annotations
 
-from datetime import UTC, datetime, timedelta
 from typing import Annotated
 
 from fastapi import APIRouter, Path, Request
-from sqlalchemy import ColumnElement, or_, select
 
 from backend.api.deps import CurrentUser, SessionDep
 from backend.api.errors import (
@@ -21,23 +19,12 @@ from backend.api.errors import (
     CONFLICT,
     INVALID,
     NOT_FOUND,
-    commit_or_conflict,
-    conflict,
     invalid,
-    invalid_many,
     not_found,
     one_or_404,
 )
 from backend.api.params import ParticipantId, StudyId
-from backend.core.security import new_token, token_digest
-from backend.db import audit
-from backend.db.models import (
-    Participant,
-    ParticipantLink,
-    QuestionnaireInstrument,
-    QuestionnaireResponse,
-    Study,
-)
+from backend.db.models import Participant, ParticipantLink, QuestionnaireInstrument, Study
 from backend.questionnaires.catalog import built_in_keys
 from backend.questionnaires.definition import (
     KEY_PATTERN,
@@ -54,6 +41,7 @@ from backend.schemas.questionnaires import (
     LinkOut,
     ResponseOut,
 )
+from backend.study import instruments, participant_links, questionnaire_answers
 from backend.study.access import may_unblind
 from backend.study.blinding import labels_of
 
@@ -70,49 +58,6 @@ def summary(row: QuestionnaireInstrument) -> InstrumentSummary:
                              built_in=row.built_in, study_id=row.study_id,
                              wording=prov.get("wording", "study"),
                              wording_note=prov.get("note", ""), created_at=row.created_at)
-
-
-def _visible(study_id: int | None) -> ColumnElement[bool]:
-    """The instruments a study may use: the built-ins and its own, never another
-    study's (None: the built-ins only)."""
-    built_in = QuestionnaireInstrument.built_in.is_(True)
-    if study_id is None:
-        return built_in
-    return or_(built_in, QuestionnaireInstrument.study_id == study_id)
-
-
-def instruments_of(db: SessionDep, study_id: int | None) -> list[QuestionnaireInstrument]:
-    """Every instrument a study may use, by key and age."""
-    return list(db.scalars(select(QuestionnaireInstrument).where(_visible(study_id))
-                           .order_by(QuestionnaireInstrument.key, QuestionnaireInstrument.id)))
-
-
-def find_instrument(db: SessionDep, study_id: int | None, key: str, version: str
-                    ) -> QuestionnaireInstrument | None:
-    """One version of an instrument the study may use."""
-    return db.scalars(select(QuestionnaireInstrument).where(
-        _visible(study_id), QuestionnaireInstrument.key == key,
-        QuestionnaireInstrument.version == version)
-        .order_by(QuestionnaireInstrument.built_in.desc())).first()
-
-
-def resolve_for_link(db: SessionDep, study_id: int, key: str, version: str | None
-                     ) -> QuestionnaireInstrument | str:
-    """The instrument a link's form asks for, or what is wrong.
-
-    Without a version the key must have exactly one version the study may use: a link
-    is never given whichever version someone imported last.
-    """
-    if version is not None:
-        row = find_instrument(db, study_id, key, version)
-        return row if row is not None else f"no instrument {key} {version} in this study"
-    rows = [r for r in instruments_of(db, study_id) if r.key == key]
-    if not rows:
-        return f"no instrument {key} in this study"
-    if len(rows) > 1:
-        return (f"instrument {key} has versions {[r.version for r in rows]} in this study; "
-                "name one in instrument_version")
-    return rows[0]
 
 
 def link_out(link: ParticipantLink) -> LinkOut:
@@ -132,7 +77,7 @@ def _full(row: QuestionnaireInstrument) -> InstrumentOut:
 def list_instruments(user: CurrentUser, db: SessionDep) -> list[InstrumentSummary]:
     """The built-in instruments (a study's own ones: `/api/studies/{id}/instruments`);
     `wording` tells whose item texts they are."""
-    return [summary(r) for r in instruments_of(db, None)]
+    return [summary(r) for r in instruments.of_study(db, None)]
 
 
 @router.get("/api/instruments/{key}/{version}", response_model=InstrumentOut,
@@ -140,7 +85,7 @@ def list_instruments(user: CurrentUser, db: SessionDep) -> list[InstrumentSummar
 def get_instrument(key: InstrumentKey, version: InstrumentVersion, user: CurrentUser,
                    db: SessionDep) -> InstrumentOut:
     """One built-in instrument version with its full definition."""
-    row = find_instrument(db, None, key, version)
+    row = instruments.find(db, None, key, version)
     if row is None:
         not_found("instrument", f"{key} {version}")
     return _full(row)
@@ -152,7 +97,7 @@ def list_study_instruments(study_id: StudyId, user: CurrentUser, db: SessionDep
                            ) -> list[InstrumentSummary]:
     """The instruments the study's links may use: the built-ins and the study's own."""
     one_or_404(db, Study, study_id, "study")
-    return [summary(r) for r in instruments_of(db, study_id)]
+    return [summary(r) for r in instruments.of_study(db, study_id)]
 
 
 @router.post("/api/studies/{study_id}/instruments", response_model=InstrumentOut,
@@ -169,21 +114,8 @@ def import_instrument(study_id: StudyId, definition: ImportedInstrument, user: C
         invalid(["body", "key"], f"{definition.key!r} is a built-in instrument; a study's "
                 "own instrument needs its own key (for example "
                 f"{definition.key + '-' + 'study'!r})")
-    if db.scalars(select(QuestionnaireInstrument.id).where(
-            QuestionnaireInstrument.study_id == study_id,
-            QuestionnaireInstrument.key == definition.key,
-            QuestionnaireInstrument.version == definition.version)).first() is not None:
-        conflict("version", f"instrument {definition.key!r} version {definition.version!r} "
-                 "exists in this study; import it under a new version")
-    data = definition.model_dump(mode="json")
-    row = QuestionnaireInstrument(key=definition.key, version=definition.version,
-                                  title=definition.title, definition=data, built_in=False,
-                                  study_id=study_id, created_by=user.id)
-    db.add(row)
-    db.flush()
-    audit.record(db, user, "import", "instrument", row.id,
-                 {"study_id": study_id, "key": definition.key, "version": definition.version})
-    commit_or_conflict(db, "version", "this key and version exist in this study")
+    row = instruments.add_to_study(db, user, study_id, definition.key, definition.version,
+                                   definition.title, definition.model_dump(mode="json"))
     return InstrumentOut(**summary(row).model_dump(), definition=definition)
 
 
@@ -193,7 +125,7 @@ def get_study_instrument(study_id: StudyId, key: InstrumentKey, version: Instrum
                          user: CurrentUser, db: SessionDep) -> InstrumentOut:
     """One instrument version the study may use, with its full definition."""
     one_or_404(db, Study, study_id, "study")
-    row = find_instrument(db, study_id, key, version)
+    row = instruments.find(db, study_id, key, version)
     if row is None:
         not_found("instrument", f"{key} {version}")
     return _full(row)
@@ -205,7 +137,7 @@ def list_participant_instruments(participant_id: ParticipantId, user: CurrentUse
                                  db: SessionDep) -> list[InstrumentSummary]:
     """The instruments a link for this participant may ask for (the console's list)."""
     p = one_or_404(db, Participant, participant_id, "participant")
-    return [summary(r) for r in instruments_of(db, p.study_id)]
+    return [summary(r) for r in instruments.of_study(db, p.study_id)]
 
 
 @router.post("/api/participants/{participant_id}/links", response_model=LinkCreated,
@@ -216,45 +148,7 @@ def create_link(participant_id: ParticipantId, body: LinkIn, request: Request,
     say which condition they preferred). Each form is pinned to one instrument row of
     the participant's study (or a built-in). The token is in this answer only."""
     participant = one_or_404(db, Participant, participant_id, "participant")
-    if not body.forms and not body.preference:
-        invalid(["body", "forms"], "a link must ask for at least one form or the preference")
-    labels = labels_of(db, participant_id)
-    problems: list[tuple[list[str | int], str]] = []
-    due: list[dict[str, str | int | None]] = []
-    for i, form in enumerate(body.forms):
-        inst = resolve_for_link(db, participant.study_id, form.instrument_key,
-                                form.instrument_version)
-        if isinstance(inst, str):
-            problems.append((["body", "forms", i, "instrument_key"], inst))
-            continue
-        if form.condition_label is not None and form.condition_label not in labels:
-            problems.append((["body", "forms", i, "condition_label"],
-                             f"{form.condition_label!r} is not a condition of this participant"
-                             f" (known: {sorted(labels)})"))
-            continue
-        entry: dict[str, str | int | None] = {
-            "instrument_id": inst.id, "instrument_key": inst.key,
-            "instrument_version": inst.version, "condition_label": form.condition_label}
-        if entry in due:
-            problems.append((["body", "forms", i], "the same form is already due on this link"))
-            continue
-        due.append(entry)
-    if body.preference and not labels:
-        problems.append((["body", "preference"], "the participant has no blinded conditions "
-                         "to choose from (POST .../conditions first)"))
-    if problems:
-        invalid_many(problems)
-    token = new_token()
-    now = datetime.now(UTC)
-    link = ParticipantLink(participant_id=participant_id, token_hash=token_digest(token),
-                           forms_due=due, preference_due=body.preference, created_by=user.id,
-                           created_at=now, expires_at=now + timedelta(hours=body.valid_hours))
-    db.add(link)
-    db.flush()
-    audit.record(db, user, "create", "participant_link", link.id,
-                 {"participant_id": participant_id, "forms_due": due,
-                  "preference_due": body.preference})
-    commit_or_conflict(db, "token", "token collision, try again")
+    link, token = participant_links.create(db, user, participant, body)
     base = str(request.base_url).rstrip("/")
     return LinkCreated(**link_out(link).model_dump(), token=token,
                        url=f"{base}/forms/{token}", api_path=f"/api/participant-forms/{token}")
@@ -266,8 +160,7 @@ def list_links(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
                ) -> list[LinkOut]:
     """The participant's links (without tokens) and whether they were used."""
     one_or_404(db, Participant, participant_id, "participant")
-    return [link_out(x) for x in db.scalars(select(ParticipantLink).where(
-        ParticipantLink.participant_id == participant_id).order_by(ParticipantLink.id))]
+    return [link_out(x) for x in participant_links.of_participant(db, participant_id)]
 
 
 @router.get("/api/participants/{participant_id}/responses",
@@ -278,9 +171,7 @@ def list_responses(participant_id: ParticipantId, request: Request, user: Curren
     owners; `controller` is null for other roles."""
     one_or_404(db, Participant, participant_id, "participant")
     labels = labels_of(db, participant_id) if may_unblind(request.state) else {}
-    rows = db.scalars(select(QuestionnaireResponse).where(
-        QuestionnaireResponse.participant_id == participant_id)
-        .order_by(QuestionnaireResponse.id))
+    rows = questionnaire_answers.responses_of(db, participant_id)
     return [ResponseOut(
         id=r.id, participant_id=r.participant_id, instrument_key=r.instrument_key,
         instrument_version=r.instrument_version, condition_label=r.condition_label,

@@ -35,6 +35,7 @@ from backend.api.errors import (
 from backend.api.params import MAX_ID, StudyId
 from backend.db.evidence_tables import ModelSetRecord, Trial
 from backend.db.models import Study
+from backend.schemas.muscle_results import MuscleResultsOut
 from backend.schemas.results import ModelEvaluationOut, StudyResultsOut, WhatIfIn, WhatIfOut
 from controller.controllers.factory import controller_names
 
@@ -176,15 +177,17 @@ def _muscle(db: SessionDep, runtime: RuntimeDep, engine: EngineDep, settings: Se
         conflict(exc.field_name, exc.problem)
 
 
-@router.get("/api/studies/{study_id}/muscle-results", responses=CONFLICT)
+@router.get("/api/studies/{study_id}/muscle-results", responses=CONFLICT,
+            response_model=MuscleResultsOut)
 def study_muscle_results(study_id: StudyId, runtime: RuntimeDep, engine: EngineDep,
                          settings: SettingsDep, site: SiteDep, user: CurrentUser,
-                         db: SessionDep) -> dict[str, Any]:
+                         db: SessionDep) -> MuscleResultsOut:
     """Muscle activity from the stored EMG: per lift (CSV `lifts`), per controller the
     mean over participants with its 95 % interval, the reduction against each baseline
     and the repeated-measures test, with every processing parameter (`method`) and each
     trial's quality flags."""
-    return dict(_muscle(db, runtime, engine, settings, site, study_id).document())
+    return MuscleResultsOut.model_validate(
+        _muscle(db, runtime, engine, settings, site, study_id).document())
 
 
 @router.get("/api/studies/{study_id}/muscle-results/{table}.{fmt}", response_class=Response,

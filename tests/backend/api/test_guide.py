@@ -14,22 +14,36 @@ from fastapi.testclient import TestClient
 from backend.api import guide
 from backend.api.web_surface import CSP
 from backend.core import resources
+from tests.databases import AccountTemplates
+from tests.module_client import logged_in_client
 
 PAGE = (b'<html><head><script>var a=1;</script><script src="x.js"></script>'
         b'<script id="__config" type="application/json">{"b": 2}</script></head>'
         b"<body><script>\nvar c=3;\n</script></body></html>")
 
 
-@pytest.fixture
-def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A small built guide in place of the real one."""
-    root = tmp_path / "site"
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """A small built guide in place of the real one, for the module (no test changes it)."""
+    folder = tmp_path_factory.mktemp("guide")
+    root = folder / "site"
     (root / "assets").mkdir(parents=True)
     (root / "index.html").write_bytes(PAGE)
     (root / "assets" / "app.js").write_text("console.log(1)")
-    (tmp_path / "secret.txt").write_text("outside the guide")
-    monkeypatch.setattr(resources, "guide_dir", lambda: root)
-    yield root
+    (folder / "secret.txt").write_text("outside the guide")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(resources, "guide_dir", lambda: root)
+        yield root
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[TestClient]:
+    """One logged-in app for the module: its tests only read the guide
+    (`tests/module_client.py`)."""
+    with logged_in_client(tmp_path_factory.mktemp("guide-db"), default_sets,
+                          account_templates) as c:
+        yield c
 
 
 def _sha(script: bytes) -> str:

@@ -3,15 +3,34 @@ ranges, corrections, and the blinding key."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from datetime import date, timedelta
+from pathlib import Path
+from uuid import uuid4
 
 import pytest
 from fastapi.testclient import TestClient
+
+from tests.databases import AccountTemplates
+from tests.module_client import logged_in_client, module_engines
 
 
 @pytest.fixture
 def study(client: TestClient) -> int:
     return int(client.post("/api/studies", json={"name": "S"}).json()["id"])
+
+
+@pytest.fixture(scope="module", params=module_engines())
+def reader(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
+           default_sets: tuple[Path, Path], account_templates: AccountTemplates
+           ) -> Iterator[TestClient]:
+    """One logged-in app per engine for the refusals, which store nothing
+    (`tests/module_client.py`); each of their tests makes its own study in it."""
+    server = (request.getfixturevalue("postgres_cluster") if request.param == "postgresql"
+              else None)
+    with logged_in_client(tmp_path_factory.mktemp("participants"), default_sets,
+                          account_templates, server) as c:
+        yield c
 
 
 def test_enrol_list_and_correct_a_participant(client: TestClient, study: int) -> None:
@@ -47,11 +66,14 @@ def test_code_is_unique_within_a_study_only(client: TestClient, study: int) -> N
     ("consent_date", (date.today() + timedelta(days=2)).isoformat()),
 ])
 def test_implausible_values_are_422_naming_the_field(
-    client: TestClient, study: int, field: str, value: object
+    reader: TestClient, field: str, value: object
 ) -> None:
+    # Study names are unique: one per test in the shared database.
+    study = int(reader.post("/api/studies", json={"name": f"S {uuid4().hex}"}).json()["id"])
     body = {"code": "P09", field: value}
-    r = client.post(f"/api/studies/{study}/participants", json=body)
+    r = reader.post(f"/api/studies/{study}/participants", json=body)
     assert r.status_code == 422
+    assert reader.get(f"/api/studies/{study}/participants").json() == []  # nothing stored
     assert r.json()["detail"][0]["loc"][:2] == ["body", field]
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 from fastapi.testclient import TestClient
-from sqlalchemy import event, update
+from sqlalchemy import delete, event, update
 from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
@@ -39,8 +39,9 @@ def _ok(r: Any, code: int = 200) -> Any:
     return r.json()
 
 
-def _setup(client: TestClient, settings: Settings, n: int = 1) -> dict[str, Any]:
-    study = _ok(client.post("/api/studies", json={"name": "Personal"}), 201)
+def _setup(client: TestClient, settings: Settings, n: int = 1,
+           name: str = "Personal") -> dict[str, Any]:
+    study = _ok(client.post("/api/studies", json={"name": name}), 201)
     parts, sessions = [], []
     for i in range(n):
         p = _ok(client.post(f"/api/studies/{study['id']}/participants",
@@ -344,3 +345,109 @@ def test_forged_prior_documents_are_refusals_and_listed_as_invalid(
     r = client.post(f"/api/participants/{pid}/prior-sets", json={
         "name": "tiny", "method": "equal", "utility_set_id": ids["us"], "floor": 1e-300})
     assert r.status_code == 422 and "floor" in r.text
+
+
+def test_label_shift_from_a_trial_with_a_zero_prior_names_the_trial(
+        client: TestClient, settings: Settings) -> None:
+    ids = _setup(client, settings)
+    pid, sid = ids["participants"][0], ids["sessions"][0]
+    engine = make_engine(settings.database_url)
+    run = TickRecorder(engine).run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
+    with make_session_factory(engine)() as db:
+        trial = Trial(session_id=sid, controller="umc", task="walking", planned_order=0,
+                      status="completed", run_id=run, model_set_id=ids["ms"],
+                      utility_set_id=ids["us"], started_at=datetime(2026, 11, 2, tzinfo=UTC),
+                      config_snapshot={"settings": {"priors": [0, 0, 0, 1]}})
+        db.add(trial)
+        db.commit()
+        tid = trial.id
+    engine.dispose()
+    r = client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "em", "method": "label-shift-em", "utility_set_id": ids["us"]})
+    assert r.status_code == 409, r.text
+    assert f"trial {tid}" in r.text and "[0, 0, 0, 1]" in r.text
+
+
+def test_trial_start_rechecks_whose_sets_the_trial_names(client: TestClient,
+                                                         settings: Settings) -> None:
+    """Trial rows altered after planning: another participant's priors under plain
+    "umc", another participant's prior set under "+priors", and another study's sets
+    are each refused at start (409 naming the mismatch); the trial stays planned."""
+    ids = _setup(client, settings, n=2)
+    (pid, other), sid = ids["participants"], ids["sessions"][0]
+    mine = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        "name": "equal", "method": "equal", "utility_set_id": ids["us"]}), 201)
+    theirs = _ok(client.post(f"/api/participants/{other}/prior-sets", json={
+        "name": "equal", "method": "equal", "utility_set_id": ids["us"]}), 201)
+    plan = _ok(client.post(f"/api/sessions/{sid}/trials/plan", json={
+        "tasks": TASKS, "include_eumc": False, "model_set_id": ids["ms"],
+        "utility_set_id": ids["us"], "conditions": ["population", "population+priors"],
+        "prior_set_id": mine["id"]}), 201)
+    plain = next(t for t in plan if t["condition"] == "umc")
+    with_priors = next(t for t in plan if t["condition"] == "umc+priors")
+    second = _setup(client, settings, name="Another")  # another study's sets
+    engine = make_engine(settings.database_url)
+
+    def alter(trial: dict[str, Any], **values: Any) -> None:
+        with make_session_factory(engine)() as db:
+            db.execute(update(Trial).where(Trial.id == trial["id"]).values(**values))
+            db.commit()
+
+    def refused(trial: dict[str, Any], *words: str) -> None:
+        r = client.post(f"/api/trials/{trial['id']}/start", json={})
+        assert r.status_code == 409, r.text
+        assert all(w in r.text for w in words), r.text
+        assert _ok(client.get(f"/api/trials/{trial['id']}"))["status"] == "planned"
+
+    alter(plain, prior_set_id=theirs["id"])
+    refused(plain, "equal priors", str(theirs["id"]))
+    alter(with_priors, prior_set_id=theirs["id"])
+    refused(with_priors, "another participant", f"prior set {theirs['id']}")
+    alter(with_priors, prior_set_id=mine["id"], model_set_id=second["ms"])
+    refused(with_priors, f"model set {second['ms']}", f"study {second['study']}")
+    alter(with_priors, model_set_id=ids["ms"], utility_set_id=second["us"])
+    refused(with_priors, f"utility set {second['us']}", f"study {second['study']}")
+    engine.dispose()
+
+
+def test_saved_again_or_relabelled_lifts_are_counted_once_with_their_label(
+        client: TestClient, settings: Settings) -> None:
+    """Saving a trial's segments replaces their rows: a later prior set neither counts
+    the same lifts again nor skips a relabelled one; it counts each once, as labelled."""
+    ids = _setup(client, settings)
+    pid, sid = ids["participants"][0], ids["sessions"][0]
+    engine = make_engine(settings.database_url)
+    lifts = [(100 * i, 100 * i + 40, 100 * i + 80, "squat") for i in range(6)]
+
+    def save(segs: list[tuple[int, int, int, str]]) -> None:
+        """What PUT /api/trials/{id}/segments does: delete the rows, insert new ones."""
+        with make_session_factory(engine)() as db:
+            db.execute(delete(TrialSegment).where(TrialSegment.trial_id == tid))
+            db.add_all([TrialSegment(trial_id=tid, start=a, peak=b, end=c, label=lab,
+                                     source="manual") for a, b, c, lab in segs])
+            db.commit()
+
+    with make_session_factory(engine)() as db:
+        trial = Trial(session_id=sid, controller="pec", task="squat-sequence",
+                      planned_order=0, status="completed",
+                      started_at=datetime(2026, 11, 2, tzinfo=UTC))
+        db.add(trial)
+        db.commit()
+        tid = trial.id
+    save(lifts)
+    learn = {"name": "learned", "method": "dirichlet", "utility_set_id": ids["us"],
+             "forgetting": 1.0}
+    first = _ok(client.post(f"/api/participants/{pid}/prior-sets", json=learn), 201)
+    assert first["document"]["counts"] == [6.0, 0.0, 0.0, 0.0]
+    save(lifts)  # saved again unchanged: nothing new
+    again = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        **learn, "previous_prior_set_id": first["id"]}), 201)
+    assert again["params"]["new_motions"] == 0
+    assert again["document"]["counts"] == [6.0, 0.0, 0.0, 0.0]
+    save([*lifts[:5], (*lifts[5][:3], "stoop_left")])  # one lift relabelled
+    relabelled = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        **learn, "previous_prior_set_id": again["id"]}), 201)
+    assert relabelled["document"]["counts"] == [5.0, 1.0, 0.0, 0.0]
+    assert relabelled["params"]["relabelled"] == [f"trial:{tid}:500-580"]
+    assert len(relabelled["document"]["sources"]) == 6
+    engine.dispose()

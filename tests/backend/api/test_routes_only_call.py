@@ -18,9 +18,7 @@ STATEMENTS = frozenset({"select", "delete", "update", "insert"})
 SESSION_CALLS = frozenset({"execute", "scalars", "scalar", "add", "add_all", "delete",
                            "commit", "flush", "get", "refresh", "rollback", "merge"})
 #: Route modules whose queries have not moved to a service yet.
-NOT_YET = frozenset({"audit", "cohorts", "device_grants", "emg", "participant_forms",
-                     "participants", "personalisation", "preferences", "questionnaires",
-                     "sessions", "trials"})
+NOT_YET = frozenset({"emg", "personalisation", "trials"})
 
 
 def queries(source: str) -> list[str]:

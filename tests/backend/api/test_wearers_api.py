@@ -188,3 +188,23 @@ def test_twenty_progress_requests_at_once_all_answer(client: TestClient,
     with ThreadPoolExecutor(n) as pool:
         codes = list(pool.map(ask, range(n)))
     assert codes == [200] * n
+
+
+def test_long_use_refuses_another_wearers_personal_model_set(client: TestClient,
+                                                              db_url: str) -> None:
+    study, _, sid = _wearer(client)
+    other = _ok(client.post(f"/api/studies/{study}/participants", json={"code": "W02"}),
+                201)["id"]
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        ms = ModelSetRecord(study_id=study, name="W02 personal", status="ready",
+                            kind="personal", participant_id=other, document={"x": 1})
+        db.add(ms)
+        db.commit()
+        ms_id = ms.id
+    engine.dispose()
+    r = client.post(f"/api/sessions/{sid}/long-use", json={
+        "controller": "umc", "model_set_id": ms_id, "utility_set_id": ms_id})
+    detail = _detail(r, 422)
+    assert "another participant" in detail and "W01" in detail
+    assert r.json()["detail"][0]["loc"] == ["body", "model_set_id"]

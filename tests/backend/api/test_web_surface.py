@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -15,9 +17,21 @@ from hypothesis import strategies as st
 from starlette.websockets import WebSocketDisconnect
 
 from backend.api.web_surface import CSRF_COOKIE
+from tests.databases import AccountTemplates
 from tests.login import bearer
+from tests.module_client import logged_in_client
 
 EVIL = "http://evil.example"
+
+
+@pytest.fixture(scope="module")
+def reader(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[TestClient]:
+    """One logged-in app for the tests here that only read (`tests/module_client.py`);
+    the tests that write or change the client's headers get their own `client`."""
+    with logged_in_client(tmp_path_factory.mktemp("web-surface"), default_sets,
+                          account_templates) as c:
+        yield c
 
 
 def test_a_cookie_change_from_another_origin_or_without_the_token_is_refused(
@@ -57,8 +71,8 @@ def test_a_websocket_from_another_origin_is_refused(client: TestClient) -> None:
 
 @pytest.mark.parametrize("path", ["/login", "/api/health", "/static/style.css", "/docs",
                                   "/api/studies"])
-def test_every_response_carries_the_security_headers(client: TestClient, path: str) -> None:
-    r = client.get(path)
+def test_every_response_carries_the_security_headers(reader: TestClient, path: str) -> None:
+    r = reader.get(path)
     assert r.status_code == 200
     csp = r.headers["content-security-policy"]
     assert "frame-ancestors 'none'" in csp and "script-src 'self'" in csp
@@ -84,7 +98,7 @@ def test_a_huge_body_is_refused_with_413_before_it_is_read(client: TestClient) -
     assert r.status_code == 413
     assert r.json()["detail"][0]["loc"] == ["body"]
 
-    def chunks():  # no Content-Length: the limit counts the streamed bytes
+    def chunks() -> Iterator[bytes]:  # no Content-Length: the limit counts the streamed bytes
         yield b'{"username": "x", "password": "'
         for _ in range(40):
             yield b"a" * 100_000
@@ -123,8 +137,8 @@ def test_bad_numbers_and_characters_get_a_422_naming_the_field(
                                   "/api/participants/" + "9" * 4301,
                                   "/api/trials/" + "9" * 4301,
                                   "/api/trials/" + "0" * 5000 + "1"])
-def test_ids_beyond_any_column_get_a_4xx(client: TestClient, path: str) -> None:
-    r = client.get(path)
+def test_ids_beyond_any_column_get_a_4xx(reader: TestClient, path: str) -> None:
+    r = reader.get(path)
     assert 400 <= r.status_code < 500 and r.status_code != 403, (path, r.text)
 
 

@@ -193,3 +193,49 @@ def test_live_emg_is_stored_mapped_and_clock_corrected(
     assert store.read_header(store.recording_path(settings, second["id"])).n_channels == 12
     # The first recording is untouched by what followed.
     assert client.get(recs_url).json()[0] == first
+
+
+def test_a_sped_up_simulation_loses_no_sample_on_the_way_to_the_store(
+        client: TestClient, settings: Settings) -> None:
+    """The in-process simulated device of the virtual study, 50 times faster than real
+    time: every sample its amplifier pushed is in the recording, in order (counted, not
+    timed)."""
+    import os
+
+    from controller.sim.simulated_device import SimulatedDevice
+
+    sess = _session(client)
+    emg = client.app.state.emg  # type: ignore[attr-defined]
+    dev = SimulatedDevice(seed=5, script="lift-evaluation", speed=50.0, emg_lsl=True)
+    assert dev.emg is not None
+    dev.emg.keep = True
+    stop = threading.Event()
+
+    def run() -> None:
+        while not stop.is_set():
+            dev.read(0.05)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    url = f"/api/sessions/{sess}/emg-streams"
+    try:
+        r = client.post(url, json={"name": "ExoStudy-SimEMG",
+                                   "source_id": f"exostudy-simemg-{os.getpid()}",
+                                   "ignore_labels": [f"spare_{i}" for i in range(1, 5)]})
+        assert r.status_code == 201, r.text
+        inlet = emg.inlets[r.json()["id"]]
+        wait_for(lambda: dev.emg is not None and dev.emg.stats.samples_pushed >= 60_000,
+                 120, "30 s of sped-up EMG pushed")
+    finally:
+        stop.set()
+        thread.join(5.0)
+    pushed = dev.emg.stats.samples_pushed
+    wait_for(lambda: inlet.samples >= pushed, 120, "the inlet to pull every pushed sample")
+    assert client.delete(f"{url}/{r.json()['id']}").status_code == 200
+    dev.close()
+    (rec,) = client.get(f"/api/sessions/{sess}/emg-recordings").json()
+    assert inlet.samples == pushed and rec["n_samples"] == pushed
+    _t, x = store.read_window(store.recording_path(settings, rec["id"]))
+    generated = np.concatenate([b.samples for b in dev.emg.blocks]).astype(np.float32)
+    np.testing.assert_array_equal(x, generated[:, ORDER])
+    assert generated.shape[0] == pushed

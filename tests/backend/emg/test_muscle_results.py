@@ -20,6 +20,7 @@ from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, Study, StudySession
 from backend.emg import muscle_results, recordings, store
+from backend.schemas.muscle_results import MuscleResultsOut
 from controller.emg.processing import EmgProcessing
 from controller.sim.muscles import CHANNELS, channel_label
 from controller.sim.surface_emg import SurfaceEmgGenerator
@@ -170,6 +171,8 @@ def test_reductions_follow_the_conditions_amplitudes(db_url: str, settings: Sett
     assert "# processing:" in lifts_csv and "'normalisation': 'task_peak'" in lifts_csv
     doc = res.document()
     assert doc["method"]["processing"]["envelope_hz"] == 6.0
+    # The route's response model names every key the document has, and keeps them all.
+    assert MuscleResultsOut.model_validate(doc).model_dump() == doc
     assert "Reduction of the mean envelope" in res.markdown()
     for name in muscle_results.FIGURES:
         fig = res.figure(name)

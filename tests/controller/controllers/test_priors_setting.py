@@ -87,3 +87,20 @@ def test_learned_priors_reach_the_posteriors_of_the_running_controller(docs: tup
     expect = np.append(w, other) * pri / np.dot(np.append(w, other), pri)
     got = [moved[f"post_{n}"][k] for n in ("squat", "stoop_left", "stoop_right", "other")]
     assert got == pytest.approx(expect.tolist(), rel=1e-12)
+
+
+def test_umc_and_the_request_check_refuse_priors_below_the_floor(docs: tuple) -> None:
+    """[0, 0.3, 0.3, 0.4] satisfies the lock relations but leaves squat unrecognisable:
+    the documented floor (0.05) holds in the worker and where a request brings priors."""
+    from backend.study.conditions import spec_priors_problem
+
+    spec = ControllerSpec("umc", ControllerConfig(priors=(0.0, 0.3, 0.3, 0.4)),
+                          models=docs[0], utilities=docs[1])
+    with pytest.raises(SettingError, match=r"squat is 0, below its floor 0\.05"):
+        make_from_spec(spec)
+    problem = spec_priors_problem(spec)
+    assert problem is not None and "below its floor" in problem
+    at_floor = ControllerSpec("umc", ControllerConfig(priors=(0.05, 0.3, 0.3, 0.35)),
+                              models=docs[0], utilities=docs[1])
+    assert spec_priors_problem(at_floor) is None
+    assert isinstance(make_from_spec(at_floor), UMC)

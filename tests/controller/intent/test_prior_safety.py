@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from controller.controllers.umc import UMC
-from controller.decision.expected_utility import decide_fast
+from controller.decision.expected_utility import LOCK_MARGIN, decide_fast, lock_margin
 from controller.decision.utility_function import UtilitySet
 from controller.evaluation.cohort import trial_recording
 from controller.intent.label_shift import learn_from_unconfirmed
@@ -86,9 +86,34 @@ def test_vectorised_decision_is_the_controllers(table: np.ndarray) -> None:
     pri = np.array([0.1, 0.3, 0.3, 0.3])
     got = lock_decided(table, s, p, pri)
     out = np.zeros(4)
-    want = [decide_fast(table, s[i], posteriors(p[i], pri), out) > 1 for i in range(len(p))]
+    want = [decide_fast(table, s[i], posteriors(p[i], pri), out, lock_margin(pri)) > 1
+            for i in range(len(p))]
     assert got.tolist() == want
     assert 0 < got.sum() < len(got)
+
+
+#: Found by search over the default utilities: with safe learned priors the EU of
+#: locking the right side exceeds no lock by rounding alone (the true margin is below
+#: 1e-12 of the terms), where equal priors tie or stay free.
+ROUNDING_CASE = (
+    [0.0833, 0.2624, 0.2624, 0.3919],
+    [0.005619807260905432, 0.04744748755238358, 2.800694509833761e-09],
+    [0.676, 0.632, 0.45],
+)
+
+
+def test_rounding_cannot_make_learned_priors_lock_where_equal_priors_do_not(
+        table: np.ndarray) -> None:
+    pri, p_obs, s = (np.array(v) for v in ROUNDING_CASE)
+    assert PriorBounds.for_table(table).violation(pri) is None
+    out = np.zeros(4)
+    equal = decide_fast(table, s, posteriors(p_obs, EQUAL), out, lock_margin(EQUAL))
+    assert equal == 1
+    # Without the margin the controller's own decision locks here: the case is real.
+    assert decide_fast(table, s, posteriors(p_obs, pri), out) > 1
+    assert decide_fast(table, s, posteriors(p_obs, pri), out, lock_margin(pri)) == 1
+    assert not lock_decided(table, s[None], p_obs[None], pri)[0]
+    assert lock_margin(EQUAL) == 0.0 and lock_margin(pri) == LOCK_MARGIN
 
 
 @settings(max_examples=60, deadline=None)
