@@ -34,9 +34,14 @@ from numpy.typing import NDArray
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.emg import store
 
-#: BDF data record length: files hold whole records, so the last is padded with zeros
-#: after `RecordingDuration` (said in `_emg.json`).
-RECORD_S = 0.1
+#: BDF data record lengths tried in order (the first giving a whole number of samples
+#: per record at the rate wins): files hold whole records, so the last is padded with
+#: zeros after `RecordingDuration` (said in `_emg.json`). 2048 Hz (BioSemi) needs 1 s.
+RECORD_CHOICES_S = (0.1, *range(1, 101))
+#: A BDF header holds a record's sample count in 8 characters.
+MAX_SAMPLES_PER_RECORD = 99_999_999
+#: BDF signal labels are 16 characters.
+LABEL_CHARS = 16
 #: 24-bit BDF digital range.
 BDF_DIGITAL = (-8388608, 8388607)
 
@@ -48,23 +53,53 @@ def _physical_range(x: NDArray[np.float64]) -> tuple[float, float]:
     return -peak, peak
 
 
+def record_duration(fs: float) -> float:
+    """The shortest record length of `RECORD_CHOICES_S` holding whole samples at `fs`;
+    ValueError naming the rate when none does (import refuses such a rate, so every
+    stored recording can be exported)."""
+    if math.isfinite(fs) and fs > 0:
+        for d in RECORD_CHOICES_S:
+            n = fs * d
+            if 1 <= round(n) <= MAX_SAMPLES_PER_RECORD and abs(n - round(n)) <= 1e-9 * n:
+                return float(d)
+    raise ValueError(f"a sampling rate of {fs!r} Hz gives no whole number of samples in a "
+                     f"BDF data record of {RECORD_CHOICES_S[0]} s or 1 to "
+                     f"{RECORD_CHOICES_S[-1]} s, so it cannot be exported as BIDS-EMG")
+
+
+def bdf_labels(labels: list[str]) -> list[str]:
+    """Labels unique within BDF's 16 characters. A label that fits and is unique stays;
+    one that is longer, or whose first 16 characters another label shares, becomes its
+    first characters + "~" + its channel number (1-based, montage order), e.g.
+    `erector_spinae_~3`. The full label is in `_channels.tsv`'s `description`."""
+    cut = [lb[:LABEL_CHARS] for lb in labels]
+    out = []
+    for i, (lb, c) in enumerate(zip(labels, cut, strict=True)):
+        if len(lb) <= LABEL_CHARS and cut.count(c) == 1:
+            out.append(lb)
+        else:
+            tag = f"~{i + 1}"
+            out.append(lb[:LABEL_CHARS - len(tag)] + tag)
+    if len(set(out)) != len(out):  # a kept label that looks like an abbreviation
+        out = [f"{lb[:LABEL_CHARS - len(f'~{i + 1}')]}~{i + 1}" for i, lb in enumerate(labels)]
+    return out
+
+
 def bdf_bytes(x_volts: NDArray[np.float64], fs: float, labels: list[str]) -> bytes:
     """A BDF file of the samples (microvolts, 24 bit); non-finite samples as 0."""
     import edfio
 
     uv = np.where(np.isfinite(x_volts), x_volts, 0.0) * 1e6
-    per_record = round(fs * RECORD_S)
-    if abs(per_record - fs * RECORD_S) > 1e-9 or per_record < 1:
-        raise ValueError(f"a BDF record of {RECORD_S} s needs a whole number of samples at "
-                         f"{fs} Hz")
+    record_s = record_duration(fs)
+    per_record = round(fs * record_s)
     pad = -uv.shape[0] % per_record
     uv = np.vstack([uv, np.zeros((pad, uv.shape[1]))])
-    signals = [edfio.BdfSignal(uv[:, i], fs, label=lb[:16], physical_dimension="uV",
+    signals = [edfio.BdfSignal(uv[:, i], fs, label=lb, physical_dimension="uV",
                                physical_range=_physical_range(uv[:, i]),
                                digital_range=BDF_DIGITAL)
-               for i, lb in enumerate(labels)]
+               for i, lb in enumerate(bdf_labels(labels))]
     buf = io.BytesIO()
-    edfio.Bdf(signals, data_record_duration=RECORD_S).write(buf)
+    edfio.Bdf(signals, data_record_duration=record_s).write(buf)
     return buf.getvalue()
 
 
@@ -91,7 +126,8 @@ def sidecar(rec: EmgRecording, montage: EmgMontage, task: str, description: str,
     return {
         "TaskName": task,
         "TaskDescription": f"{description}. Stored raw (no filter applied to the file; "
-                           f"zeros pad the last {RECORD_S} s data record after "
+                           f"zeros pad the last {record_duration(rec.fs):g} s data record "
+                           f"after "
                            f"RecordingDuration); "
                            f"the study's analysis chain: {chain}",
         "EMGPlacementScheme": "Other",
@@ -120,7 +156,9 @@ def sidecar(rec: EmgRecording, montage: EmgMontage, task: str, description: str,
 def channels_rows(montage: EmgMontage, bad: dict[int, int]) -> tuple[list[str], list[list[Any]]]:
     """`_channels.tsv` of the montage (status bad where samples were not finite)."""
     cols = ["name", "type", "units", "target_muscle", "placement_scheme",
-            "placement_description", "reference", "status", "status_description"]
+            "placement_description", "reference", "status", "status_description",
+            "description"]
+    names = bdf_labels([c["label"] for c in montage.channels])
     rows = []
     for i, c in enumerate(montage.channels):
         ied = c.get("inter_electrode_distance_mm")
@@ -129,10 +167,11 @@ def channels_rows(montage: EmgMontage, bad: dict[int, int]) -> tuple[list[str], 
             where = f"{where}; inter-electrode distance {ied:g} mm"
         if c.get("electrode_type"):
             where = f"{where}; {c['electrode_type']}"
-        rows.append([c["label"][:16], "EMG", "uV", f"{c['side']} {c['muscle']}", "other",
+        rows.append([names[i], "EMG", "uV", f"{c['side']} {c['muscle']}", "other",
                      where, c.get("reference") or "bipolar",
                      "bad" if bad.get(i) else "good",
-                     f"{bad[i]} non-finite samples written as 0" if bad.get(i) else "n/a"])
+                     f"{bad[i]} non-finite samples written as 0" if bad.get(i) else "n/a",
+                     f"montage label {c['label']}"])
     return cols, rows
 
 

@@ -206,16 +206,37 @@ class MuscleResults:
 
     def reductions(self) -> list[dict[str, Any]]:
         """Each condition against each baseline, per group, metric and channel."""
+        return self._reductions()[0]
+
+    def reduction_gaps(self) -> list[dict[str, Any]]:
+        """The baseline x group x metric families without reductions, and why (a baseline
+        trial may hold only some lift kinds: that group has no baseline data)."""
+        return self._reductions()[1]
+
+    def _reductions(self) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        """Reductions and gaps; a family the statistics refuse becomes a stated gap,
+        never an error for the whole study."""
         out: list[dict[str, Any]] = []
+        gaps: list[dict[str, Any]] = []
         for baseline in self.baselines():
             for group in GROUPS:
                 for metric in METRICS:
                     rows = self.outcome_rows(metric, group)
                     if not rows:
                         continue
-                    for red in muscle_stats.reductions(rows, baseline):
+                    gap = {"baseline": baseline, "group": group, "metric": metric}
+                    if not any(r.condition == baseline for r in rows):
+                        gaps.append({**gap, "gap": f"no baseline data: no {group} lift "
+                                     f"of {baseline!r} has EMG"})
+                        continue
+                    try:
+                        reds = muscle_stats.reductions(rows, baseline)
+                    except ValueError as exc:
+                        gaps.append({**gap, "gap": str(exc)})
+                        continue
+                    for red in reds:
                         out.append({"group": group, "metric": metric, **red.to_dict()})
-        return out
+        return out, gaps
 
     def repeated(self) -> list[dict[str, Any]]:
         """Friedman across all conditions per channel, for every lift, per metric."""
@@ -321,6 +342,7 @@ class MuscleResults:
                         "flags": t.flags, "channel_flags": t.channel_flags, "note": t.note}
                        for t in self.trials],
             "summary": self.summary(), "reductions": self.reductions(),
+            "reduction_gaps": self.reduction_gaps(),
             "repeated_measures": self.repeated(), "notes": self.notes,
         }
 

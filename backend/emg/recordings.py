@@ -23,7 +23,7 @@ from backend.core.config import Settings
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.db.lab import Marker
 from backend.db.models import Participant, StudySession
-from backend.emg import store
+from backend.emg import bids, store
 from backend.emg.quality_summary import STOPPED_MID_TRIAL, QualitySummary
 from controller.emg.montage import Montage, MontageError, normalise_label
 
@@ -213,7 +213,9 @@ def store_blocks(db: Session, settings: Settings, session_id: int, montage: EmgM
                  mains_hz: int | None = None, flags: Iterable[str] = ()) -> EmgRecording:
     """Write a whole recording from blocks (timestamps None: at the nominal rate from 0)
     in montage order, with `flags` of the recording as a whole; on any error nothing is
-    kept."""
+    kept. A rate no BDF record length holds (see `bids.record_duration`) is refused
+    before anything is stored, so every imported recording can be exported."""
+    bids.record_duration(fs)
     rec = RecordingWriter(db, settings, session_id, montage, source, fs, time_offset_s,
                           alignment, filename, user_id=user_id, mains_hz=mains_hz)
     for name in flags:

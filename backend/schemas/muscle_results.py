@@ -96,6 +96,16 @@ class MuscleReductionRow(_Closed):
     test: str
 
 
+class MuscleReductionGap(_Closed):
+    """A baseline x group x metric family without reductions, and why (a baseline trial
+    holding only some lift kinds has no baseline data for the other kinds)."""
+
+    baseline: str
+    group: str
+    metric: str
+    gap: str = Field(description="why no reduction is given")
+
+
 class MuscleRepeatedRow(_Closed):
     """Across all conditions on one channel."""
 
@@ -122,5 +132,7 @@ class MuscleResultsOut(_Closed):
     trials: list[MuscleTrialOut]
     summary: list[MuscleSummaryRow]
     reductions: list[MuscleReductionRow]
+    reduction_gaps: list[MuscleReductionGap] = Field(
+        description="families without reductions, with the reason")
     repeated_measures: list[MuscleRepeatedRow]
     notes: list[str]

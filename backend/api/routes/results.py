@@ -175,6 +175,8 @@ def _muscle(db: SessionDep, runtime: RuntimeDep, engine: EngineDep, settings: Se
         return muscle_results.CACHE.get(engine, db, emg_folder(settings), study_id, site)
     except results.ResultsError as exc:
         conflict(exc.field_name, exc.problem)
+    except ValueError as exc:  # the processing or statistics refused the data: say why
+        conflict("muscle_results", str(exc))
 
 
 @router.get("/api/studies/{study_id}/muscle-results", responses=CONFLICT,
@@ -186,8 +188,12 @@ def study_muscle_results(study_id: StudyId, runtime: RuntimeDep, engine: EngineD
     mean over participants with its 95 % interval, the reduction against each baseline
     and the repeated-measures test, with every processing parameter (`method`) and each
     trial's quality flags."""
-    return MuscleResultsOut.model_validate(
-        _muscle(db, runtime, engine, settings, site, study_id).document())
+    res = _muscle(db, runtime, engine, settings, site, study_id)
+    try:
+        doc = res.document()
+    except ValueError as exc:  # the statistics refused the data: say why, never 500
+        conflict("muscle_results", str(exc))
+    return MuscleResultsOut.model_validate(doc)
 
 
 @router.get("/api/studies/{study_id}/muscle-results/{table}.{fmt}", response_class=Response,
@@ -200,7 +206,10 @@ def study_muscle_table(study_id: StudyId, table: MuscleTable,
     """A muscle-activity table as CSV (the method in `#` lines first); Markdown gives the
     reductions against each baseline whatever the table."""
     res = _muscle(db, runtime, engine, settings, site, study_id)
-    body = res.csv(table) if fmt == "csv" else res.markdown()
+    try:
+        body = res.csv(table) if fmt == "csv" else res.markdown()
+    except ValueError as exc:
+        conflict("muscle_results", str(exc))
     return Response(body, media_type=_MEDIA[fmt], headers={
         "Content-Disposition": f'inline; filename="study-{study_id}-muscle-{table}.{fmt}"'})
 
@@ -213,5 +222,8 @@ def study_muscle_figure(study_id: StudyId, name: MuscleFigure, fmt: ImageFormat,
                         site: SiteDep, user: CurrentUser, db: SessionDep) -> Response:
     """The envelope over the normalised lift cycle per controller, or the reduction per
     muscle and controller against no exoskeleton (else the first baseline)."""
-    fig = _muscle(db, runtime, engine, settings, site, study_id).figure(name)
+    try:
+        fig = _muscle(db, runtime, engine, settings, site, study_id).figure(name)
+    except ValueError as exc:
+        conflict("muscle_results", str(exc))
     return Response(fig.png if fmt == "png" else fig.svg, media_type=_MEDIA[fmt])

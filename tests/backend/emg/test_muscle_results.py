@@ -243,3 +243,43 @@ def test_a_stream_that_restarts_mid_trial(db_url: str, settings: Settings) -> No
     assert all(lf.outcome is not None for c in ("umc", "springs_free", "no_exoskeleton")
                for lf in by[c].lifts)
     made["engine"].dispose()
+
+
+def _lift(index: int, kind: str, level: float) -> muscle_results.LiftEmg:
+    from controller.emg.outcomes import LiftOutcome, WindowOutcome
+
+    w = WindowOutcome((level,), (level,), (level,), 1.0)
+    return muscle_results.LiftEmg(index, kind, 0.0, 1.0, 1, LiftOutcome(w))
+
+
+def test_a_baseline_with_only_some_lift_kinds_is_a_stated_gap() -> None:
+    """The attack: the baseline trials hold squats only, so the stoop groups have no
+    baseline; that family is reported as a gap, the squat reductions still computed."""
+    trials = []
+    for i, p in enumerate(("P01", "P02", "P03")):
+        trials.append(muscle_results.TrialEmg(
+            10 + i, 1, p, "springs_free", "lifting", "markers",
+            lifts=[_lift(0, "squat", 1.0)]))
+        trials.append(muscle_results.TrialEmg(
+            20 + i, 1, p, "umc", "lifting", "markers",
+            lifts=[_lift(0, "squat", 0.5 + 0.01 * i), _lift(1, "stoop_left", 0.4)]))
+    res = muscle_results.MuscleResults(1, {}, 50, ["ES_left"], trials)
+    reds = res.reductions()
+    squat = [r for r in reds if r["group"] == "squat" and r["metric"] == "mean"]
+    assert [round(r["mean_pct"], 1) for r in squat] == [49.0]
+    assert {r["group"] for r in reds} == {"all", "squat"}
+    gaps = res.reduction_gaps()
+    assert {(g["group"], g["metric"]) for g in gaps} == {
+        ("stoop_left", m) for m in muscle_results.METRICS}
+    assert all(g["gap"].startswith("no baseline data") for g in gaps)
+    doc = MuscleResultsOut.model_validate(res.document())
+    assert len(doc.reduction_gaps) == 3
+    assert res.csv("reductions").count("springs_free") == len(reds)
+
+
+def test_reductions_without_the_baseline_raise_a_clear_value_error() -> None:
+    from controller.evaluation import muscle_stats
+
+    rows = [muscle_stats.OutcomeRow("P01", "umc", "ES_left", 1.0)]
+    with pytest.raises(ValueError, match="baseline 'springs_free' has no outcome rows"):
+        muscle_stats.reductions(rows, "springs_free")
