@@ -33,6 +33,8 @@ from controller.help_format import DefaultsHelpFormatter
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session
 
+    from backend.core.config import Settings
+
 
 def _serve(args: argparse.Namespace) -> int:
     import uvicorn
@@ -88,6 +90,24 @@ def _db(args: argparse.Namespace) -> int:
     return 0
 
 
+def _emg_orphans(settings: Settings) -> list[Path]:
+    """EMG files no recording row claims (none when the database cannot be read)."""
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from backend.db.engine import make_engine, make_session_factory
+    from backend.emg import recovery, store
+
+    try:
+        engine = make_engine(settings.database_url)
+        try:
+            with make_session_factory(engine)() as db:
+                return recovery.orphans(db, store.emg_folder(settings))
+        finally:
+            engine.dispose()
+    except SQLAlchemyError:
+        return []
+
+
 def _doctor(args: argparse.Namespace) -> int:
     """Exit status 1 while a folder or file of the data is open to other accounts."""
     from backend.core import data_folder
@@ -98,6 +118,12 @@ def _doctor(args: argparse.Namespace) -> int:
     for line in found.lines():
         print(f"warning: {line}")
     folders = ", ".join(str(f) for f in data_folder.own_folders(settings))
+    orphans = _emg_orphans(settings)
+    for path in orphans:
+        print(f"warning: EMG file {path} belongs to no recording (an erasure whose "
+              "deletion failed, or a file set aside): delete it once checked")
+    if orphans and not found.count:
+        return 1
     if not found.count:
         print(f"ok: the data ({folders}) is readable by its owner only"
               + (" (as far as it was looked at)" if found.walk_stopped else ""))

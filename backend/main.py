@@ -53,6 +53,8 @@ from backend.core.config import Settings, get_settings
 from backend.core.resources import version
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
+from backend.emg import recovery as emg_recovery
+from backend.emg import store as emg_store
 from backend.emg.live import EmgLab
 from backend.lab.hub import Lab
 from backend.live.parts import StudyHooks
@@ -149,6 +151,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         interrupted = jobs.recover(app.state.sessions)
         if interrupted:
             log.warning("interrupted by the restart: %s", ", ".join(interrupted))
+        # EMG recordings a killed server was writing keep what their .part holds.
+        with app.state.sessions() as db:
+            for line in emg_recovery.recover(db, emg_store.emg_folder(settings)):
+                log.warning("interrupted by the restart: %s", line)
         # The tick writer has an engine (a pool) of its own: no number of API reads
         # holding the app's connections can keep a running trial's ticks from the disk.
         writer_engine = make_engine(settings.database_url)

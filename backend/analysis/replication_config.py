@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from controller.evaluation.cohort import MAX_PARTICIPANTS
 from controller.evaluation.paper_claims import DEFAULT_SEEDS, ClaimResult
 from controller.evaluation.tables import Table
 
@@ -17,6 +18,9 @@ Engine = Literal["study", "cohort"]
 #: protocol in-process in minutes; the study engine (the whole live chain per seed)
 #: takes about 100 minutes for the default seeds.
 DEFAULT_ENGINE: Engine = "cohort"
+#: Participants of the personalisation section unless asked otherwise: the issue's
+#: smallest convincing cohort (40), one seed; measured at about TIMING here.
+DEFAULT_PERSONALISATION = 40
 
 
 @dataclass(frozen=True)
@@ -33,6 +37,9 @@ class ReplicationConfig:
     data_participants: int = 6
     offset_participants: int = 60
     stair_participants: int = 20
+    #: Virtual participants of the personalisation section (one cohort, seed
+    #: `first_seed`; `controller.evaluation.personalisation`); 0 leaves it out.
+    personalisation_participants: int = DEFAULT_PERSONALISATION
 
     def __post_init__(self) -> None:
         if not self.from_db and not 2 <= self.seeds <= 50:
@@ -49,6 +56,11 @@ class ReplicationConfig:
             raise ValueError("offset_participants: must be within 4..2000")
         if not 2 <= self.stair_participants <= 500:
             raise ValueError("stair_participants: must be within 2..500")
+        if self.personalisation_participants != 0 and not (
+                3 <= self.personalisation_participants <= MAX_PARTICIPANTS):
+            raise ValueError("personalisation_participants: 0 (leave the section out) or "
+                             f"3..{MAX_PARTICIPANTS} (each participant's population models "
+                             "need two others)")
         for p in self.from_db:
             if not Path(p).is_file():
                 raise FileNotFoundError(f"--from-db: no database file at {p}")
@@ -82,10 +94,13 @@ class Replication:
     #: The first seed's tables (the paper's layout), by name.
     first_tables: dict[str, Table] = field(default_factory=dict)
     #: Sections given as Markdown by the modules that compute them (muscle activity),
-    #: by name: shown in the HTML report as they are (preformatted), beside their
-    #: figures, rather than parsed back into tables.
+    #: by name: the HTML report shows their paragraphs and tables
+    #: (`replication_report.markdown_blocks`), beside their figures.
     sections: dict[str, str] = field(default_factory=dict)
     figures: dict[str, tuple[bytes, bytes]] = field(default_factory=dict)
+    #: The personalisation study's `personalisation.json` document
+    #: (`controller.evaluation.personalisation_report.analysis_json`); empty if skipped.
+    personalisation: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)

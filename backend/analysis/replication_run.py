@@ -23,7 +23,9 @@ How a run is made (`backend.analysis.replication_config.ReplicationConfig`):
 - **Beyond the seeds.** The method checks (utilities, value iteration, chi-square tail,
   actuator) are deterministic; the donning-offset regression uses one larger virtual
   cohort (`offset_participants`); the stair kinematics are measured on the simulator
-  (`controller.evaluation.paper_protocol`).
+  (`controller.evaluation.paper_protocol`); the personalisation section (beyond the
+  paper) runs one virtual personalisation cohort of `personalisation_participants`
+  (`controller.evaluation.personalisation`, seed `first_seed`; 0 skips it).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import time
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -74,6 +77,8 @@ from controller.evaluation.paper_protocol import (
     protocol_seed,
     stair_kinematics,
 )
+from controller.evaluation.personalisation import PersonalisationConfig, simulate_study
+from controller.evaluation.personalisation_report import analysis_json, curve_figure, lab_changes
 from controller.evaluation.rendering import render_figure
 from controller.evaluation.study import evaluate_recording
 from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
@@ -210,6 +215,18 @@ def _sources(cfg: ReplicationConfig, log: Callable[[str], None]
     return [(f"seed {s}", partial(cohort_seed, cfg, s)) for s in cfg.seed_list()]
 
 
+def personalisation_step(cfg: ReplicationConfig, utilities: UtilitySet,
+                         log: Callable[[str], None]
+                         ) -> tuple[dict[str, Any], tuple[bytes, bytes]]:
+    """The personalisation section's study (one cohort, the claims' utility set) as its
+    `personalisation.json` document and the demonstration-count curve (PNG, SVG)."""
+    pcfg = PersonalisationConfig(participants=cfg.personalisation_participants,
+                                 seeds=(cfg.first_seed,))
+    log(f"personalisation: {pcfg.participants} virtual participants, seed {cfg.first_seed}")
+    study = simulate_study(pcfg, utilities)
+    return analysis_json(study), curve_figure(study, lab_changes(study))
+
+
 def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
         progress: Callable[[float], None] | None = None) -> Replication:
     """Run or read every seed, judge every claim and write the report into `cfg.out`;
@@ -222,7 +239,7 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
     utilities: UtilitySet | None = None
     sources = _sources(cfg, log)
     t0 = time.monotonic()
-    steps = len(sources) + 2
+    steps = len(sources) + 2 + (1 if cfg.personalisation_participants else 0)
     for i, (label, load) in enumerate(sources):
         t1 = time.monotonic()
         trials, models, us = load()
@@ -254,7 +271,13 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
     rep.phases["offsets"] = round(time.monotonic() - t0, 1)
     rep.sections["muscle_activity"] = muscle_report.replication_section(
         rep.figures, cfg.participants, cfg.first_seed, first_models, utilities, log)
-    report((steps - 1) / steps)
+    report((len(sources) + 1) / steps)
+    if cfg.personalisation_participants:
+        t0 = time.monotonic()
+        rep.personalisation, rep.figures["personalisation_curve"] = personalisation_step(
+            cfg, utilities, log)
+        rep.phases["personalisation"] = round(time.monotonic() - t0, 1)
+        report((steps - 1) / steps)
     t0 = time.monotonic()
     rep.stairs = stair_kinematics(cfg.stair_participants, cfg.first_seed)
     cyc = {k: np.array(v) for k, v in rep.stairs.pop("cycles").items()}

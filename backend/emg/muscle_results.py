@@ -57,7 +57,8 @@ from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, StudySession
-from backend.emg import mvc, store
+from backend.emg import mvc, recordings, store
+from backend.emg.quality_summary import STOPPED_MID_TRIAL
 from controller import spreadsheet
 from controller.controllers import registry
 from controller.controllers.baselines import NO_EXOSKELETON
@@ -526,7 +527,7 @@ def _recording_flags(rec: EmgRecording) -> list[str]:
     channel) and not the timing's (measured per trial)."""
     chan = {f for per in ((rec.quality or {}).get("channels") or {}).values() for f in per}
     return [f for f in (rec.quality or {}).get("flags", [])
-            if f not in chan and f not in TIMING_FLAGS]
+            if f not in chan and f not in TIMING_FLAGS and f != STOPPED_MID_TRIAL]
 
 
 def _timing_flags(e: _Envelope, t0: float, t1: float) -> list[str]:
@@ -575,6 +576,18 @@ def _session_recordings(db: Session, session_id: int) -> list[EmgRecording]:
         .order_by(EmgRecording.id)))
 
 
+def _flag_stopped_inside(db: Session, trial: Trial, recs: Sequence[EmgRecording],
+                         out: TrialEmg) -> None:
+    """`stopped_mid_trial` when a recording ended inside this trial, decided now from the
+    trial's span: a live stream lost before the trial's stop was known is caught too
+    (the recording's own flag, set when it finished, could not know the stop)."""
+    span = next((s for s in recordings.trial_spans(db, trial.session_id)
+                 if s["trial_id"] == trial.id), None)
+    if span is not None and any(recordings.stopped_inside(r.t_start, r.t_end, span)
+                                for r in recs) and STOPPED_MID_TRIAL not in out.flags:
+        out.flags.append(STOPPED_MID_TRIAL)
+
+
 @dataclass
 class _Prepared:
     """A trial's lifts on the session clock, waiting for the recordings' envelopes."""
@@ -618,6 +631,7 @@ def _prepare(engine: Engine, db: Session, trial: Trial, participant: str,
     if not lifts:
         out.note = out.note or "no lifts: no truth, segments or lift markers"
         return _Prepared(out, lifts, None)
+    _flag_stopped_inside(db, trial, recs, out)
     span = (min(x[2] for x in lifts) - PAD_S, max(x[3] for x in lifts) + PAD_S)
     covered = any(r.t_start is not None and r.t_end is not None
                   and r.t_start <= span[1] and r.t_end >= span[0] for r in recs)

@@ -24,6 +24,8 @@ BLOCK_S = 10.0
 STREAM_LOST = "stream_lost"
 STREAM_RESTARTED = "stream_restarted"
 STOPPED_MID_TRIAL = "stopped_mid_trial"
+#: The server was killed mid-recording: what its file held was kept.
+INTERRUPTED = "interrupted"
 
 
 @dataclass
@@ -47,6 +49,11 @@ class QualitySummary:
     _pending_t: list[NDArray[np.float64]] = field(default_factory=list)
     _pending_x: list[NDArray[Any]] = field(default_factory=list)
     _pending_n: int = 0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.fs) and 0 < self.fs <= 1e9):
+            raise ValueError(f"sampling rate {self.fs!r} Hz cannot be assessed: it must be a "
+                             "positive finite number of Hz")
 
     def add(self, timestamps: NDArray[Any] | None, samples: NDArray[Any]) -> None:
         """Take rows (as written); assesses every full block."""

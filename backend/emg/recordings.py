@@ -10,6 +10,7 @@ the row, so a half-written recording never looks like a recording.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -23,9 +24,10 @@ from backend.core.config import Settings
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.db.lab import Marker
 from backend.db.models import Participant, StudySession
-from backend.emg import bids, store
+from backend.emg import bids, recovery, store
 from backend.emg.quality_summary import STOPPED_MID_TRIAL, QualitySummary
 from controller.emg.montage import Montage, MontageError, normalise_label
+from controller.emg.processing import MIN_UPPER_EDGE_HZ, NYQUIST_MARGIN
 
 #: Sources a recording may come from.
 SOURCES = ("lsl", "xdf", "edf", "bdf", "simulated")
@@ -49,6 +51,23 @@ class ChannelMismatchError(ValueError):
             parts.append(f"montage channels {missing} are not in the recording")
         super().__init__("; ".join(parts) + f"; the montage expects {expected} (list "
                          "spare inputs under ignore_labels to leave them out)")
+
+
+#: Lowest rate an imported file may have: the processing chain's band-pass needs an
+#: upper edge of `MIN_UPPER_EDGE_HZ` at `NYQUIST_MARGIN` of Nyquist (about 210.5 Hz).
+MIN_IMPORT_RATE_HZ = 2.0 * MIN_UPPER_EDGE_HZ / NYQUIST_MARGIN
+#: Highest: no surface EMG amplifier samples faster (high-density systems reach 10 kHz),
+#: so a higher stated rate is a damaged header, not EMG.
+MAX_IMPORT_RATE_HZ = 100_000.0
+
+
+def check_import_rate(fs: float) -> None:
+    """ValueError naming the rate when an imported file's rate is no EMG rate."""
+    if not (math.isfinite(fs) and MIN_IMPORT_RATE_HZ <= fs <= MAX_IMPORT_RATE_HZ):
+        raise ValueError(f"sampling rate {fs!r} Hz is not a surface EMG rate: it must be "
+                         f"{MIN_IMPORT_RATE_HZ:.1f} Hz (twice the {MIN_UPPER_EDGE_HZ:g} Hz "
+                         f"band-pass upper edge the processing needs, at "
+                         f"{NYQUIST_MARGIN:.0%} of Nyquist) to {MAX_IMPORT_RATE_HZ:g} Hz")
 
 
 class NoMontageError(ValueError):
@@ -133,6 +152,16 @@ def covered_trials(db: Session, session_id: int, t_start: float | None, t_end: f
     return out
 
 
+def stopped_inside(t_start: float | None, t_end: float | None, span: dict[str, Any]) -> bool:
+    """Whether a recording [t_start, t_end] ended inside the trial `span` (session clock):
+    it was recording during the trial and stopped before the trial's stop. A trial still
+    running (stop None) is not decided yet: False, asked again once its stop is known."""
+    stop = span.get("stop")
+    if t_start is None or t_end is None or stop is None:
+        return False
+    return bool(t_start <= stop and span["start"] <= t_end < stop)
+
+
 Block = tuple[NDArray[Any] | None, NDArray[Any]]
 
 
@@ -150,6 +179,7 @@ class RecordingWriter:
         if not np.isfinite(fs) or fs <= 0:
             raise ValueError(f"sampling rate must be positive, got {fs}")
         labels = [c["label"] for c in montage.channels]
+        self.quality = QualitySummary(float(fs), labels, mains_hz)  # refuses before the row
         self.db = db
         self.row = EmgRecording(
             session_id=session_id, montage_id=montage.id, montage_version=montage.version,
@@ -160,7 +190,11 @@ class RecordingWriter:
         db.add(self.row)
         db.commit()
         self.path = store.recording_path(settings, self.row.id)
-        self.quality = QualitySummary(float(fs), labels, mains_hz)
+        # SQLite may give a deleted recording's id again: a file left under it (an
+        # erasure whose deletion failed) is moved aside, never overwritten.
+        for old in (self.path, self.path.with_name(self.path.name + ".part")):
+            if old.exists():
+                recovery.set_aside(old)
         try:
             self.writer = store.EmgWriter(self.path, labels, fs)
         except Exception:
@@ -185,9 +219,7 @@ class RecordingWriter:
         row.t_start = None if w.first_t is None else w.first_t + off
         row.t_end = None if w.last_t is None else w.last_t + off
         row.trials = covered_trials(self.db, row.session_id, row.t_start, row.t_end)
-        if any(not t["complete"] and t["stop"] is not None and row.t_end is not None
-               and row.t_end < t["stop"] and row.t_start is not None
-               and row.t_start <= t["start"] for t in row.trials):
+        if any(stopped_inside(row.t_start, row.t_end, t) for t in row.trials):
             self.quality.flag(STOPPED_MID_TRIAL)
         row.quality = self.quality.to_dict()
         row.status = "complete"
@@ -215,6 +247,7 @@ def store_blocks(db: Session, settings: Settings, session_id: int, montage: EmgM
     in montage order, with `flags` of the recording as a whole; on any error nothing is
     kept. A rate no BDF record length holds (see `bids.record_duration`) is refused
     before anything is stored, so every imported recording can be exported."""
+    check_import_rate(fs)
     bids.record_duration(fs)
     rec = RecordingWriter(db, settings, session_id, montage, source, fs, time_offset_s,
                           alignment, filename, user_id=user_id, mains_hz=mains_hz)

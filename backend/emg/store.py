@@ -14,8 +14,14 @@ followed by the timestamps (float64) and samples (float32, row-major), each
 byte-shuffled (byte k of every value together, so the slowly changing high bytes
 compress) and zlib-compressed. A chunk is written when the writer's buffer holds
 `CHUNK_ROWS` rows (5 s at 2 kHz), so the writer keeps at most one chunk in memory and a
-reader one chunk at a time. The file is written as `<name>.part` and renamed when
-closed, so a recording cut short by a crash is never mistaken for a finished one.
+reader one chunk at a time. A chunk header also holds the chunk's time range
+(`t_min`, `t_max` over its finite timestamps, null when it has none): the chunk index, so
+`read_window` decompresses only the chunks overlapping its window (files written before
+it have no range: their timestamps are decompressed, never their samples). The file is
+written as `<name>.part` and renamed when closed, so a recording cut short by a crash is
+never mistaken for a finished one; every chunk is handed to the operating system when
+written, so a killed server leaves whole chunks in the `.part` for
+`backend.emg.recovery` to finalise.
 
 Samples keep NaN and infinities as they came (flagged, never altered); timestamps are
 the session clock minus the row's `time_offset_s` (see `backend.db.emg`).
@@ -147,7 +153,11 @@ class EmgWriter:
         self._t, self._x = ([t[rows:]], [x[rows:]]) if rows < t.shape[0] else ([], [])
         self._buffered = t.shape[0] - rows
         tb, xb = _shuffle(head_t), _shuffle(head_x)
-        self._record({"rows": int(rows), "t_bytes": len(tb), "x_bytes": len(xb)}, tb, xb)
+        fin = head_t[np.isfinite(head_t)]
+        t_min, t_max = (float(fin.min()), float(fin.max())) if fin.size else (None, None)
+        self._record({"rows": int(rows), "t_bytes": len(tb), "x_bytes": len(xb),
+                      "t_min": t_min, "t_max": t_max}, tb, xb)
+        self._f.flush()  # a killed process keeps every whole chunk (recovery reads them)
         self.rows += rows
 
     def close(self) -> tuple[str, int]:
@@ -240,22 +250,54 @@ def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.fl
             yield t, x
 
 
+def whole_length(path: Path) -> tuple[int, int]:
+    """(bytes, rows) of the file's header and whole chunks: what a `.part` a killed
+    writer left can be kept as. EmgStoreError when not even the header is whole."""
+    with open(path, "rb") as f:
+        _header(f)
+        good, rows = f.tell(), 0
+        while True:
+            try:
+                doc = _read_json(f)
+                if doc is None:
+                    break
+                size = int(doc["t_bytes"]) + int(doc["x_bytes"])
+                if len(f.read(size)) != size:
+                    break
+            except (EmgStoreError, ValueError, KeyError):
+                break
+            good, rows = f.tell(), rows + int(doc["rows"])
+    return good, rows
+
+
 def read_window(path: Path, start: float = -np.inf, stop: float = np.inf
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Timestamps and samples (float64 volts) with start <= t < stop, read chunk by
-    chunk so only the window is ever held whole."""
+    """Timestamps and samples (float64 volts) with start <= t < stop. Chunks whose time
+    range (chunk header) misses the window are skipped unread, so a window costs its
+    own chunks, not the file. Rows whose timestamp is not finite have no place on the
+    time axis and are in no window: the recording's quality says how many
+    (`non_finite_timestamps`)."""
     ts: list[NDArray[np.float64]] = []
     xs: list[NDArray[np.float32]] = []
-    n_channels = read_header(path).n_channels
-    for t, x in iter_chunks(path):
-        if t.size == 0 or t.max() < start or t.min() >= stop:
-            continue
-        keep = (t >= start) & (t < stop)
-        if keep.any():
+    with open(path, "rb") as f:
+        head = _header(f)
+        while (doc := _read_json(f)) is not None:
+            rows, t_bytes, x_bytes = int(doc["rows"]), int(doc["t_bytes"]), int(doc["x_bytes"])
+            if "t_min" in doc and (doc["t_min"] is None or doc["t_max"] < start
+                                   or doc["t_min"] >= stop):
+                f.seek(t_bytes + x_bytes, os.SEEK_CUR)
+                continue
+            t = _unshuffle(_read_exact(f, t_bytes), np.float64, rows)
+            keep = (t >= start) & (t < stop)
+            if not keep.any():
+                f.seek(x_bytes, os.SEEK_CUR)
+                continue
+            x = _unshuffle(_read_exact(f, x_bytes), np.float32,
+                           rows * head.n_channels).reshape(rows, head.n_channels)
             ts.append(t[keep])
             xs.append(x[keep])
     if not ts:
-        return np.zeros(0), np.zeros((0, n_channels))
+        return np.zeros(0), np.zeros((0, head.n_channels))
     return np.concatenate(ts), np.concatenate(xs).astype(np.float64)
 
 

@@ -10,6 +10,16 @@ above its low-pass (6 Hz by default), so about 30 points a second or more draws 
 faithfully; the lift outcomes (peak, mean, integral) come from the full-rate envelope,
 so a peak between two drawn points is still counted.
 
+A lift is measured only when the recording holds at least `COVERAGE_SHARE` (90 %) of the
+samples its span asks for; otherwise it is listed with `no_emg` and how much was
+covered, never measured on a few samples. The recording's own flags (stream_lost,
+stopped_mid_trial decided from the trial's span now) come with the answer.
+
+Memory: the trial is read once (float64, every channel), then filtered one channel at
+a time and only the decimated values and the lifts' outcomes kept, so a long trial costs
+about one copy of itself; `BUSY` bounds the calls computing at once (a caller beyond it
+gets 503 with Retry-After), so viewers cannot starve the recording and control work.
+
 Lifts are the trial's ground truth as the results use it (the simulation's truth
 columns, else the experimenter's segments), placed on the session clock through the
 trial's `trial_start` marker, which holds both the device time of the tick and the
@@ -19,6 +29,7 @@ session (LSL) clock.
 from __future__ import annotations
 
 import math
+import threading
 from typing import Any
 
 import numpy as np
@@ -29,18 +40,36 @@ from backend.core.config import Settings
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
-from backend.emg import store
+from backend.emg import recordings, store
 from backend.emg.live import study_processing
+from backend.emg.quality_summary import STOPPED_MID_TRIAL
 from backend.schemas.emg import TrialEmgChannel, TrialEmgLift, TrialEmgOut
 from controller.emg.outcomes import window_outcome
 from controller.emg.processing import fill_non_finite, process
 
 PAD_S = 1.0
 DEFAULT_POINTS = 2000
+#: Share of a lift's samples the recording must hold for the lift to be measured.
+COVERAGE_SHARE = 0.9
+#: Below this share of a measured lift's samples, it is flagged `samples_missing`.
+COMPLETE_SHARE = 0.98
+NO_EMG, SAMPLES_MISSING = "no_emg", "samples_missing"
+#: Envelope computations at once (each holds a trial in memory); more answer 503.
+MAX_CONCURRENT = 2
+BUSY = threading.BoundedSemaphore(MAX_CONCURRENT)
+RETRY_AFTER_S = 5
 
 
 class NoTrialEmgError(ValueError):
     """The trial has no EMG to show (the message says why and what to do)."""
+
+
+class StillRecordingError(NoTrialEmgError):
+    """The trial's EMG is being recorded now; its envelope comes once it is finished."""
+
+
+class EnvelopeBusyError(RuntimeError):
+    """`MAX_CONCURRENT` envelopes are being computed: try again in a few seconds."""
 
 
 def _marker(db: Session, trial_id: int, label: str) -> Marker | None:
@@ -61,6 +90,14 @@ def _recording(db: Session, trial: Trial, start: float, stop: float) -> EmgRecor
         if o > overlap:
             best, overlap = r, o
     if best is None:
+        live = [r for r in db.scalars(select(EmgRecording).where(
+            EmgRecording.session_id == trial.session_id,
+            EmgRecording.status == "recording"))]
+        if live:
+            raise StillRecordingError(
+                f"trial {trial.id}: EMG recording {live[0].id} of session "
+                f"{trial.session_id} is still recording; its envelope is shown once the "
+                "recording finishes (unsubscribe the stream, or wait)")
         raise NoTrialEmgError(
             f"trial {trial.id} has no EMG: none of the {len(rows)} EMG recordings of session "
             f"{trial.session_id} covers it; subscribe an EMG stream before the trial runs "
@@ -70,7 +107,19 @@ def _recording(db: Session, trial: Trial, start: float, stop: float) -> EmgRecor
 
 def trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Trial,
                    points: int = DEFAULT_POINTS) -> TrialEmgOut:
-    """The panel's data; `NoTrialEmgError` when there is nothing to show."""
+    """The panel's data; `NoTrialEmgError` when there is nothing to show,
+    `EnvelopeBusyError` when `MAX_CONCURRENT` are being computed."""
+    if not BUSY.acquire(blocking=False):
+        raise EnvelopeBusyError(f"{MAX_CONCURRENT} EMG envelopes are being computed; "
+                                f"try again in {RETRY_AFTER_S} s")
+    try:
+        return _trial_envelope(engine, db, settings, trial, points)
+    finally:
+        BUSY.release()
+
+
+def _trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Trial,
+                    points: int) -> TrialEmgOut:
     from backend.analysis.results import ground_truth, trial_columns, trial_segments
 
     first = _marker(db, trial.id, "trial_start")
@@ -100,13 +149,8 @@ def trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Trial
     if t.size < 2:
         raise NoTrialEmgError(f"trial {trial.id} has no EMG: recording {rec.id} holds no "
                               "samples inside the trial")
-    x, _ = fill_non_finite(x)  # counted in the recording's flags; shown there
-    try:
-        env = process(x, rec.fs, proc)
-    except ValueError as exc:
-        raise NoTrialEmgError(f"trial {trial.id}: the EMG inside it is too short to "
-                              f"process ({exc})") from exc
     rel = t + off - start  # seconds from the trial's start
+    del t
     inside = np.flatnonzero((rel >= 0.0) & (rel <= stop - start))
     if inside.size < 2:
         raise NoTrialEmgError(f"trial {trial.id} has no EMG: recording {rec.id} ends before "
@@ -114,28 +158,76 @@ def trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Trial
     i0, i1 = int(inside[0]), int(inside[-1]) + 1
     step = max(1, math.ceil((i1 - i0) / max(points, 2)))
     shown = np.arange(i0, i1, step)
-    flags: dict[str, Any] = dict(rec.quality.get("channels", {})) if rec.quality else {}
-    channels = [TrialEmgChannel(label=c["label"], muscle=c["muscle"], side=c["side"],
-                                values=[float(v) for v in env[shown, k]],
-                                flags=sorted(flags.get(c["label"], {})))
-                for k, c in enumerate(montage.channels)]
     truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
-    lifts = []
+    windows = []  # per lift: index, kind, start_s, end_s, sample window or None, flags
     for lift in truth.lifts:
         if lift.end >= tick_t.size:
             continue
-        a = start + float(tick_t[lift.start] - t_ref)
-        b = start + float(tick_t[lift.end] - t_ref)
-        j0 = int(np.searchsorted(rel, a - start))
-        j1 = int(np.searchsorted(rel, b - start, side="right"))
-        if j1 - j0 < 2:
-            continue  # the lift lies outside the recording
-        out = window_outcome(env, rec.fs, (j0, j1))
-        lifts.append(TrialEmgLift(index=lift.index, kind=str(lift.kind), start_s=a - start,
-                                  end_s=b - start, peak=list(out.peak), mean=list(out.mean),
-                                  iemg=list(out.iemg)))
-    return TrialEmgOut(
+        a = float(tick_t[lift.start] - t_ref)
+        b = float(tick_t[lift.end] - t_ref)
+        windows.append((lift.index, str(lift.kind), a, b)
+                       + _lift_window(rel, rec.fs, a, b))
+    n_ch = len(montage.channels)
+    values = np.empty((shown.size, n_ch))
+    outcomes: dict[int, list[Any]] = {k: [] for k in range(len(windows))}
+    for k in range(n_ch):  # one channel's envelope in memory at a time
+        col, _ = fill_non_finite(x[:, k:k + 1])  # counted in the recording's flags
+        try:
+            env = process(col, rec.fs, proc)
+        except ValueError as exc:
+            raise NoTrialEmgError(f"trial {trial.id}: the EMG inside it cannot be "
+                                  f"processed ({exc})") from exc
+        del col
+        values[:, k] = env[shown, 0]
+        for w, (*_, win, _flags) in enumerate(windows):
+            if win is not None:
+                outcomes[w].append(window_outcome(env, rec.fs, win))
+        del env
+    del x
+    chan_flags: dict[str, Any] = dict(rec.quality.get("channels", {})) if rec.quality else {}
+    channels = [TrialEmgChannel(label=c["label"], muscle=c["muscle"], side=c["side"],
+                                values=[float(v) for v in values[:, k]],
+                                flags=sorted(chan_flags.get(c["label"], {})))
+                for k, c in enumerate(montage.channels)]
+    lifts = []
+    for w, (index, kind, a, b, _win, lflags) in enumerate(windows):
+        outs = outcomes[w]
+        lifts.append(TrialEmgLift(
+            index=index, kind=kind, start_s=a, end_s=b, flags=lflags,
+            peak=[o.peak[0] for o in outs], mean=[o.mean[0] for o in outs],
+            iemg=[o.iemg[0] for o in outs]))
+    return TrialEmgOut(flags=_trial_flags(db, trial, rec),
+                       
         trial_id=trial.id, recording_id=rec.id, source=rec.source, processing=proc.to_dict(),
         recording_fs=rec.fs, fs=rec.fs / step, t=[float(v) for v in rel[shown]],
         duration_s=stop - start, channels=channels, lifts=lifts, lift_source=truth.source,
         lift_note=truth.note)
+
+
+def _lift_window(rel: np.ndarray, fs: float, a: float, b: float
+                 ) -> tuple[tuple[int, int] | None, list[str]]:
+    """The lift's sample window (seconds from the trial's start a..b) and its flags:
+    None and `no_emg:<coverage>` when the recording holds under `COVERAGE_SHARE` of the
+    samples the lift's span asks for."""
+    j0 = int(np.searchsorted(rel, a))
+    j1 = int(np.searchsorted(rel, b, side="right"))
+    expected = max(1.0, (b - a) * fs)
+    share = (j1 - j0) / expected
+    if j1 - j0 < 2 or share < COVERAGE_SHARE:
+        return None, [f"{NO_EMG}:{min(share, 1.0):.0%} of the lift's samples"]
+    if share < COMPLETE_SHARE:
+        return (j0, j1), [f"{SAMPLES_MISSING}:{1 - share:.0%}"]
+    return (j0, j1), []
+
+
+def _trial_flags(db: Session, trial: Trial, rec: EmgRecording) -> list[str]:
+    """The recording's flags that concern the whole trial (not its channels'), with
+    `stopped_mid_trial` decided from the trial's span now."""
+    q = rec.quality or {}
+    chan = {f for per in (q.get("channels") or {}).values() for f in per}
+    flags = [f for f in q.get("flags", []) if f not in chan and f != STOPPED_MID_TRIAL]
+    span = next((s for s in recordings.trial_spans(db, trial.session_id)
+                 if s["trial_id"] == trial.id), None)
+    if span is not None and recordings.stopped_inside(rec.t_start, rec.t_end, span):
+        flags.append(STOPPED_MID_TRIAL)
+    return flags

@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from backend.lsl.names import LSL_TEXT_PATTERN
 from backend.schemas.fields import UtcDatetime
+from controller.emg.processing import allowed_ranges
 
 MuscleId = Literal["erector_spinae_lumbar", "erector_spinae_thoracic", "gluteus_maximus",
                    "biceps_femoris", "rectus_abdominis", "rectus_femoris"]
@@ -55,7 +56,9 @@ class EmgSettingsIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     processing: dict[str, Any] = Field(default_factory=dict, description=(
-        "controller.emg.processing.EmgProcessing in its dict form"))
+        "controller.emg.processing.EmgProcessing in its dict form; remove_dc a boolean, "
+        "notch_hz null, 50 or 60, orders integers 1-8; allowed ranges: "
+        + allowed_ranges()))
     normalisation: Literal["mvc", "task_peak", "task_mean", "none"] | None = Field(
         default=None, description="the normalisation method (overrides processing's)")
     mains_hz: Literal[50, 60] = 50
@@ -175,9 +178,12 @@ class TrialEmgLift(BaseModel):
     kind: str
     start_s: float = Field(description="from the trial's start")
     end_s: float
-    peak: list[float]
+    peak: list[float] = Field(description="per channel; empty when not measured (flags)")
     mean: list[float]
     iemg: list[float] = Field(description="envelope integral over the lift, V s")
+    flags: list[str] = Field(default_factory=list, description=(
+        "no_emg:<coverage> (the recording holds under 90 % of the lift's samples: not "
+        "measured) or samples_missing:<share>"))
 
 
 class TrialEmgOut(BaseModel):
@@ -198,3 +204,6 @@ class TrialEmgOut(BaseModel):
     lifts: list[TrialEmgLift]
     lift_source: str = Field(description="simulation, segments, task or none")
     lift_note: str
+    flags: list[str] = Field(default_factory=list, description=(
+        "the recording's flags concerning the whole trial (stream_lost, "
+        "stopped_mid_trial, ...)"))

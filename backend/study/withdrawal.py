@@ -5,20 +5,25 @@ deletes the participant row (sessions, blinding key, links, answers, preferences
 recordings, trials and their segments follow by ON DELETE CASCADE), the ticks their
 trials and recordings stored, and the details of earlier audit entries about them; the
 audit entry it writes names the participant id and nothing else, so the log proves the
-erasure without keeping what was erased.
+erasure without keeping what was erased. Their EMG recording files (beside the database,
+not in it) are deleted after the commit; a file that cannot be deleted is logged and
+left an orphan that `exostudy doctor` lists (the rows are gone either way).
 """
 
 from __future__ import annotations
 
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Literal
 
 from sqlalchemy import delete, select, update
 from sqlalchemy.orm import Session
 
 from backend.db import audit
+from backend.db.emg import EmgRecording
 from backend.db.evidence_tables import Recording, Trial
 from backend.db.models import AuditEntry, Participant, Run, Study, StudySession, User, ticks_table
+from backend.emg import recovery, store
 
 Outcome = Literal["erased", "excluded"]
 
@@ -40,10 +45,18 @@ def _erase_ticks(db: Session, participant_id: int) -> None:
                 ticks_table.c.id.between(rec.first_tick_id, last)))
 
 
-def withdraw(db: Session, p: Participant, actor: User) -> Outcome:
-    """Apply the study's withdrawal policy to `p` and commit."""
+def withdraw(db: Session, p: Participant, actor: User, emg_folder: Path | None = None
+             ) -> Outcome:
+    """Apply the study's withdrawal policy to `p` and commit; an erasure then deletes
+    the EMG files in `emg_folder` (default: the database's EMG folder)."""
+    emg_ids = list(db.scalars(select(EmgRecording.id).join(
+        StudySession, StudySession.id == EmgRecording.session_id)
+        .where(StudySession.participant_id == p.id)))
     outcome = _apply(db, p, actor)
     db.commit()
+    if outcome == "erased" and emg_ids:
+        folder = emg_folder or store.engine_emg_folder(db.get_bind().engine)
+        recovery.delete_files(folder, emg_ids)
     return outcome
 
 

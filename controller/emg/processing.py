@@ -60,6 +60,30 @@ SETTINGS_VERSION = 1
 THREADED_SAMPLES = 100_000
 
 
+#: The allowed range of each numeric setting, inclusive, with the reason for each bound.
+#: Outside them a filter is numerically degenerate (a notch with Q near zero or a 1e-300
+#: Hz low-pass gives NaN coefficients) or no longer an EMG amplitude estimate.
+RANGES: dict[str, tuple[float, float, str]] = {
+    "highpass_hz": (1.0, 250.0, "below 1 Hz the band-pass keeps movement artefact and its "
+                    "design is ill-conditioned at kHz rates; above 250 Hz it removes most "
+                    "of the sEMG power (20-150 Hz)"),
+    "lowpass_hz": (50.0, 10000.0, "below 50 Hz too little of the sEMG spectrum is kept; "
+                   "above 10 kHz no surface EMG amplifier has content (the edge is clipped "
+                   "to 95 % of Nyquist anyway)"),
+    "notch_q": (1.0, 200.0, "below 1 the notch is wider than the mains frequency and "
+                "removes the EMG band; above 200 it is narrower than the mains drift"),
+    "envelope_hz": (0.5, 50.0, "below 0.5 Hz the envelope smears over a whole lift; above "
+                    "50 Hz it no longer smooths the rectified signal"),
+    "mvc_window_s": (0.05, 5.0, "shorter than 50 ms is a single burst, longer than 5 s "
+                     "exceeds an MVC contraction"),
+}
+
+
+def allowed_ranges() -> str:
+    """The ranges in words, for error messages and the API's schema."""
+    return "; ".join(f"{k} {lo:g} to {hi:g} ({why})" for k, (lo, hi, why) in RANGES.items())
+
+
 class EmgSettingsError(ValueError):
     """A processing setting, or its combination with a sampling rate, is not usable."""
 
@@ -84,6 +108,17 @@ class EmgProcessing:
 
     def __post_init__(self) -> None:
         problems = []
+        if not isinstance(self.remove_dc, bool):
+            problems.append(f"remove_dc must be true or false, got {self.remove_dc!r}")
+        for name, (lo, hi, why) in RANGES.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                problems.append(f"{name} must be a number from {lo:g} to {hi:g}, "
+                                f"got {v!r}")
+            elif not lo <= v <= hi:  # NaN fails this too
+                problems.append(f"{name} must be from {lo:g} to {hi:g}, got {v!r}: {why}")
+        if problems:  # the comparisons below need numbers
+            raise EmgSettingsError("EMG processing settings: " + "; ".join(problems))
         if not 0 < self.highpass_hz < self.lowpass_hz:
             problems.append(f"need 0 < highpass_hz < lowpass_hz, got {self.highpass_hz} "
                             f"and {self.lowpass_hz}")
@@ -91,7 +126,8 @@ class EmgProcessing:
             order = getattr(self, name)
             if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= 8:
                 problems.append(f"{name} must be an integer from 1 to 8, got {order!r}")
-        if self.notch_hz is not None and self.notch_hz not in MAINS_FREQUENCIES:
+        if self.notch_hz is not None and (isinstance(self.notch_hz, bool)
+                                          or self.notch_hz not in MAINS_FREQUENCIES):
             problems.append(f"notch_hz must be None, 50 or 60, got {self.notch_hz!r}")
         if not self.notch_q > 0:
             problems.append(f"notch_q must be positive, got {self.notch_q}")

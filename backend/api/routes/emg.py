@@ -4,11 +4,13 @@ and from EDF/BDF and XDF files, its recordings, and its MVC steps."""
 from __future__ import annotations
 
 import asyncio
+import threading
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, HTTPException, Path, Query, UploadFile
 from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from backend.api.deps import (
@@ -63,6 +65,8 @@ from controller.emg.montage import normalise_label
 from controller.emg.processing import EmgProcessing, EmgSettingsError
 
 router = APIRouter(tags=["emg"], responses={**AUTH_RESPONSES, **NOT_FOUND, **BODY})
+#: Tries of a write that concurrent requests race for before it is a 409.
+WRITE_ATTEMPTS = 5
 
 EmgStreamId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG subscription id")]
 EmgRecordingId = Annotated[int, Path(ge=1, le=MAX_ID, description="EMG recording id")]
@@ -123,7 +127,8 @@ def list_montages(study_id: StudyId, user: CurrentUser, db: SessionDep) -> list[
         .order_by(EmgMontage.version))]
 
 
-@router.put("/api/studies/{study_id}/emg-montage", response_model=MontageOut)
+@router.put("/api/studies/{study_id}/emg-montage", response_model=MontageOut,
+            responses=CONFLICT)
 def put_montage(study_id: StudyId, body: MontageIn, user: CurrentUser,
                 db: SessionDep) -> MontageOut:
     """A new version of the study's montage (older versions stay: recordings keep the
@@ -131,17 +136,26 @@ def put_montage(study_id: StudyId, body: MontageIn, user: CurrentUser,
     a 422 naming the field."""
     one_or_404(db, Study, study_id, "study")
     _check_montage(body)
-    latest = db.scalar(select(func.max(EmgMontage.version))
-                       .where(EmgMontage.study_id == study_id)) or 0
-    row = EmgMontage(study_id=study_id, version=latest + 1,
-                     placement_scheme=body.placement_scheme,
-                     channels=[c.model_dump() for c in body.channels], created_by=user.id)
-    db.add(row)
-    db.flush()
-    audit.record(db, user, "update", "emg_montage", study_id,
-                 {"version": row.version, "channels": len(body.channels)})
-    db.commit()
-    return _montage_out(row)
+    # Concurrent PUTs race for the next version number (unique per study): the loser
+    # takes the one after; 409 only if it keeps losing.
+    for _attempt in range(WRITE_ATTEMPTS):
+        latest = db.scalar(select(func.max(EmgMontage.version))
+                           .where(EmgMontage.study_id == study_id)) or 0
+        row = EmgMontage(study_id=study_id, version=latest + 1,
+                         placement_scheme=body.placement_scheme,
+                         channels=[c.model_dump() for c in body.channels], created_by=user.id)
+        db.add(row)
+        try:
+            db.flush()
+            audit.record(db, user, "update", "emg_montage", study_id,
+                         {"version": row.version, "channels": len(body.channels)})
+            db.commit()
+        except IntegrityError:
+            db.rollback()
+            continue
+        return _montage_out(row)
+    conflict("montage", "other montage versions were being saved at the same time; "
+             "send it again")
 
 
 @router.delete("/api/studies/{study_id}/emg-montage", response_model=list[MontageOut],
@@ -181,7 +195,8 @@ def get_emg_settings(study_id: StudyId, user: CurrentUser, db: SessionDep) -> Em
     return _settings_out(db.get(EmgAnalysisSettings, study_id))
 
 
-@router.put("/api/studies/{study_id}/emg-settings", response_model=EmgSettingsOut)
+@router.put("/api/studies/{study_id}/emg-settings", response_model=EmgSettingsOut,
+            responses=CONFLICT)
 def put_emg_settings(study_id: StudyId, body: EmgSettingsIn, user: CurrentUser,
                      db: SessionDep) -> EmgSettingsOut:
     """Set the study's EMG processing chain and normalisation method; every parameter is
@@ -194,16 +209,24 @@ def put_emg_settings(study_id: StudyId, body: EmgSettingsIn, user: CurrentUser,
         proc = EmgProcessing.from_dict(data)
     except (EmgSettingsError, TypeError) as exc:
         invalid(["body", "processing"], str(exc))
-    row = db.get(EmgAnalysisSettings, study_id)
-    if row is None:
-        row = EmgAnalysisSettings(study_id=study_id)
-        db.add(row)
-    row.processing = proc.to_dict()
-    row.mains_hz = body.mains_hz
-    row.updated_at = datetime.now(UTC)
-    audit.record(db, user, "update", "emg_settings", study_id, row.processing)
-    db.commit()
-    return _settings_out(row)
+    # Concurrent first PUTs both insert the study's row: the loser updates the winner's.
+    for _attempt in range(WRITE_ATTEMPTS):
+        row = db.get(EmgAnalysisSettings, study_id)
+        if row is None:
+            row = EmgAnalysisSettings(study_id=study_id)
+            db.add(row)
+        row.processing = proc.to_dict()
+        row.mains_hz = body.mains_hz
+        row.updated_at = datetime.now(UTC)
+        try:
+            audit.record(db, user, "update", "emg_settings", study_id, row.processing)
+            db.commit()
+        except IntegrityError:
+            db.rollback()
+            continue
+        return _settings_out(row)
+    conflict("emg_settings", "the settings were being saved by another request at the "
+             "same time; send them again")
 
 
 # Live EMG from LSL --------------------------------------------------------------------------
@@ -220,6 +243,30 @@ def _mismatch(loc: list[str | int], exc: ChannelMismatchError) -> None:
                                "unmatched_labels": exc.unmatched,
                                "missing_labels": exc.missing,
                                "expected_labels": exc.expected}])
+
+
+#: Serialises the duplicate check and the insert of a subscription (a request handler's
+#: synchronous section; held for one query and one commit).
+_SUBSCRIBE_LOCK = threading.Lock()
+
+
+def _same_stream(other: EmgStream, name: str, source_id: str) -> bool:
+    """Whether an existing subscription records the stream resolved as name/source id."""
+    if source_id and other.source_id:
+        return other.source_id == source_id
+    return other.name == name
+
+
+def _already_recorded(db: Session, other: EmgStream, session_id: int, key: str) -> None:
+    """409 for a stream already recorded; another study's session stays unnamed."""
+    from backend.db.sessions import study_of_session
+
+    if study_of_session(db, other.session_id) == study_of_session(db, session_id):
+        where = f"session {other.session_id} of this study"
+    else:
+        where = "a session of another study"
+    conflict("source_id", f"{where} already records the LSL stream {key!r}; one recording "
+             "per stream: unsubscribe it there first")
 
 
 @router.get("/api/sessions/{session_id}/emg-streams", response_model=list[EmgStreamOut])
@@ -250,10 +297,6 @@ async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentU
     except NoMontageError as exc:
         conflict("montage", str(exc))
     key = body.source_id or body.name
-    for other in db.scalars(select(EmgStream).where(EmgStream.active)):
-        if (other.source_id or other.name) == key:
-            conflict("source_id", f"session {other.session_id} already records {key}; "
-                     "unsubscribe it there first")
     info = await asyncio.to_thread(live.resolve_described, body.name, body.source_id)
     if info is None:
         conflict("name", f"no LSL stream {key!r} is visible now")
@@ -263,13 +306,22 @@ async def subscribe_emg(session_id: SessionId, body: EmgStreamIn, user: CurrentU
         _mismatch(["body", "name"], exc)
     except ValueError as exc:
         invalid(["body", "name"], f"stream {key!r}: {exc}")
-    sub = EmgStream(session_id=session_id, name=body.name, source_id=body.source_id,
-                    montage_id=montage.id, ignored_labels=body.ignore_labels, active=True,
-                    error="")
-    db.add(sub)
-    db.flush()
-    audit.record(db, user, "create", "emg_stream", sub.id, body.model_dump())
-    db.commit()
+    # The stream's identity is what it resolved to (its source id, else its name), so a
+    # subscription by name and one by name + source id are the same stream. Check and
+    # insert with no await between them and under a lock, so concurrent requests cannot
+    # both pass the check.
+    resolved_sid, resolved_name = str(info.source_id()), str(info.name())
+    with _SUBSCRIBE_LOCK:
+        for other in db.scalars(select(EmgStream).where(EmgStream.active)):
+            if _same_stream(other, resolved_name, resolved_sid):
+                _already_recorded(db, other, session_id, key)
+        sub = EmgStream(session_id=session_id, name=body.name,
+                        source_id=body.source_id or resolved_sid, montage_id=montage.id,
+                        ignored_labels=body.ignore_labels, active=True, error="")
+        db.add(sub)
+        db.flush()
+        audit.record(db, user, "create", "emg_stream", sub.id, body.model_dump())
+        db.commit()
     emg.subscribe(sub.id)
     return _stream_out(emg, sub)
 
@@ -453,11 +505,24 @@ def trial_emg_envelope(
     """The stored EMG's envelope over the trial (the study's processing chain, in volts,
     decimated to at most `points` values), the recording's flags per channel, and the
     trial's lifts with each lift's peak, mean and integral from the full-rate envelope.
-    409 saying why for a trial that has not run or that no EMG recording covers."""
-    from backend.emg.trial_envelope import NoTrialEmgError, trial_envelope
+    409 saying why for a trial that has not run, that no EMG recording covers or whose
+    recording is still being written; 503 with Retry-After while `MAX_CONCURRENT`
+    envelopes are being computed. Lifts the recording holds under 90 % of are listed with
+    `no_emg`, not measured."""
+    from backend.emg.trial_envelope import (
+        RETRY_AFTER_S,
+        EnvelopeBusyError,
+        NoTrialEmgError,
+        trial_envelope,
+    )
 
     trial = one_or_404(db, Trial, trial_id, "trial")
     try:
         return trial_envelope(engine, db, settings, trial, points)
+    except EnvelopeBusyError as exc:
+        raise HTTPException(503, str(exc), headers={"Retry-After": str(RETRY_AFTER_S)}
+                            ) from exc
     except NoTrialEmgError as exc:
         conflict("emg", str(exc))
+    except ValueError as exc:  # the processing refused the stored data or settings
+        conflict("emg_processing", str(exc))

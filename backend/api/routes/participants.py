@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
-from backend.api.deps import CurrentUser, SessionDep, SiteDep, access
+from backend.api.deps import CurrentUser, SessionDep, SettingsDep, SiteDep, access
 from backend.api.errors import (
     AUTH_RESPONSES,
     BODY,
@@ -14,6 +14,7 @@ from backend.api.errors import (
 )
 from backend.api.params import ParticipantId, StudyId
 from backend.db.models import ConditionLabel, Participant, Study
+from backend.emg import store
 from backend.schemas.participants import (
     ConditionIn,
     ConditionOut,
@@ -87,11 +88,11 @@ def add_condition(participant_id: ParticipantId, body: ConditionIn, user: Curren
 
 @router.post("/api/participants/{participant_id}/withdraw", response_model=WithdrawalOut,
              openapi_extra=access("owner"))
-def withdraw(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
-             ) -> WithdrawalOut:
+def withdraw(participant_id: ParticipantId, user: CurrentUser, db: SessionDep,
+             settings: SettingsDep) -> WithdrawalOut:
     """A participant withdraws: their data is erased, or (when the study's protocol
     says "exclude") kept, marked withdrawn and left out of results and exports. The
     audit entry names the participant id only, never the erased data."""
     p = one_or_404(db, Participant, participant_id, "participant")
-    outcome = withdrawal.withdraw(db, p, user)
+    outcome = withdrawal.withdraw(db, p, user, store.emg_folder(settings))
     return WithdrawalOut(participant_id=participant_id, outcome=outcome)

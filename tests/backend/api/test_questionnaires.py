@@ -7,8 +7,11 @@ from __future__ import annotations
 import copy
 import json
 import re
+from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 from typing import Any
+from uuid import uuid4
 
 import pytest
 from fastapi.testclient import TestClient
@@ -20,6 +23,8 @@ from backend.db.models import ParticipantLink, QuestionnaireInstrument
 from backend.questionnaires.catalog import INSTRUMENTS_DIR, built_in_definitions
 from backend.questionnaires.definition import ImportedInstrument, InstrumentDefinition
 from backend.questionnaires.scoring import AnswerError, score
+from tests.databases import AccountTemplates
+from tests.module_client import logged_in_client, module_engines
 
 
 def _definition(key: str) -> InstrumentDefinition:
@@ -136,8 +141,21 @@ def test_definition_validation_catches_what_would_score_wrongly(
 # --- API ---------------------------------------------------------------------------
 
 
-def _participant_with_conditions(client: TestClient) -> int:
-    sid = client.post("/api/studies", json={"name": "Q"}).json()["id"]
+@pytest.fixture(scope="module", params=module_engines())
+def shared(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
+           default_sets: tuple[Path, Path], account_templates: AccountTemplates
+           ) -> Iterator[TestClient]:
+    """One logged-in app per engine for the refusals below, which store nothing; each
+    test makes its own study there (`tests/module_client.py`)."""
+    server = (request.getfixturevalue("postgres_cluster") if request.param == "postgresql"
+              else None)
+    with logged_in_client(tmp_path_factory.mktemp("questionnaires"), default_sets,
+                          account_templates, server) as c:
+        yield c
+
+
+def _participant_with_conditions(client: TestClient, study: str = "Q") -> int:
+    sid = client.post("/api/studies", json={"name": study}).json()["id"]
     pid = int(client.post(f"/api/studies/{sid}/participants", json={"code": "P07"}).json()["id"])
     for label, ctrl in (("A", "umc"), ("B", "pec")):
         client.post(f"/api/participants/{pid}/conditions",
@@ -359,8 +377,9 @@ def test_a_form_is_served_from_the_row_its_link_pinned(client: TestClient) -> No
 
 
 @pytest.mark.parametrize("value", [True, False, 3.0, "3"])
-def test_answers_must_be_integers_not_booleans(client: TestClient, value: Any) -> None:
-    pid = _participant_with_conditions(client)
+def test_answers_must_be_integers_not_booleans(shared: TestClient, value: Any) -> None:
+    client = shared
+    pid = _participant_with_conditions(client, f"Q {uuid4().hex}")
     token = client.post(f"/api/participants/{pid}/links", json={
         "forms": [{"instrument_key": "sus", "condition_label": "A"}]}).json()["token"]
     answers: dict[str, Any] = _sus("3,3,3,3,3,3,3,3,3,3")
@@ -398,9 +417,10 @@ def _sized(items: int, lo: int, hi: int, labels: list[dict[str, Any]] | None = N
      "String should have at most 200 characters"),
 ], ids=["2001-points", "5050-choices", "4000-labels", "two-labels-one-value",
         "same-words-twice", "201-characters"])
-def test_an_imported_scale_keeps_its_form_usable(client: TestClient, definition: dict[str, Any],
+def test_an_imported_scale_keeps_its_form_usable(shared: TestClient, definition: dict[str, Any],
                                                  where: list[str | int], problem: str) -> None:
-    url = f"/api/studies/{_study(client)}/instruments"
+    client = shared
+    url = f"/api/studies/{_study(client, f'Own {uuid4().hex}')}/instruments"
     r = client.post(url, json=definition)
     assert r.status_code == 422, r.text[:300]
     found = [(d["loc"], d["msg"].removeprefix("Value error, ")) for d in r.json()["detail"]]

@@ -96,6 +96,14 @@ def test_emg_settings_store_every_parameter_and_the_normalisation(client: TestCl
     assert got["processing"]["envelope_hz"] == 6.0 and got["processing"]["version"] == 1
     r = client.put(url, json={"processing": {"highpass_hz": 500.0}})
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "processing"]
+    for bad, field in (({"notch_hz": 50, "notch_q": 1e-300}, "notch_q"),
+                       ({"envelope_hz": 5000}, "envelope_hz"),
+                       ({"highpass_hz": 1e307}, "highpass_hz"),
+                       ({"highpass_hz": True}, "highpass_hz"),
+                       ({"remove_dc": "no"}, "remove_dc")):
+        r = client.put(url, json={"processing": bad})
+        assert r.status_code == 422, (bad, r.text)
+        assert field in r.json()["detail"][0]["msg"]
     r = client.put(url, json={"processing": {"bogus": 1}})
     assert r.status_code == 422 and "bogus" in r.json()["detail"][0]["msg"]
     r = client.put(url, json={"normalisation": "peak"})

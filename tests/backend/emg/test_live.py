@@ -76,8 +76,8 @@ def _montage() -> dict[str, Any]:
     return {"placement_scheme": "SENIAM", "channels": chans}
 
 
-def _session(client: TestClient) -> int:
-    study = client.post("/api/studies", json={"name": "Live EMG"}).json()["id"]
+def _session(client: TestClient, name: str = "Live EMG") -> int:
+    study = client.post("/api/studies", json={"name": name}).json()["id"]
     assert client.put(f"/api/studies/{study}/emg-montage", json=_montage()).status_code == 200
     pid = client.post(f"/api/studies/{study}/participants", json={"code": "P1"}).json()["id"]
     return int(client.post(f"/api/participants/{pid}/sessions",
@@ -239,3 +239,50 @@ def test_a_sped_up_simulation_loses_no_sample_on_the_way_to_the_store(
     generated = np.concatenate([b.samples for b in dev.emg.blocks]).astype(np.float32)
     np.testing.assert_array_equal(x, generated[:, ORDER])
     assert generated.shape[0] == pushed
+
+
+def test_one_subscription_per_stream_whatever_the_race_or_the_key(
+        client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The attack: concurrent identical subscriptions all passed the duplicate check
+    before any was stored; name vs name + source id was not seen as the same stream; a
+    conflict named another study's session."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from backend.emg import live
+
+    sess = _session(client)
+    other_sess = _session(client, "Live EMG elsewhere")  # another study
+    source = f"test-dup-{uuid.uuid4().hex[:8]}"
+    name = f"SimEMG-{source}"
+    spare = [f"SPARE {i}" for i in range(1, 5)]
+    gate = threading.Barrier(3)
+    real = live.resolve_described
+
+    def resolve_together(n: str, sid: str) -> Any:
+        info = real(n, sid)
+        try:  # every request has passed any early check before one inserts
+            gate.wait(10.0)
+        except threading.BrokenBarrierError:
+            pass
+        return info
+
+    url = f"/api/sessions/{sess}/emg-streams"
+    with Amplifier(source):
+        monkeypatch.setattr(live, "resolve_described", resolve_together)
+        body = {"name": name, "source_id": source, "ignore_labels": spare}
+        with ThreadPoolExecutor(3) as pool:
+            codes = sorted(r.status_code for r in pool.map(
+                lambda _: client.post(url, json=body), range(3)))
+        monkeypatch.setattr(live, "resolve_described", real)
+        assert codes == [201, 409, 409]
+        subs = client.get(url).json()
+        assert len(subs) == 1 and subs[0]["source_id"] == source
+        # By name only: the same stream.
+        r = client.post(url, json={"name": name, "ignore_labels": spare})
+        assert r.status_code == 409 and "this study" in r.text, r.text
+        # From another study: refused without naming this study's session.
+        r = client.post(f"/api/sessions/{other_sess}/emg-streams",
+                        json={"name": name, "ignore_labels": spare})
+        assert r.status_code == 409 and "another study" in r.text, r.text
+        assert f"session {sess}" not in r.text
+        client.delete(f"{url}/{subs[0]['id']}")

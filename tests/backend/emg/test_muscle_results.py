@@ -283,3 +283,29 @@ def test_reductions_without_the_baseline_raise_a_clear_value_error() -> None:
     rows = [muscle_stats.OutcomeRow("P01", "umc", "ES_left", 1.0)]
     with pytest.raises(ValueError, match="baseline 'springs_free' has no outcome rows"):
         muscle_stats.reductions(rows, "springs_free")
+
+
+def test_stopped_mid_trial_is_decided_from_the_spans_at_results_time(
+        db_url: str, settings: Settings) -> None:
+    """The attack: a live stream lost inside a trial whose stop was not yet known when
+    the recording finished carries `stream_lost` but no `stopped_mid_trial`. The trial
+    the recording ended in is flagged at results time; the trials it covered whole
+    are not."""
+    from backend.db.emg import EmgRecording
+    from backend.emg.quality_summary import STOPPED_MID_TRIAL
+
+    made = _study(db_url, settings, participants=1, keep_s=2 * (TRIAL_S + GAP_S) + 6.0)
+    with Session(made["engine"]) as db:
+        for rec in db.query(EmgRecording).all():  # as finished before the stop was known
+            q = dict(rec.quality or {})
+            q["flags"] = [f for f in q.get("flags", []) if f != STOPPED_MID_TRIAL] + [
+                "stream_lost"]
+            rec.quality = q
+        db.commit()
+    muscle_results.CACHE._entries.clear()
+    res = _results(made, settings)
+    by = {t.condition: t for t in res.trials}
+    assert STOPPED_MID_TRIAL in by["springs_free"].flags
+    assert "stream_lost" in by["springs_free"].flags
+    assert all(STOPPED_MID_TRIAL not in by[c].flags for c in ("umc", "pec"))
+    made["engine"].dispose()

@@ -95,3 +95,39 @@ def test_a_trial_that_has_not_run_says_so(client: TestClient, db_url: str) -> No
     engine.dispose()
     r = client.get(f"/api/trials/{tid}/emg-envelope")
     assert r.status_code == 409 and f"trial {tid} has not run" in r.json()["detail"]
+
+
+def test_a_lift_the_recording_barely_covers_is_not_measured_and_calls_are_bounded(
+        client: TestClient, db_url: str, tmp_path: Path) -> None:
+    """The attack: a lift measured from a few percent of its samples with no flag. The
+    file ends 0.1 s into the 1 s lift: the lift is listed with `no_emg` and its coverage,
+    without numbers. Beyond `MAX_CONCURRENT` computations a call gets 503 and
+    Retry-After."""
+    from backend.emg import trial_envelope
+
+    made = _session_with_two_trials(db_url)
+    first = made["trials"][0]
+    assert client.put(f"/api/studies/{made['study']}/emg-montage", json=MONTAGE).is_success
+    assert client.put(f"/api/trials/{first}/segments", json=[
+        {"start": 40, "peak": 90, "end": 140, "label": "squat"}]).is_success
+    r = client.post(f"/api/sessions/{made['session']}/emg/edf",
+                    files={"file": ("a.edf", _edf(tmp_path, 2.0))},
+                    data={"trial": str(first), "offset_s": "-1.5"})
+    assert r.status_code == 201, r.text
+    r = client.get(f"/api/trials/{first}/emg-envelope")
+    assert r.status_code == 200, r.text
+    (lift,) = r.json()["lifts"]
+    assert lift["peak"] == [] and lift["mean"] == [] and lift["iemg"] == []
+    assert lift["flags"] and lift["flags"][0].startswith("no_emg:1")  # ~10 %
+    assert isinstance(r.json()["flags"], list)
+    held = [trial_envelope.BUSY.acquire(blocking=False)
+            for _ in range(trial_envelope.MAX_CONCURRENT)]
+    try:
+        assert all(held)
+        r = client.get(f"/api/trials/{first}/emg-envelope")
+        assert r.status_code == 503 and r.headers["retry-after"] == "5"
+        assert "try again" in r.json()["detail"]
+    finally:
+        for _ in held:
+            trial_envelope.BUSY.release()
+    assert client.get(f"/api/trials/{first}/emg-envelope").status_code == 200

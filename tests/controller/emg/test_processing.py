@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from controller.emg.processing import (
+    RANGES,
     EmgProcessing,
     EmgSettingsError,
     EnvelopeStream,
@@ -145,6 +146,9 @@ def test_settings_round_trip_and_are_stable() -> None:
 @pytest.mark.parametrize("bad", [
     {"highpass_hz": 500.0}, {"notch_hz": 55}, {"bandpass_order": 0}, {"envelope_hz": 0.0},
     {"normalisation": "peak"}, {"precision": "float16"}, {"unknown": 1}, {"version": 2},
+    {"notch_hz": 50, "notch_q": 1e-300}, {"envelope_hz": 5000.0}, {"envelope_hz": 1e-300},
+    {"highpass_hz": 1e307}, {"highpass_hz": True}, {"remove_dc": "no"},
+    {"envelope_hz": float("nan")}, {"notch_hz": True}, {"mvc_window_s": "0.5"},
 ])
 def test_bad_settings_say_what_is_wrong(bad: dict[str, object]) -> None:
     with pytest.raises(EmgSettingsError, match="EMG processing settings"):
@@ -221,3 +225,27 @@ def test_live_envelope_counts_and_holds_non_finite_samples() -> None:
     out = stream.push(bad)
     assert stream.non_finite_samples == 3
     np.testing.assert_allclose(out, EnvelopeStream(FS, 1).push(held))
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("notch_q", 1e-300), ("envelope_hz", 5000.0), ("envelope_hz", 1e-300),
+    ("highpass_hz", 1e307), ("mvc_window_s", 60.0)])
+def test_out_of_range_settings_name_the_field_range_and_reason(field: str,
+                                                              value: float) -> None:
+    lo, hi, why = RANGES[field]
+    with pytest.raises(EmgSettingsError) as err:
+        EmgProcessing.from_dict({field: value})
+    assert f"{field} must be from {lo:g} to {hi:g}" in str(err.value)
+    assert why in str(err.value)
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+@settings(max_examples=40, deadline=None)
+def test_any_accepted_setting_designs_finite_filters(q: float) -> None:
+    """Whatever notch_q is accepted, the filters it gives are finite."""
+    try:
+        proc = EmgProcessing(notch_hz=50, notch_q=q)
+    except EmgSettingsError:
+        return
+    d = design(proc, 2000.0)
+    assert np.isfinite(d.bandpass).all() and np.isfinite(d.envelope).all()
