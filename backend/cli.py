@@ -375,7 +375,7 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _replicate(args: argparse.Namespace) -> int:
-    from backend.analysis.replication_config import ReplicationConfig
+    from backend.analysis.replication_config import DEFAULT_PERSONALISATION, ReplicationConfig
     from backend.analysis.replication_run import run
     from controller.evaluation.paper_claims import DEFAULT_SEEDS
 
@@ -385,7 +385,9 @@ def _replicate(args: argparse.Namespace) -> int:
         from_db=tuple(Path(p) for p in args.from_db or ()), participants=args.participants,
         eumc=args.eumc, data_participants=args.data_participants,
         offset_participants=args.offset_participants,
-        stair_participants=args.stair_participants)
+        stair_participants=args.stair_participants,
+        personalisation_participants=DEFAULT_PERSONALISATION
+        if args.personalisation_participants is None else args.personalisation_participants)
     rep = run(cfg, log=lambda m: print(m, flush=True))
     print(f"replication done in {rep.wall_s:.0f} s: {args.out}/report.html")
     return 0
@@ -558,6 +560,11 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--offset-participants", type=int, default=60,
                     help="virtual cohort for the donning-offset regression")
     rp.add_argument("--stair-participants", type=int, default=20)
+    rp.add_argument("--personalisation-participants", type=int, default=None,
+                    help="virtual participants of the personalisation section (beyond the "
+                    "paper; one cohort; default 40: DEFAULT_PERSONALISATION of "
+                    "backend.analysis.replication_config, about 2.5 min measured here; 0 "
+                    "leaves the section out)")
     rp.set_defaults(func=_replicate)
 
     sub.add_parser("hardware", help="hardware bring-up through the running server's API: "

@@ -413,11 +413,15 @@ def _learn_prior_set(db: Session, user: User, participant: Participant,
         current = dict(motions)
         known = _source_labels(before)
         relabelled = sorted(s for s, lab in known.items() if current.get(s, lab) != lab)
+        # Sets made before sources named the motion name segment rows instead.
+        row_named = before is not None and any(
+            s.startswith(("trial-segment:", "segment:")) for s in before.sources)
         continued = before
-        if relabelled and before is not None:
-            # A motion the previous set counted has a new label: its old label is in
-            # the previous counts, so every motion is counted afresh (once, with its
-            # label now), with the previous set's pseudo-counts and forgetting.
+        if (relabelled or row_named) and before is not None:
+            # A motion the previous set counted has a new label (or cannot be matched):
+            # its old label is in the previous counts, so every motion is counted afresh
+            # (once, with its label now), with the previous set's pseudo-counts and
+            # forgetting.
             continued = None
             if before.method == "dirichlet":
                 body = body.model_copy(update={"pseudo_count": before.pseudo_counts[0],

@@ -1,7 +1,11 @@
 """Writing a replication: `report.html` (rendered from the tables by the Jinja2 template
 `templates/replication_report.html.j2`, figures embedded as data URIs, no network access
 needed), `figures/*.png|svg`, `replication.json` (every number) and `replication.md`
-(the claim table). Folders 0700, files 0600.
+(the claim table, then the personalisation section). Folders 0700, files 0600.
+
+Sections that their modules give as Markdown (muscle activity, personalisation) reach
+the HTML as blocks (`markdown_blocks`: headings, paragraphs, `Table`s) that the
+template renders like every other table, never as HTML built from strings.
 """
 
 from __future__ import annotations
@@ -10,8 +14,9 @@ import base64
 import json
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
@@ -26,6 +31,7 @@ from controller.evaluation.paper_claims import (
     verdict_counts,
 )
 from controller.evaluation.paper_protocol import PAPER_EXTRA
+from controller.evaluation.personalisation_report import SECTION_TITLE, section_markdown
 from controller.evaluation.rendering import render_figure
 from controller.evaluation.study import RecordingEvaluation
 from controller.evaluation.tables import Table
@@ -48,6 +54,9 @@ CAPTIONS = {
     "offsets_both": "UMC minus E-UMC correct decisions against the mean donning offset.",
     "offsets_difference": "The same against the difference of the two hips' offsets.",
     "stairs": "Simulated hip flexion over the stair cycle against the published range.",
+    "personalisation_curve": "Personalisation: change in correct decisions against "
+                             "demonstrations per motion, MAP-adapted and participant-only "
+                             "models, with 95 % intervals.",
 }
 _PARTICIPANTS = "12345678"
 
@@ -104,6 +113,65 @@ def paper_tables() -> list[Table]:
     return [perf, fp]
 
 
+@dataclass(frozen=True)
+class Block:
+    """One piece of a Markdown section: a heading (`level`), a paragraph or a table."""
+
+    kind: Literal["heading", "paragraph", "table"]
+    text: str = ""
+    level: int = 0
+    table: Table | None = None
+
+
+def _row(line: str) -> tuple[str, ...]:
+    return tuple(c.strip() for c in line.strip().strip("|").split("|"))
+
+
+def markdown_blocks(md: str) -> list[Block]:
+    """The headings, paragraphs and pipe tables of a Markdown section, in order (the
+    subset our section writers produce; a table's second line is its `---` rule)."""
+    blocks: list[Block] = []
+    para: list[str] = []
+    table: list[str] = []
+
+    def flush() -> None:
+        if para:
+            blocks.append(Block("paragraph", " ".join(para)))
+            para.clear()
+        if table:
+            body = [_row(x) for x in table if not set(x) <= set("|-: ")]
+            blocks.append(Block("table", table=Table(body[0], tuple(body[1:]))))
+            table.clear()
+
+    for raw in md.splitlines():
+        line = raw.strip()
+        if not line:
+            flush()
+        elif line.startswith("|"):
+            if para:
+                flush()
+            table.append(line)
+        elif line.startswith("#"):
+            flush()
+            hashes = len(line) - len(line.lstrip("#"))
+            blocks.append(Block("heading", line[hashes:].strip(), level=hashes))
+        else:
+            if table:
+                flush()
+            para.append(line)
+    flush()
+    return blocks
+
+
+def personalisation_markdown(rep: Replication) -> str:
+    """The personalisation section (level-2 heading) with its curve, or "" if the run
+    left it out."""
+    if not rep.personalisation:
+        return ""
+    return (section_markdown(rep.personalisation, level=2)
+            + f"\n![{CAPTIONS['personalisation_curve']}](figures/personalisation_curve.png)\n")
+
+
 def _mean_sd(k: dict[str, Any], name: str) -> str:
     v = k.get(name)
     return "" if v is None else f"{v['mean']:.1f} ± {v['sd']:.1f}"
@@ -156,6 +224,8 @@ def _environment() -> Environment:
 
 def report_html(rep: Replication) -> str:
     """The self-contained HTML report."""
+    personal = markdown_blocks(section_markdown(rep.personalisation, level=2)
+                               if rep.personalisation else "")
     claims = [{"key": c.claim.key, "statement": c.claim.statement, "source": c.claim.source,
                "paper": _paper_value(c), "virtual": f"{c.interval.text('.3g')} {c.claim.unit}",
                "seeds": ", ".join("n/a" if not math.isfinite(v) else f"{v:.3g}"
@@ -168,16 +238,23 @@ def report_html(rep: Replication) -> str:
                 for c in ("squat", "stoop_left", "stoop_right", "other")]
     figures = [{"name": name, "caption": CAPTIONS.get(name, name),
                 "data": base64.b64encode(png).decode("ascii")}
-               for name, (png, _svg) in rep.figures.items()]
+               for name, (png, _svg) in rep.figures.items()
+               if name != "personalisation_curve"]
+    curve = rep.figures.get("personalisation_curve")
+    curve_figure = None if curve is None else {
+        "name": "personalisation_curve", "caption": CAPTIONS["personalisation_curve"],
+        "data": base64.b64encode(curve[0]).decode("ascii")}
     return _environment().get_template(TEMPLATE).render(
         how=_how(rep), wall_s=rep.wall_s, phases=rep.phases,
         verdicts=verdict_counts(rep.claims), rule=RULE_TEXT, claims=claims,
         paper_tables=paper_tables(),
         first_tables={k.replace("_", " "): t for k, t in rep.first_tables.items()},
-        sections={k.replace("_", " "): md for k, md in rep.sections.items() if md},
+        sections={k.replace("_", " "): markdown_blocks(md)
+                  for k, md in rep.sections.items() if md},
+        personalisation=personal, personalisation_title=SECTION_TITLE,
         offsets=rep.offsets, stairs=stairs_table(rep.stairs) if rep.stairs else None,
         stair_participants=rep.stairs.get("participants"), favoured=favoured,
-        figures=figures, notes=rep.notes)
+        figures=figures, curve=curve_figure, notes=rep.notes)
 
 
 def _jsonable(x: Any) -> Any:
@@ -227,9 +304,12 @@ def write(rep: Replication) -> list[Path]:
            "checks": _jsonable(rep.checks),
            "offsets": _jsonable({k: v for k, v in rep.offsets.items()
                                  if k not in ("offset_deg", "gain")}),
-           "stairs": _jsonable(rep.stairs), "notes": rep.notes}
+           "stairs": _jsonable(rep.stairs), "personalisation": rep.personalisation or None,
+           "notes": rep.notes}
     for name, body in (("replication.json", json.dumps(doc, indent=1)),
-                       ("replication.md", claims_markdown(rep)),
+                       ("replication.md", "\n".join(
+                           x for x in (claims_markdown(rep), personalisation_markdown(rep))
+                           if x)),
                        ("report.html", report_html(rep))):
         p = out / name
         write_private(p, body)

@@ -78,7 +78,13 @@ from controller.evaluation.paper_protocol import (
     stair_kinematics,
 )
 from controller.evaluation.personalisation import PersonalisationConfig, simulate_study
-from controller.evaluation.personalisation_report import analysis_json, curve_figure, lab_changes
+from controller.evaluation.personalisation_report import (
+    analysis_json,
+    curve_figure,
+    day_table,
+    lab_changes,
+    participants_table,
+)
 from controller.evaluation.rendering import render_figure
 from controller.evaluation.study import evaluate_recording
 from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
@@ -224,7 +230,12 @@ def personalisation_step(cfg: ReplicationConfig, utilities: UtilitySet,
                                  seeds=(cfg.first_seed,))
     log(f"personalisation: {pcfg.participants} virtual participants, seed {cfg.first_seed}")
     study = simulate_study(pcfg, utilities)
-    return analysis_json(study), curve_figure(study, lab_changes(study))
+    doc = analysis_json(study)
+    # Every participant's values beside the changes, so each change can be checked.
+    doc["per_participant"] = {
+        name: [dict(zip(t.header, row, strict=True)) for row in t.rows]
+        for name, t in (("lab", participants_table(study)), ("day", day_table(study)))}
+    return doc, curve_figure(study, lab_changes(study))
 
 
 def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,

@@ -49,6 +49,7 @@ from controller.evaluation import (
     lifts_from_segments,
     trial_kind,
 )
+from controller.evaluation.ground_truth import NO_TRUTH
 from controller.evaluation.learning_curve import SessionUse, learning_curves, session_use
 
 #: Long-use trials in these states count; others are skipped.
@@ -173,7 +174,7 @@ def wearer_progress(db: Session, participant_id: int,
     curves = learning_curves(uses)
     notes = ["lifts per hour counts every lift; recognition, lock rate and time to lock "
              "only confirmed lifts (simulation truth, or segments labelled with a lift)"]
-    if any("segments" in a.truths or "none" in a.truths for a in gathered):
+    if any("segments" in a.truths or NO_TRUTH in a.truths for a in gathered):
         notes.append("false positives per hour of walking and stairs need gait markers "
                      "(a marker labelled walking or stairs starts a bout, the next marker "
                      "ends it)")

@@ -98,8 +98,16 @@ def check_layout(stream_type: str, fs: float, labels: list[str], units: list[str
     return StreamLayout(tuple(cols), tuple(volts), float(fs))
 
 
+#: liblsl's channel-format code for text (pylsl.cf_string), checked without loading pylsl.
+_CF_STRING = 3
+
+
 def layout_of(info: Any, montage: EmgMontage, ignore: list[str]) -> StreamLayout:
-    """`check_layout` on a resolved stream."""
+    """`check_layout` on a resolved stream; a stream of text is refused as XDF import
+    refuses one (its samples are not numbers to filter)."""
+    if int(info.channel_format()) == _CF_STRING:
+        raise ValueError("its channels hold text (channel_format string), not EMG samples; "
+                         "an EMG stream carries numbers (float32, double64 or integers)")
     labels, units = describe(info)
     return check_layout(info.type(), float(info.nominal_srate()), labels, units, montage,
                         ignore)

@@ -76,6 +76,8 @@ from controller.evaluation.rendering import RenderedFigure, render_figure
 #: filters' start-up transient (a 6 Hz 4th-order low-pass settles within about 0.5 s)
 #: stays outside the windows measured.
 PAD_S = 1.0
+#: The normalisation method that keeps volts (the envelopes are not divided).
+VOLTS = "none"
 #: Outcome measures per lift and channel.
 METRICS = ("peak", "mean", "iemg")
 #: Groups of lifts the aggregates are given for: every lift, then each kind.
@@ -813,7 +815,7 @@ def _session_reference(db: Session, folder: Path, recs: Sequence[EmgRecording],
                        ) -> SessionReference:
     lifts = [lf for t in trials for lf in t.lifts if lf.outcome is not None]
     n = len(channels)
-    if proc.normalisation == "none" or not lifts:
+    if proc.normalisation == VOLTS or not lifts:
         return SessionReference("none", (1.0,) * n)
     if proc.normalisation == "mvc":
         values = _mvc_reference(db, folder, recs, proc, channels, montage)
@@ -849,7 +851,7 @@ def study_muscle_results(engine: Engine, db: Session, folder: Path, study_id: in
             recs = _session_recordings(db, sess.id)
             trials = [t for t in db.scalars(select(Trial).where(
                 Trial.session_id == sess.id).order_by(Trial.planned_order))
-                if t.status == "completed" and t.controller != "none"]
+                if t.status == "completed" and t.controller != registry.idle()]
             if not trials:
                 continue
             montage: list[dict[str, Any]] = []

@@ -9,6 +9,7 @@ the marker ids of each repetition.
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 from sqlalchemy import select
@@ -24,6 +25,39 @@ MVC_STOP = "mvc_stop"
 
 class MvcConflictError(ValueError):
     """The step is not in a state where this makes sense."""
+
+
+class MvcPlanError(ValueError):
+    """A planned step the montage cannot record, or a step planned twice; `index` is the
+    step's position in the plan."""
+
+    def __init__(self, index: int, problem: str) -> None:
+        super().__init__(problem)
+        self.index = index
+
+
+#: Serialises each start/stop's read-check-write: the lab (markers, LSL outlets) lives in
+#: this one process, so two concurrent starts cannot both see the step idle.
+_EVENT_LOCK = threading.Lock()
+
+
+def check_plan(body: MvcPlanIn, channels: list[dict[str, Any]]) -> None:
+    """Every step's muscle and side(s) in the montage, and no muscle/side planned twice
+    ("both" overlaps "left" and "right")."""
+    have = {(str(c.get("muscle")), str(c.get("side"))) for c in channels}
+    seen: dict[tuple[str, str], int] = {}
+    for i, s in enumerate(body.steps):
+        sides = ("left", "right") if s.side == "both" else (s.side,)
+        missing = [side for side in sides if (s.muscle, side) not in have]
+        if missing:
+            raise MvcPlanError(i, f"step {i + 1}: {s.muscle} {'/'.join(missing)} is not in "
+                               "the study's EMG montage; plan only recorded muscles")
+        for side in sides:
+            if (s.muscle, side) in seen:
+                raise MvcPlanError(i, f"step {i + 1}: {s.muscle} {side} is already planned "
+                                   f"in step {seen[(s.muscle, side)] + 1}; plan each "
+                                   "muscle and side once (use repetitions)")
+            seen[(s.muscle, side)] = i
 
 
 def steps(db: Session, session_id: int) -> list[MvcStep]:
@@ -50,7 +84,14 @@ def plan(db: Session, session_id: int, body: MvcPlanIn) -> list[MvcStep]:
 
 
 def event(db: Session, lab: Any, step: MvcStep, what: str, user_id: int | None) -> MvcStep:
-    """Start or stop the next repetition with a console marker (committed)."""
+    """Start or stop the next repetition with a console marker (committed); atomic:
+    of concurrent starts (or stops) one wins, the others get `MvcConflictError`."""
+    with _EVENT_LOCK:
+        db.refresh(step)  # the state as the previous winner committed it
+        return _event(db, lab, step, what, user_id)
+
+
+def _event(db: Session, lab: Any, step: MvcStep, what: str, user_id: int | None) -> MvcStep:
     done = [dict(r) for r in step.repetitions_done]
     running = done[-1] if done and done[-1].get("stop_marker_id") is None else None
     if what == "start":

@@ -165,8 +165,8 @@ def _trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Tria
             continue
         a = float(tick_t[lift.start] - t_ref)
         b = float(tick_t[lift.end] - t_ref)
-        windows.append((lift.index, str(lift.kind), a, b)
-                       + _lift_window(rel, rec.fs, a, b))
+        win, lflags = _lift_window(rel, rec.fs, a, b)
+        windows.append((lift.index, str(lift.kind), a, b, win, lflags))
     n_ch = len(montage.channels)
     values = np.empty((shown.size, n_ch))
     outcomes: dict[int, list[Any]] = {k: [] for k in range(len(windows))}
@@ -196,8 +196,8 @@ def _trial_envelope(engine: Engine, db: Session, settings: Settings, trial: Tria
             index=index, kind=kind, start_s=a, end_s=b, flags=lflags,
             peak=[o.peak[0] for o in outs], mean=[o.mean[0] for o in outs],
             iemg=[o.iemg[0] for o in outs]))
-    return TrialEmgOut(flags=_trial_flags(db, trial, rec),
-                       
+    return TrialEmgOut(
+        flags=_trial_flags(db, trial, rec),
         trial_id=trial.id, recording_id=rec.id, source=rec.source, processing=proc.to_dict(),
         recording_fs=rec.fs, fs=rec.fs / step, t=[float(v) for v in rel[shown]],
         duration_s=stop - start, channels=channels, lifts=lifts, lift_source=truth.source,

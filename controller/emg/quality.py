@@ -229,6 +229,13 @@ def timing_quality(timestamps: NDArray[Any], fs: float) -> TimingQuality:
     if backward:
         flags.append(TIMESTAMPS_BACKWARDS)
     period = 1.0 / fs
+    spacing = dt[dt > 0]
+    typical = float(np.median(spacing)) if spacing.size else period
+    if not period / GAP_PERIODS <= typical <= GAP_PERIODS * period:
+        # Stamped at another rate than the nominal (half of it, say): every step would
+        # look like a gap. The stamps' own spacing is the period gaps are measured in;
+        # the rate check below names the real problem (rate_mismatch).
+        period = typical
     gap = dt > GAP_PERIODS * period
     missing = int(np.maximum(np.round(dt[gap] / period) - 1, 0).sum())
     if missing:

@@ -246,9 +246,12 @@ class EmgTap:
         act = self.muscles.activation(self.model.human_torques(), self.model.true_torques())[0]
         return np.concatenate([act, np.zeros(N_SPARE)])
 
-    def emit(self, sample: Sample) -> EmgBlock | None:
+    def emit(self, sample: Sample, late_s: float = 0.0) -> EmgBlock | None:
         """Generate the EMG of the tick that ended at `sample` and push it (None: not
-        generated, nobody listens and `only_when_consumed`)."""
+        generated, nobody listens and `only_when_consumed`). `late_s`: how long after
+        the tick was due it is emitted (a paced device's late reader takes waiting ticks
+        at once); spread stamps end at the due instant, so a burst of late ticks keeps
+        the sample clock's spacing instead of looking like lost samples."""
         activity = sample.truth.activity if sample.truth is not None else None
         if (self.only_when_consumed and self._outlet is not None
                 and not self._outlet.have_consumers()):
@@ -265,17 +268,17 @@ class EmgTap:
             self.blocks.append(block)
         if self._outlet is not None and block.samples.shape[0]:
             if self.stamping == "spread":
-                self._push_spread(block)
+                self._push_spread(block, max(0.0, late_s))
             else:
                 self._push(block, self._stamp(sample.seq))
         return block
 
-    def _push_spread(self, block: EmgBlock) -> None:
+    def _push_spread(self, block: EmgBlock, late_s: float = 0.0) -> None:
         """The tick's samples evenly between the previous tick's last stamp and now
         (nominal spacing for the first tick), so stamps never go back and each tick's
         samples carry the instant its reader stamps the tick with."""
         n = block.samples.shape[0]
-        now = float(self._clock())
+        now = float(self._clock()) - late_s
         period = 1.0 / self.generator.settings.fs
         prev = self._stamps.last if self._stamps.last is not None else now - n * period
         last = max(now, prev + n * 1e-7)

@@ -83,6 +83,7 @@ class SimulatedDevice(Device):
             if self.realtime and timeout > 0:
                 time.sleep(timeout)
             return None
+        due: float | None = None
         if self.realtime:
             assert self._start is not None
             due = self._start + self.exo.seq * self.exo.dt / self.speed
@@ -95,8 +96,9 @@ class SimulatedDevice(Device):
                 time.sleep(wait)
         command, self._command = self._command, None
         sample = self.exo.tick(command)
-        if self.emg is not None:
-            self.emg.emit(sample)
+        if self.emg is not None:  # stamped at the tick's due instant (a late read's burst
+            # keeps the sample clock's spacing, not a gap and a squeeze)
+            self.emg.emit(sample, 0.0 if due is None else max(0.0, time.monotonic() - due))
         return sample
 
     def wear(self, worn: bool) -> None:

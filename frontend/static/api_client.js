@@ -237,7 +237,8 @@ export const emg = Object.freeze({
   /**
    * PUT /api/sessions/{session_id}/mvc-steps: Plan the session's MVC steps (per muscle and
    * side, repetitions, contraction and rest times); 409 once a repetition has run (its
-   * markers are data).
+   * markers are data) or without a montage; 422 for a muscle/side not in the montage or
+   * planned twice.
    * @param {number} sessionId
    * @param {MvcPlanIn} body
    * @returns {Promise<Array<MvcStepOut>>}
@@ -276,8 +277,10 @@ export const emg = Object.freeze({
    * GET /api/trials/{trial_id}/emg-envelope: The stored EMG's envelope over the trial (the
    * study's processing chain, in volts, decimated to at most `points` values), the
    * recording's flags per channel, and the trial's lifts with each lift's peak, mean and
-   * integral from the full-rate envelope. 409 saying why for a trial that has not run or
-   * that no EMG recording covers.
+   * integral from the full-rate envelope. 409 saying why for a trial that has not run, that
+   * no EMG recording covers or whose recording is still being written; 503 with Retry-After
+   * while `MAX_CONCURRENT` envelopes are being computed. Lifts the recording holds under 90
+   * % of are listed with `no_emg`, not measured.
    * @param {number} trialId
    * @param {{points?: number}=} query
    * @returns {Promise<TrialEmgOut>}
@@ -381,7 +384,8 @@ export const lab = Object.freeze({
   /**
    * POST /api/sessions/{session_id}/markers: An event marker now: stamped with the newest
    * tick, stored with the session's running trial (if that tick is the trial's), drawn on
-   * the consoles and sent on the LSL marker stream.
+   * the consoles and sent on the LSL marker stream. 409 while a trial runs whose ticks have
+   * ended (a timed trial past its duration: stop it first).
    * @param {number} sessionId
    * @param {MarkerIn} body
    * @returns {Promise<MarkerOut>}

@@ -464,10 +464,16 @@ def list_mvc_steps(session_id: SessionId, user: CurrentUser, db: SessionDep) -> 
 def plan_mvc(session_id: SessionId, body: MvcPlanIn, user: CurrentUser, db: SessionDep
              ) -> list[MvcStep]:
     """Plan the session's MVC steps (per muscle and side, repetitions, contraction and
-    rest times); 409 once a repetition has run (its markers are data)."""
+    rest times); 409 once a repetition has run (its markers are data) or without a
+    montage; 422 for a muscle/side not in the montage or planned twice."""
     one_or_404(db, StudySession, session_id, "session")
     try:
+        mvc.check_plan(body, recordings.session_montage(db, session_id).channels)
         rows = mvc.plan(db, session_id, body)
+    except NoMontageError as exc:
+        conflict("montage", str(exc))
+    except mvc.MvcPlanError as exc:
+        invalid(["body", "steps", exc.index, "muscle"], str(exc))
     except mvc.MvcConflictError as exc:
         conflict("steps", str(exc))
     audit.record(db, user, "plan", "mvc_steps", session_id,

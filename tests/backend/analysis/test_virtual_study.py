@@ -169,7 +169,8 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
         assert sum(o.decision.value == "correct" for o in mine) == int(row["correct"])
         assert sum(bool(o.recognised) for o in mine) == int(row["recognised"])
     rep = replicate(ReplicationConfig(out=tmp_path / "rep", from_db=(out / "study.db",) * 2,
-                                      offset_participants=4, stair_participants=2),
+                                      offset_participants=4, stair_participants=2,
+                                      personalisation_participants=0),
                     log=lambda _m: None)
     assert [s.source for s in rep.seeds] == ["from-db", "from-db"]
     assert (tmp_path / "rep" / "report.html").is_file()

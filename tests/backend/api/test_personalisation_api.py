@@ -450,4 +450,15 @@ def test_saved_again_or_relabelled_lifts_are_counted_once_with_their_label(
     assert relabelled["document"]["counts"] == [5.0, 1.0, 0.0, 0.0]
     assert relabelled["params"]["relabelled"] == [f"trial:{tid}:500-580"]
     assert len(relabelled["document"]["sources"]) == 6
+    # A set stored before sources named the motion (segment row ids): counted afresh.
+    old_doc = {**first["document"], "sources": [f"trial-segment:{i}" for i in range(6)],
+               "meta": {}}
+    with make_session_factory(engine)() as db:
+        db.execute(update(PriorSetRecord).where(PriorSetRecord.id == first["id"])
+                   .values(document=old_doc))
+        db.commit()
+    recounted = _ok(client.post(f"/api/participants/{pid}/prior-sets", json={
+        **learn, "previous_prior_set_id": first["id"]}), 201)
+    assert recounted["document"]["counts"] == [5.0, 1.0, 0.0, 0.0]
+    assert recounted["params"]["recounted"] is True
     engine.dispose()

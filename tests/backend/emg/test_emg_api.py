@@ -202,8 +202,11 @@ def test_quality_flags_of_an_import_are_kept_and_shown(client: TestClient) -> No
 
 
 def test_mvc_steps_are_timed_with_markers(client: TestClient) -> None:
-    _, sess = _session(client)
+    study, sess = _session(client)
     url = f"/api/sessions/{sess}/mvc-steps"
+    r = client.put(url, json={"steps": [{"muscle": "erector_spinae_lumbar"}]})
+    assert r.status_code == 409 and "no EMG montage" in r.text  # nothing to record with
+    assert client.put(f"/api/studies/{study}/emg-montage", json=MONTAGE).status_code == 200
     r = client.put(url, json={"steps": [
         {"muscle": "erector_spinae_lumbar", "repetitions": 2},
         {"muscle": "gluteus_maximus", "side": "left", "repetitions": 1}]})
@@ -229,5 +232,47 @@ def test_mvc_steps_are_timed_with_markers(client: TestClient) -> None:
         ("mvc_stop", "erector_spinae_lumbar both rep 1"),
         ("mvc_start", "erector_spinae_lumbar both rep 2"),
         ("mvc_stop", "erector_spinae_lumbar both rep 2")]
-    r = client.put(url, json={"steps": [{"muscle": "biceps_femoris"}]})
+    r = client.put(url, json={"steps": [{"muscle": "gluteus_maximus", "side": "left"}]})
     assert r.status_code == 409  # a repetition ran: the plan is data now
+
+
+def test_mvc_plans_fit_the_montage_and_concurrent_starts_store_one_marker(
+        client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The attack: six concurrent starts gave four 200s and duplicate markers; plans
+    with muscles the montage lacks, or a step twice, were stored."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from backend.lab.hub import Lab
+
+    study, sess = _session(client)
+    assert client.put(f"/api/studies/{study}/emg-montage", json=MONTAGE).status_code == 200
+    url = f"/api/sessions/{sess}/mvc-steps"
+    for steps, where in (([{"muscle": "gluteus_maximus"}], 0),  # right side not recorded
+                         ([{"muscle": "biceps_femoris", "side": "left"}], 0),
+                         ([{"muscle": "erector_spinae_lumbar"},
+                           {"muscle": "erector_spinae_lumbar", "side": "left"}], 1)):
+        r = client.put(url, json={"steps": steps})
+        assert r.status_code == 422, r.text
+        assert r.json()["detail"][0]["loc"] == ["body", "steps", where, "muscle"]
+    assert client.get(url).json() == []
+    r = client.put(url, json={"steps": [{"muscle": "erector_spinae_lumbar"}]})
+    assert r.status_code == 200, r.text
+    ev = f"{url}/{r.json()[0]['id']}/events"
+    gate = threading.Barrier(3)
+    real = Lab.console_marker
+
+    def together(self: Lab, *args: object, **kw: object) -> object:
+        try:  # every start has read the step before one stores its marker
+            gate.wait(2.0)
+        except threading.BrokenBarrierError:
+            pass
+        return real(self, *args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Lab, "console_marker", together)
+    with ThreadPoolExecutor(3) as pool:
+        codes = sorted(x.status_code for x in pool.map(
+            lambda _: client.post(ev, json={"event": "start"}), range(3)))
+    assert codes == [200, 409, 409]
+    marks = client.get(f"/api/sessions/{sess}/markers").json()
+    assert [m["label"] for m in marks] == ["mvc_start"]

@@ -114,7 +114,13 @@ def test_bad_streams_are_refused_with_the_reason(client: TestClient) -> None:
     eeg = _outlet(f"test-eeg-{tag}", "EEG", "V")
     newton = _outlet(f"test-force-{tag}", "EMG", "N")
     micro = _outlet(f"test-uv-{tag}", "EMG", "uV")
+    text_info = pylsl.StreamInfo(f"Other-text-{tag}", "EMG", N_CHANNELS, 2000.0,
+                                 pylsl.cf_string, f"test-text-{tag}")
+    text = pylsl.StreamOutlet(text_info)
     try:
+        r = client.post(url, json={"name": "x", "source_id": f"test-text-{tag}",
+                                   "ignore_labels": spare})
+        assert r.status_code == 422 and "hold text" in str(r.json()), r.text
         r = client.post(url, json={"name": "x", "source_id": f"test-eeg-{tag}",
                                    "ignore_labels": spare})
         assert r.status_code == 422 and "not 'EMG'" in str(r.json()), r.text
@@ -132,7 +138,7 @@ def test_bad_streams_are_refused_with_the_reason(client: TestClient) -> None:
         assert client.get(url).json() == []  # nothing subscribed
         assert client.get(f"/api/sessions/{sess}/emg-recordings").json() == []
     finally:
-        del eeg, newton, micro
+        del eeg, newton, micro, text
 
 
 def test_live_emg_is_stored_mapped_and_clock_corrected(

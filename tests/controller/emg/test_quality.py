@@ -105,3 +105,17 @@ def test_report_is_plain_data() -> None:
     d = report.to_dict()
     assert d["channels"][0]["flags"] == []
     assert d["timing"]["dropped_samples"] == 0
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0, 0.25])
+def test_a_stream_stamped_at_another_rate_is_a_rate_mismatch_not_dropped_samples(
+        factor: float) -> None:
+    """The attack: stamps at half the nominal rate were read as every other sample
+    lost. The stamps' own spacing is the period then; the flag is rate_mismatch."""
+    q = timing_quality(np.arange(4000) / (FS * factor), FS)
+    assert q.flags == (RATE_MISMATCH,) and q.dropped_samples == 0
+    assert q.rate_from_timestamps_hz == pytest.approx(FS * factor)
+    # Losses in such a stream still count, in its own period.
+    t = np.arange(4000) / (FS * factor)
+    q = timing_quality(np.concatenate([t[:1000], t[1010:]]), FS)
+    assert q.dropped_samples == 10 and DROPPED_SAMPLES in q.flags

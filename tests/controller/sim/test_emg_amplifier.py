@@ -133,7 +133,8 @@ def test_not_worn_wearer_gets_no_torque_and_full_muscle_demand() -> None:
 
     worn, bare = (SimulatedExoskeleton(seed=4, script="squat-sequence") for _ in range(2))
     bare.worn = False
-    tw, tb = [], []
+    tw: list[tuple[float, float]] = []
+    tb: list[tuple[float, float]] = []
     aw, ab = EmgTap(worn, publish=False), EmgTap(bare, publish=False)
     for k in range(2500):
         for exo, acc in ((worn, tw), (bare, tb)):
@@ -144,3 +145,26 @@ def test_not_worn_wearer_gets_no_torque_and_full_muscle_demand() -> None:
             assert np.all(ab.activation()[ext] >= aw.activation()[ext] - 1e-12)
     assert np.max(tw) > 5.0
     assert np.max(np.abs(tb)) == 0.0
+
+
+def test_a_late_reader_s_burst_keeps_the_sample_clock() -> None:
+    """The attack: the in-server amplifier at real speed was flagged dropped_samples
+    and rate_mismatch with nothing lost: a late reader takes waiting ticks at once and
+    spread stamps squeezed them after a gap. Stamped at each tick's due instant, the
+    samples keep the nominal spacing and the timing check finds nothing."""
+    from controller.emg.quality import timing_quality
+
+    tap = EmgTap(SimulatedExoskeleton(seed=3, script="squat-sequence"), stamping="spread")
+    out = _FakeOutlet()
+    dt = tap.dt
+    # Ticks due every 10 ms; the reader is 35 ms late for ticks 10-13 and reads them at
+    # once, then catches up.
+    reads = [(k * dt, 0.0) if not 10 <= k <= 13 else (14 * dt - 1e-4, 14 * dt - 1e-4 - k * dt)
+             for k in range(40)]
+    now = iter([r for r, _ in reads])
+    tap._outlet, tap._clock = out, lambda: next(now)
+    for _, late in reads:
+        tap.emit(tap.model.tick(None), late)
+    q = timing_quality(np.asarray(out.stamps), 2000.0)
+    assert q.flags == () and q.dropped_samples == 0
+    assert np.allclose(np.diff(out.stamps), 1 / 2000.0, atol=1e-6)
