@@ -3,8 +3,10 @@
 `controller.emg.quality` measures a window; a recording is assessed in blocks of
 `BLOCK_S` seconds as it is written (live) or read (imports), and the summary keeps, per
 channel label, in how many blocks each flag was raised, plus the timing's flags from
-every timestamp (gaps, backward steps, the implied rate), carried across blocks. Flags
-never drop or change data: they are stored with the recording and shown.
+every finite timestamp (gaps, backward steps, the implied rate), carried across blocks.
+Timestamps that are not finite are counted (`non_finite_timestamps`, flag
+`timestamps_non_finite`) and left out of the timing checks, which go on over the rest.
+Flags never drop or change data: they are stored with the recording and shown.
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ BLOCK_S = 10.0
 STREAM_LOST = "stream_lost"
 STREAM_RESTARTED = "stream_restarted"
 STOPPED_MID_TRIAL = "stopped_mid_trial"
+#: Rows whose timestamp is NaN or infinite: stored, but with no place on the time axis
+#: they are in no time window (envelopes, results, exports leave them out).
+TIMESTAMPS_NON_FINITE = "timestamps_non_finite"
 #: The server was killed mid-recording: what its file held was kept.
 INTERRUPTED = "interrupted"
 
@@ -42,6 +47,7 @@ class QualitySummary:
     gaps: int = 0
     dropped_samples: int = 0
     backward_steps: int = 0
+    non_finite_timestamps: int = 0
     extra: list[str] = field(default_factory=list)
     _span: float = 0.0
     _intervals: int = 0
@@ -91,8 +97,10 @@ class QualitySummary:
             for f in ch.flags:
                 per = self.channel_flags.setdefault(label, {})
                 per[f] = per.get(f, 0) + 1
-        if np.isfinite(bt).all():
-            self._timing(bt)
+        finite = np.isfinite(bt)
+        self.non_finite_timestamps += int((~finite).sum())
+        if finite.any():
+            self._timing(bt[finite])
 
     def _timing(self, t: NDArray[np.float64]) -> None:
         full = t if self._last_t is None else np.concatenate([[self._last_t], t])
@@ -124,6 +132,8 @@ class QualitySummary:
             out[quality.DROPPED_SAMPLES] = None
         if self.backward_steps:
             out[quality.TIMESTAMPS_BACKWARDS] = None
+        if self.non_finite_timestamps:
+            out[TIMESTAMPS_NON_FINITE] = None
         rate = self.rate_from_timestamps_hz
         if rate is not None and abs(rate - self.fs) > quality.RATE_TOLERANCE * self.fs:
             out[quality.RATE_MISMATCH] = None
@@ -138,4 +148,9 @@ class QualitySummary:
                 "channels": self.channel_flags, "gaps": self.gaps,
                 "dropped_samples": self.dropped_samples,
                 "backward_steps": self.backward_steps,
+                "non_finite_timestamps": self.non_finite_timestamps,
+                "excluded_from_time_windows": (
+                    f"{self.non_finite_timestamps} rows with a non-finite timestamp are "
+                    "stored but in no time window" if self.non_finite_timestamps
+                    else None),
                 "rate_from_timestamps_hz": rate, "nominal_rate_hz": self.fs}

@@ -102,6 +102,8 @@ class EmgWriter:
         self.rows = 0
         #: Rows appended so far (written or buffered).
         self.appended = 0
+        #: Earliest and latest finite timestamp (not the first and last row: stamps that
+        #: step back or are not finite must not give a span that ends before it starts).
         self.first_t: float | None = None
         self.last_t: float | None = None
         make_private_dir(self.path.parent)
@@ -136,9 +138,11 @@ class EmgWriter:
             raise EmgStoreError(f"{t.shape[0]} timestamps for {x.shape[0]} samples")
         if not x.shape[0]:
             return
-        if self.first_t is None:
-            self.first_t = float(t[0])
-        self.last_t = float(t[-1])
+        fin = t[np.isfinite(t)]
+        if fin.size:
+            lo, hi = float(fin.min()), float(fin.max())
+            self.first_t = lo if self.first_t is None else min(self.first_t, lo)
+            self.last_t = hi if self.last_t is None else max(self.last_t, hi)
         self._t.append(t)
         self._x.append(x)
         self._buffered += x.shape[0]
