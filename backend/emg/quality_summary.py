@@ -52,6 +52,7 @@ class QualitySummary:
     _span: float = 0.0
     _intervals: int = 0
     _last_t: float | None = None
+    _last_row: int = 0
     _pending_t: list[NDArray[np.float64]] = field(default_factory=list)
     _pending_x: list[NDArray[Any]] = field(default_factory=list)
     _pending_n: int = 0
@@ -100,22 +101,28 @@ class QualitySummary:
         finite = np.isfinite(bt)
         self.non_finite_timestamps += int((~finite).sum())
         if finite.any():
-            self._timing(bt[finite])
+            rows = np.arange(self.samples - n, self.samples)
+            self._timing(bt[finite], rows[finite])
 
-    def _timing(self, t: NDArray[np.float64]) -> None:
-        full = t if self._last_t is None else np.concatenate([[self._last_t], t])
-        self._last_t = float(t[-1])
-        if full.size < 2:
+    def _timing(self, t: NDArray[np.float64], rows: NDArray[np.int64]) -> None:
+        """Gaps and steps between finite stamps; `rows` are their row numbers, so a row
+        between them whose stamp was not finite is a row, not a missing sample."""
+        if self._last_t is not None:
+            t = np.concatenate([[self._last_t], t])
+            rows = np.concatenate([[self._last_row], rows])
+        self._last_t, self._last_row = float(t[-1]), int(rows[-1])
+        if t.size < 2:
             return
-        dt = np.diff(full)
+        dt = np.diff(t)
+        steps = np.diff(rows)
         period = 1.0 / self.fs
         self.backward_steps += int((dt < 0).sum())
-        gap = dt > quality.GAP_PERIODS * period
+        gap = dt > (steps + quality.GAP_PERIODS - 1) * period
         self.gaps += int(gap.sum())
-        missing = int(np.maximum(np.round(dt[gap] / period) - 1, 0).sum())
+        missing = int(np.maximum(np.round(dt[gap] / period) - steps[gap], 0).sum())
         self.dropped_samples += missing
         self._span += float(dt[dt > 0].sum())
-        self._intervals += int((dt > 0).sum()) + missing
+        self._intervals += int(steps[dt > 0].sum()) + missing
 
     @property
     def rate_from_timestamps_hz(self) -> float | None:

@@ -154,12 +154,14 @@ def covered_trials(db: Session, session_id: int, t_start: float | None, t_end: f
 
 def stopped_inside(t_start: float | None, t_end: float | None, span: dict[str, Any]) -> bool:
     """Whether a recording [t_start, t_end] ended inside the trial `span` (session clock):
-    it was recording during the trial and stopped before the trial's stop. A trial still
-    running (stop None) is not decided yet: False, asked again once its stop is known."""
+    it was recording when the trial started and stopped before the trial's stop (a file
+    that only covers a stretch inside the trial is not a stream that stopped). A trial
+    still running (stop None) is not decided yet: False, asked again once its stop is
+    known."""
     stop = span.get("stop")
     if t_start is None or t_end is None or stop is None:
         return False
-    return bool(t_start <= stop and span["start"] <= t_end < stop)
+    return bool(t_start <= span["start"] <= t_end < stop)
 
 
 Block = tuple[NDArray[Any] | None, NDArray[Any]]

@@ -69,7 +69,9 @@ def test_implausible_values_are_422_naming_the_field(
     reader: TestClient, field: str, value: object
 ) -> None:
     # Study names are unique: one per test in the shared database.
-    study = int(reader.post("/api/studies", json={"name": f"S {uuid4().hex}"}).json()["id"])
+    made = reader.post("/api/studies", json={"name": f"S {uuid4().hex}"})
+    assert made.status_code == 201, made.text
+    study = int(made.json()["id"])
     body = {"code": "P09", field: value}
     r = reader.post(f"/api/studies/{study}/participants", json=body)
     assert r.status_code == 422

@@ -73,7 +73,7 @@ def test_a_rate_too_low_for_the_chain_is_a_422_with_the_minimum(client: TestClie
 
 def test_a_truncated_file_is_imported_with_a_flag(client: TestClient) -> None:
     url = _ready(client)
-    data, truth = _edf(LABELS, seconds=6)
+    data, _ = _edf(LABELS, seconds=6)
     record = (3 * 2000 + 7) * 2
     r = client.post(url, files={"file": ("a.edf", data[:-record - 100])},
                     data={"marker": "sync"})

@@ -131,3 +131,26 @@ def test_a_lift_the_recording_barely_covers_is_not_measured_and_calls_are_bounde
         for _ in held:
             trial_envelope.BUSY.release()
     assert client.get(f"/api/trials/{first}/emg-envelope").status_code == 200
+
+
+def test_a_trial_whose_emg_is_still_recording_says_so(
+        client: TestClient, db_url: str, settings: Any) -> None:
+    """The attack: during a live recording the panel answered "subscribe an EMG
+    stream" although one was recording."""
+    from backend.db.emg import EmgMontage
+    from backend.emg import recordings
+
+    made = _session_with_two_trials(db_url)
+    first = made["trials"][0]
+    assert client.put(f"/api/studies/{made['study']}/emg-montage", json=MONTAGE).is_success
+    engine = make_engine(db_url)
+    with Session(engine) as db:
+        montage = db.query(EmgMontage).filter_by(study_id=made["study"]).one()
+        writer = recordings.RecordingWriter(db, settings, made["session"], montage,
+                                            "simulated", FS)
+        r = client.get(f"/api/trials/{first}/emg-envelope")
+        assert r.status_code == 409, r.text
+        assert f"recording {writer.row.id}" in r.json()["detail"]
+        assert "still recording" in r.json()["detail"]
+        assert "subscribe an EMG stream" not in r.json()["detail"]
+    engine.dispose()
