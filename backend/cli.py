@@ -488,9 +488,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--utilities", default=None, help="utility set JSON (default: the "
                    "server's default set, from the simulated reference human dataset)")
     c.add_argument("--processes", type=int, default=0,
-                   help="spread the participants over this many processes (default 0: one "
-                   "per core, at most one per 20 participants; the workers are forked with "
-                   "the compiled kernels loaded, so they start at once)")
+                   help="spread the participants over this many processes; 0: one per "
+                   "core, at most one per 20 participants (the workers are forked with "
+                   "the compiled kernels loaded, so they start at once) (default 0)")
     c.add_argument("--emg", action="store_true",
                    help="also simulate muscle activity: sEMG of every lift trial, an MVC, "
                    "and the baseline conditions springs_free and no_exoskeleton (about "

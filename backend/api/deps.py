@@ -90,10 +90,11 @@ SettingsDep = Annotated[Settings, Depends(get_settings_of_app)]
 
 
 #: Requests holding the engine (reads of ticks beside the request's session) at once.
-#: Each may hold two pooled connections (its session's and the read's); four hold at
-#: most eight of the pool's fifteen, so they cannot wait on each other for the pool,
-#: and the tick writer has a pool of its own (backend/main.py).
-HEAVY_READS = 4
+#: Each may hold two pooled connections (its session's and the read's); twelve hold at
+#: most 24 of the pool's 30 (`backend.db.engine`), so they cannot wait on each other
+#: for the pool, and the tick writer has a pool of its own (backend/main.py). Twelve is
+#: more than the results page asks for at once (its tables, downloads and figures).
+HEAVY_READS = 12
 #: Seconds a refused heavy read is told to wait.
 HEAVY_RETRY_S = 2
 

@@ -30,6 +30,12 @@ def make_engine(url: str) -> Engine:
         # (its -wal and -shm files then take the file's mode: backend/core/data_folder.py).
         prepare_sqlite(url)
         kwargs["connect_args"] = {"check_same_thread": False}
+    # A pool of 10 that may grow to 30: the analysis reads that hold two connections
+    # each (`backend.api.deps.HEAVY_READS`) fit beside the ordinary requests, and two
+    # engines (the API's and the tick writer's) stay well under PostgreSQL's default
+    # of 100 connections.
+    if parsed.database not in (None, "", ":memory:"):  # in-memory SQLite keeps one
+        kwargs.update(pool_size=10, max_overflow=20)
     engine = create_engine(url, **kwargs)
     if parsed.get_backend_name() == "sqlite":
         event.listen(engine, "connect", _sqlite_pragmas)
