@@ -83,7 +83,6 @@ class SimulatedDevice(Device):
             if self.realtime and timeout > 0:
                 time.sleep(timeout)
             return None
-        due: float | None = None
         if self.realtime:
             assert self._start is not None
             due = self._start + self.exo.seq * self.exo.dt / self.speed
@@ -96,9 +95,10 @@ class SimulatedDevice(Device):
                 time.sleep(wait)
         command, self._command = self._command, None
         sample = self.exo.tick(command)
-        if self.emg is not None:  # stamped at the tick's due instant (a late read's burst
-            # keeps the sample clock's spacing, not a gap and a squeeze)
-            self.emg.emit(sample, 0.0 if due is None else max(0.0, time.monotonic() - due))
+        if self.emg is not None:  # stamped when the tick is read, as the tick itself is:
+            # stamping at the due instant instead drifts away from the ticks whenever the
+            # reader runs behind (a sped-up study), and lifts lose their EMG
+            self.emg.emit(sample)
         return sample
 
     def wear(self, worn: bool) -> None:
