@@ -500,17 +500,7 @@ def _envelope(folder: Path, rec: EmgRecording, t0: float, t1: float,
     if not path.is_file():
         return None
     ts, x = store.read_window(path, t0 - rec.time_offset_s, t1 - rec.time_offset_s)
-    if ts.size < max(64, int(0.5 * rec.fs)):
-        return None
-    filled = False
-    if not np.isfinite(x).all():
-        x, _ = fill_non_finite(x)
-        filled = True
-    try:
-        env = process(x, rec.fs, proc)
-    except (ValueError, EmgSettingsError):
-        return None
-    return _Envelope(rec, ts + rec.time_offset_s, env, filled)
+    return _process(rec, ts + rec.time_offset_s, x, proc)
 
 
 def _channel_flags(rec: EmgRecording) -> dict[str, list[str]]:
