@@ -22,6 +22,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from backend.analysis.replication_config import Replication
 from controller.evaluation.columns import TickData
+from controller.evaluation.output_folder import json_ready
 from controller.evaluation.paper_claims import (
     PAPER_FALSE_POSITIVES,
     PAPER_PERFORMANCE,
@@ -257,28 +258,16 @@ def report_html(rep: Replication) -> str:
         figures=figures, curve=curve_figure, notes=rep.notes)
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, Path):
-        return str(x)
-    return x
-
-
 def _claim_json(c: ClaimResult) -> dict[str, Any]:
     iv = c.interval
     return {"key": c.claim.key, "source": c.claim.source, "statement": c.claim.statement,
-            "kind": c.claim.kind, "paper": _jsonable(c.claim.paper), "unit": c.claim.unit,
-            "interval": _jsonable({"n": iv.n, "mean": iv.mean, "low": iv.low,
+            "kind": c.claim.kind, "paper": json_ready(c.claim.paper), "unit": c.claim.unit,
+            "interval": json_ready({"n": iv.n, "mean": iv.mean, "low": iv.low,
                                    "high": iv.high, "sd": iv.sd}),
-            "seeds": _jsonable(list(c.seeds)), "verdict": c.verdict.value,
+            "seeds": json_ready(list(c.seeds)), "verdict": c.verdict.value,
             "reason": c.reason, "paper_values": list(c.claim.paper_values),
-            "margin": _jsonable(c.claim.margin),
-            "difference": _jsonable(difference_dict(c.difference)),
+            "margin": json_ready(c.claim.margin),
+            "difference": json_ready(difference_dict(c.difference)),
             "halves": None if c.halves is None else [v.value for v in c.halves],
             "unstable": c.unstable}
 
@@ -296,15 +285,15 @@ def write(rep: Replication) -> list[Path]:
             p = figs / f"{name}.{ext}"
             write_private(p, data)
             paths.append(p)
-    doc = {"config": {k: _jsonable(v) for k, v in rep.config.__dict__.items()},
+    doc = {"config": {k: json_ready(v) for k, v in rep.config.__dict__.items()},
            "wall_s": rep.wall_s, "phases": rep.phases,
            "seeds": [{"label": s.label, "source": s.source, "wall_s": s.wall_s,
-                      "measures": _jsonable(s.measures)} for s in rep.seeds],
+                      "measures": json_ready(s.measures)} for s in rep.seeds],
            "claims": [_claim_json(c) for c in rep.claims],
-           "checks": _jsonable(rep.checks),
-           "offsets": _jsonable({k: v for k, v in rep.offsets.items()
+           "checks": json_ready(rep.checks),
+           "offsets": json_ready({k: v for k, v in rep.offsets.items()
                                  if k not in ("offset_deg", "gain")}),
-           "stairs": _jsonable(rep.stairs), "personalisation": rep.personalisation or None,
+           "stairs": json_ready(rep.stairs), "personalisation": rep.personalisation or None,
            "notes": rep.notes}
     for name, body in (("replication.json", json.dumps(doc, indent=1)),
                        ("replication.md", "\n".join(

@@ -27,7 +27,7 @@ from controller.evaluation.cohort_stats import (
     compare,
     summarise,
 )
-from controller.evaluation.output_folder import OutputFolder
+from controller.evaluation.output_folder import OutputFolder, json_ready
 from controller.evaluation.rendering import (
     controller_colour,
     new_figure,
@@ -197,16 +197,7 @@ def analysis_json(cohort: Cohort, analysis: CohortAnalysis) -> dict[str, Any]:
     """`cohort.json`: configuration, population, per-participant metrics, statistics."""
     cfg = cohort.config
 
-    def clean(x: Any) -> Any:
-        if isinstance(x, float) and not math.isfinite(x):
-            return None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, list | tuple):
-            return [clean(v) for v in x]
-        return x
-
-    return clean({
+    return json_ready({
         "format": "exostudy.cohort", "format_version": 1,
         "config": {**asdict(cfg), "controllers": list(cfg.controllers)},
         "models_version": cohort.models_version,

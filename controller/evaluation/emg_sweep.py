@@ -59,7 +59,7 @@ from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import lifts_from_truth
 from controller.evaluation.muscle_activity import lift_trial
 from controller.evaluation.muscle_stats import mean_t_interval
-from controller.evaluation.output_folder import OutputFolder
+from controller.evaluation.output_folder import OutputFolder, json_ready
 from controller.evaluation.rendering import controller_colour, new_figure, render_figure
 from controller.evaluation.study import controller_label
 from controller.evaluation.tables import Table
@@ -298,16 +298,7 @@ def write_outputs(cfg: SweepConfig, rows: Sequence[SweepRow], out: Path,
     files.put("sweep.png", png)
     files.put("sweep.svg", svg)
 
-    def clean(x: Any) -> Any:
-        if isinstance(x, float) and not math.isfinite(x):
-            return None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, list | tuple):
-            return [clean(v) for v in x]
-        return x
-
-    files.put("sweep.json", json.dumps(clean({
+    files.put("sweep.json", json.dumps(json_ready({
         "format": "exostudy.emg_sweep", "format_version": 1, "prediction": PREDICTION,
         "config": {**asdict(cfg)}, "paper_stiffness_n_per_mm": PAPER_ACTUATOR.stiffness_n_per_mm,
         "rows": [asdict(r) for r in rows]}), indent=1, allow_nan=False))

@@ -6,7 +6,9 @@ write tables and figures into one folder and report which files they wrote, in o
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Any
 
 from controller.private_files import make_private_dir, write_private
 
@@ -36,3 +38,17 @@ class OutputFolder:
         else:
             path.write_bytes(data)
         self.written.append(path)
+
+
+def json_ready(x: Any) -> Any:
+    """`x` with every non-finite float as None (JSON has no NaN), tuples as lists, keys
+    as text and paths as text: the one conversion every report's JSON file goes through."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {str(k): json_ready(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_ready(v) for v in x]
+    if isinstance(x, Path):
+        return str(x)
+    return x

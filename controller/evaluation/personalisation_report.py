@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from controller.evaluation.output_folder import OutputFolder
+from controller.evaluation.output_folder import OutputFolder, json_ready
 from controller.evaluation.personalisation import (
     POPULATION,
     PersonalisationStudy,
@@ -243,19 +243,10 @@ def analysis_json(study: PersonalisationStudy) -> dict[str, Any]:
     lab = lab_changes(study)
     day = day_changes(study)
 
-    def clean(x: Any) -> Any:
-        if isinstance(x, float) and not math.isfinite(x):
-            return None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, list | tuple):
-            return [clean(v) for v in x]
-        return x
-
     cfg = study.config
     priors = np.array([o.priors.values for o in study.outcomes])
     estimates = np.array([o.priors.estimate for o in study.outcomes])
-    return clean({
+    return json_ready({
         "format": FORMAT_NAME, "format_version": 1,
         "config": {**asdict(cfg), "conditions": list(cfg.conditions())},
         "participants": len(study.outcomes),
