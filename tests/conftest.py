@@ -221,3 +221,43 @@ def client(settings: Settings, experimenter: dict[str, str]) -> Iterator[TestCli
     with TestClient(create_app(quiet)) as c:
         log_in(c, experimenter)
         yield c
+
+
+#: With `EXOSTUDY_TEST_CPU=folder`, each test process writes there the CPU seconds each
+#: test file cost it and the processes it started and reaped (servers, workers, devices),
+#: as `cpu-<pid>.tsv` (file, wall s, own CPU s, children's CPU s): where the suite's CPU
+#: goes, which wall-clock durations on a busy machine do not show.
+_CPU_FOLDER = os.environ.get("EXOSTUDY_TEST_CPU", "")
+_CPU: dict[str, list[float]] = {}
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """Measure one test's CPU when `EXOSTUDY_TEST_CPU` asks for it."""
+    if not _CPU_FOLDER:
+        yield
+        return
+    import resource
+    import time
+
+    def now() -> tuple[float, float, float]:
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return (time.monotonic(), own.ru_utime + own.ru_stime, kids.ru_utime + kids.ru_stime)
+
+    before = now()
+    yield
+    after = now()
+    row = _CPU.setdefault(item.nodeid.split("::", 1)[0], [0.0, 0.0, 0.0])
+    for i in range(3):
+        row[i] += after[i] - before[i]
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Write this process's CPU table (see `_CPU_FOLDER`)."""
+    if not (_CPU_FOLDER and _CPU):
+        return
+    folder = Path(_CPU_FOLDER)
+    folder.mkdir(parents=True, exist_ok=True)
+    lines = [f"{path}\t{w:.1f}\t{c:.1f}\t{k:.1f}" for path, (w, c, k) in _CPU.items()]
+    (folder / f"cpu-{os.getpid()}.tsv").write_text("\n".join(lines) + "\n")

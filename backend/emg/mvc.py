@@ -15,8 +15,12 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from backend.db import audit
 from backend.db.emg import EmgRecording, MvcStep
 from backend.db.lab import Marker
+from backend.db.models import User
+from backend.db.sessions import session_row
+from backend.emg.recordings import session_montage
 from backend.schemas.emg import MvcPlanIn
 
 MVC_START = "mvc_start"
@@ -81,6 +85,22 @@ def plan(db: Session, session_id: int, body: MvcPlanIn) -> list[MvcStep]:
     db.add_all(rows)
     db.flush()
     return rows
+
+
+def replan(db: Session, user: User, session_id: int, body: MvcPlanIn) -> list[MvcStep]:
+    """Check the plan against the study's montage (`NoMontageError` without one), replace
+    the session's steps and write the plan into the audit trail; commits."""
+    check_plan(body, session_montage(db, session_id).channels)
+    rows = plan(db, session_id, body)
+    audit.record(db, user, "plan", "mvc_steps", session_id,
+                 {"steps": [s.model_dump() for s in body.steps]})
+    db.commit()
+    return rows
+
+
+def step_of(db: Session, session_id: int, step_id: int) -> MvcStep:
+    """One MVC step of the session; `NotFoundError` otherwise."""
+    return session_row(db, MvcStep, session_id, step_id, "MVC step")
 
 
 def event(db: Session, lab: Any, step: MvcStep, what: str, user_id: int | None) -> MvcStep:

@@ -21,9 +21,11 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
+from backend.db import audit
 from backend.db.emg import EmgMontage, EmgRecording
 from backend.db.lab import Marker
-from backend.db.models import Participant, StudySession
+from backend.db.models import Participant, StudySession, User
+from backend.db.sessions import session_row
 from backend.emg import bids, recovery, store
 from backend.emg.quality_summary import STOPPED_MID_TRIAL, QualitySummary
 from controller.emg.montage import Montage, MontageError, normalise_label
@@ -273,3 +275,22 @@ def store_blocks(db: Session, settings: Settings, session_id: int, montage: EmgM
 def delete_file(settings: Settings, recording_id: int) -> None:
     """Remove a recording's file (its row is deleted by the caller)."""
     Path(store.recording_path(settings, recording_id)).unlink(missing_ok=True)
+
+
+def session_recordings(db: Session, session_id: int) -> list[EmgRecording]:
+    """The session's recordings, oldest first."""
+    return list(db.scalars(select(EmgRecording).where(EmgRecording.session_id == session_id)
+                           .order_by(EmgRecording.id)))
+
+
+def session_recording(db: Session, session_id: int, recording_id: int) -> EmgRecording:
+    """One recording of the session; `NotFoundError` otherwise."""
+    return session_row(db, EmgRecording, session_id, recording_id, "EMG recording")
+
+
+def record_import(db: Session, user: User, row: EmgRecording) -> EmgRecording:
+    """Write who imported a stored file into the audit trail; commits."""
+    audit.record(db, user, "create", "emg_recording", row.id,
+                 {"source": row.source, "sha256": row.sha256, "filename": row.filename})
+    db.commit()
+    return row

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from backend.core.errors import ConflictError, InvalidError, NotFoundError
 from backend.core.resources import version
 from backend.db import audit
-from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
+from backend.db.evidence_tables import LockEvent, ModelSetRecord, Trial, UtilitySetRecord
 from backend.db.models import ConditionLabel, Participant, StudySession, User
 from backend.db.personalisation import PriorSetRecord
 from backend.lab.hub import Lab
@@ -44,6 +44,34 @@ def _position(db: Session, participant: Participant) -> int:
                                                        participant.study_id)
                           .order_by(Participant.id)))
     return ids.index(participant.id)
+
+
+def session_trials(db: Session, session_id: int) -> list[Trial]:
+    """The session's trials in planned order; `NotFoundError` for an unknown session."""
+    _get(db, StudySession, session_id, "session")
+    return list(db.scalars(select(Trial).where(Trial.session_id == session_id)
+                           .order_by(Trial.planned_order)))
+
+
+def get(db: Session, trial_id: int) -> Trial:
+    """The trial; `NotFoundError` if there is none."""
+    trial: Trial = _get(db, Trial, trial_id, "trial")
+    return trial
+
+
+def lock_events(db: Session, trial_id: int) -> list[LockEvent]:
+    """The trial's lock events in time order."""
+    get(db, trial_id)
+    return list(db.scalars(select(LockEvent).where(LockEvent.trial_id == trial_id)
+                           .order_by(LockEvent.t, LockEvent.id)))
+
+
+def run_of(db: Session, trial_id: int) -> int:
+    """The run holding the trial's ticks; a conflict for a trial that has not run."""
+    trial = get(db, trial_id)
+    if trial.run_id is None:
+        raise ConflictError("status", f"trial {trial.id} has not run")
+    return trial.run_id
 
 
 def plan(db: Session, user: User, session_id: int, body: TrialPlanIn) -> list[Trial]:

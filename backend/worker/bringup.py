@@ -200,8 +200,10 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
     began = step.now()
     step.send(left, right)
     seen, problem = False, ""
-    # Commands stop one period before the end, so the solenoid is on for at most
-    # `seconds` however late the release arrives.
+    # On the worker's clock the lock commands cover at most `seconds`: the last one goes
+    # out one period before the end, and the clock is read again after each (possibly
+    # late) sample, right before the command. A release that arrives late is bounded by
+    # the device's own watchdog (100-110 ms after the sample the last lock answered).
     while step.now() - began + SAMPLE_PERIOD_S <= seconds:
         sample = step.read()
         if sample is None:
@@ -211,7 +213,7 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
         if st & other:
             problem = f"the {'right' if left else 'left'} solenoid came on instead"
         problem = problem or load_reason(sample, layout, cmd.max_alpha_deg)
-        if problem:
+        if problem or step.now() - began + SAMPLE_PERIOD_S > seconds:
             break
         step.send(left, right)
     step.send(False, False)

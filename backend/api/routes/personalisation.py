@@ -6,14 +6,12 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Path
-from sqlalchemy import select
 
-from backend.analysis import personal_sets
+from backend.analysis import personal_model_sets, prior_sets
 from backend.api.deps import CurrentUser, EngineDep, JobsDep, SessionDep, SessionFactoryDep
-from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, one_or_404
+from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND
 from backend.api.params import MAX_ID, ParticipantId, StudyId
 from backend.db.evidence_tables import ModelSetRecord
-from backend.db.models import Participant, Study
 from backend.db.personalisation import PriorSetRecord
 from backend.schemas.personalisation import (
     PersonalModelSetIn,
@@ -36,9 +34,8 @@ def fit_personal_model_set(participant_id: ParticipantId, body: PersonalModelSet
     (the population set adapted to them, or fitted from them alone). Returns at once
     with the job id; poll `GET /api/jobs/{job_id}`; the set is a model set
     (`/api/model-sets/{id}`, `/document`) of kind `personal`."""
-    participant = one_or_404(db, Participant, participant_id, "participant")
-    return personal_sets.fit_personal_set(db, engine, sessions, jobs, user, participant,
-                                          body)
+    return personal_model_sets.fit_personal_set(db, engine, sessions, jobs, user,
+                                                participant_id, body)
 
 
 @router.get("/api/participants/{participant_id}/personal-model-sets",
@@ -46,10 +43,7 @@ def fit_personal_model_set(participant_id: ParticipantId, body: PersonalModelSet
 def list_personal_model_sets(participant_id: ParticipantId, user: CurrentUser,
                              db: SessionDep) -> list[ModelSetRecord]:
     """The participant's personal model sets, oldest first."""
-    one_or_404(db, Participant, participant_id, "participant")
-    return list(db.scalars(select(ModelSetRecord).where(
-        ModelSetRecord.participant_id == participant_id, ModelSetRecord.kind == "personal")
-        .order_by(ModelSetRecord.id)))
+    return personal_model_sets.participant_sets(db, participant_id)
 
 
 @router.get("/api/studies/{study_id}/personal-model-sets",
@@ -57,10 +51,7 @@ def list_personal_model_sets(participant_id: ParticipantId, user: CurrentUser,
 def list_study_personal_model_sets(study_id: StudyId, user: CurrentUser, db: SessionDep
                                    ) -> list[ModelSetRecord]:
     """Every personal model set of the study's participants, oldest first."""
-    one_or_404(db, Study, study_id, "study")
-    return list(db.scalars(select(ModelSetRecord).where(
-        ModelSetRecord.study_id == study_id, ModelSetRecord.kind == "personal")
-        .order_by(ModelSetRecord.id)))
+    return personal_model_sets.study_sets(db, study_id)
 
 
 @router.post("/api/participants/{participant_id}/prior-sets", response_model=PriorSetOut,
@@ -71,30 +62,25 @@ def learn_prior_set(participant_id: ParticipantId, body: PriorSetIn,
     (`dirichlet`) or unconfirmed use (`label-shift-em`) and projected onto the safety
     bound of the utility set; the equal priors; or imported `values`, refused (422)
     outside that bound."""
-    participant = one_or_404(db, Participant, participant_id, "participant")
-    return personal_sets.learn_prior_set(db, user, participant, body)
+    return prior_sets.learn_prior_set(db, user, participant_id, body)
 
 
 @router.get("/api/participants/{participant_id}/prior-sets", response_model=list[PriorSetOut])
 def list_prior_sets(participant_id: ParticipantId, user: CurrentUser, db: SessionDep
                     ) -> list[PriorSetRecord]:
     """The participant's prior sets, by version."""
-    one_or_404(db, Participant, participant_id, "participant")
-    return list(db.scalars(select(PriorSetRecord).where(
-        PriorSetRecord.participant_id == participant_id).order_by(PriorSetRecord.version)))
+    return prior_sets.participant_prior_sets(db, participant_id)
 
 
 @router.get("/api/studies/{study_id}/prior-sets", response_model=list[PriorSetOut])
 def list_study_prior_sets(study_id: StudyId, user: CurrentUser, db: SessionDep
                           ) -> list[PriorSetRecord]:
     """Every prior set of the study's participants, oldest first."""
-    one_or_404(db, Study, study_id, "study")
-    return list(db.scalars(select(PriorSetRecord).where(PriorSetRecord.study_id == study_id)
-                           .order_by(PriorSetRecord.id)))
+    return prior_sets.study_prior_sets(db, study_id)
 
 
 @router.get("/api/prior-sets/{prior_set_id}", response_model=PriorSetOut)
 def get_prior_set(prior_set_id: PriorSetId, user: CurrentUser, db: SessionDep
                   ) -> PriorSetRecord:
     """One prior set."""
-    return one_or_404(db, PriorSetRecord, prior_set_id, "prior set")
+    return prior_sets.one_prior_set(db, prior_set_id)

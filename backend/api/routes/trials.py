@@ -7,9 +7,9 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path
 from fastapi.responses import Response
-from sqlalchemy import select
 
 from backend.analysis import tick_queries
+from backend.analysis.export import study_zip
 from backend.api.deps import (
     CurrentUser,
     EngineDep,
@@ -19,11 +19,10 @@ from backend.api.deps import (
     SiteDep,
     access,
 )
-from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND, conflict, one_or_404
+from backend.api.errors import AUTH_RESPONSES, CONFLICT, NOT_FOUND
 from backend.api.params import MAX_ID, SessionId, StudyId
-from backend.db import audit
 from backend.db.evidence_tables import LockEvent, Trial
-from backend.db.models import StudySession
+from backend.emg.muscle_results import export_files
 from backend.schemas.documents import TickColumnsOut
 from backend.schemas.evidence import (
     LockEventOut,
@@ -32,6 +31,7 @@ from backend.schemas.evidence import (
     TrialStartIn,
     TrialStopIn,
 )
+from backend.study import studies
 from backend.study import trials as trials_service
 from controller.tick_codec import json_columns
 
@@ -53,15 +53,13 @@ def plan_trials(session_id: SessionId, body: TrialPlanIn, user: CurrentUser,
 @router.get("/api/sessions/{session_id}/trials", response_model=list[TrialOut])
 def list_trials(session_id: SessionId, user: CurrentUser, db: SessionDep) -> list[Trial]:
     """The session's trials in planned order."""
-    one_or_404(db, StudySession, session_id, "session")
-    return list(db.scalars(select(Trial).where(Trial.session_id == session_id)
-                           .order_by(Trial.planned_order)))
+    return trials_service.session_trials(db, session_id)
 
 
 @router.get("/api/trials/{trial_id}", response_model=TrialOut)
 def get_trial(trial_id: TrialId, user: CurrentUser, db: SessionDep) -> Trial:
     """One trial with its configuration snapshot."""
-    return one_or_404(db, Trial, trial_id, "trial")
+    return trials_service.get(db, trial_id)
 
 
 @router.post("/api/trials/{trial_id}/start", response_model=TrialOut, responses=CONFLICT,
@@ -90,16 +88,7 @@ async def stop_trial(trial_id: TrialId, body: TrialStopIn, engine: EngineDep,
 def trial_lock_events(trial_id: TrialId, user: CurrentUser, db: SessionDep
                       ) -> list[LockEvent]:
     """The trial's lock events in time order."""
-    one_or_404(db, Trial, trial_id, "trial")
-    return list(db.scalars(select(LockEvent).where(LockEvent.trial_id == trial_id)
-                           .order_by(LockEvent.t, LockEvent.id)))
-
-
-def _run_of(db: SessionDep, trial_id: int) -> int:
-    trial = one_or_404(db, Trial, trial_id, "trial")
-    if trial.run_id is None:
-        conflict("status", f"trial {trial.id} has not run")
-    return trial.run_id
+    return trials_service.lock_events(db, trial_id)
 
 
 @router.get("/api/trials/{trial_id}/ticks.csv", response_class=Response, responses={
@@ -108,7 +97,7 @@ def trial_ticks_csv(trial_id: TrialId, engine: EngineDep, user: CurrentUser,
                     db: SessionDep) -> Response:
     """Every tick of the trial as CSV (columns and units: the study export's data
     dictionary); empty cells are values not computed at that tick."""
-    text = tick_queries.csv_text(engine, _run_of(db, trial_id))
+    text = tick_queries.csv_text(engine, trials_service.run_of(db, trial_id))
     return Response(text, media_type="text/csv", headers={
         "Content-Disposition": f'attachment; filename="trial-{trial_id}-ticks.csv"'})
 
@@ -119,7 +108,7 @@ def trial_ticks_csv(trial_id: TrialId, engine: EngineDep, user: CurrentUser,
 def trial_ticks_json(trial_id: TrialId, engine: EngineDep, user: CurrentUser,
                      db: SessionDep) -> Response:
     """Every tick of the trial as JSON columns (`field -> list`, null where not computed)."""
-    body = json_columns(tick_queries.columns(engine, _run_of(db, trial_id)))
+    body = json_columns(tick_queries.columns(engine, trials_service.run_of(db, trial_id)))
     return Response(json.dumps({"trial_id": trial_id, "columns": body}),
                     media_type="application/json")
 
@@ -131,15 +120,10 @@ def trial_ticks_json(trial_id: TrialId, engine: EngineDep, user: CurrentUser,
 def export_study(study_id: StudyId, engine: EngineDep, site: SiteDep, user: CurrentUser,
                  db: SessionDep, runtime: RuntimeDep) -> Response:
     """The whole study as a zip (see README.md inside for every column's meaning)."""
-    from backend.analysis.export import study_zip
-    from backend.db.models import Study
-    from backend.emg.muscle_results import export_files
-
-    one_or_404(db, Study, study_id, "study")
+    studies.get(db, study_id)
     runtime.recorder.flush()
     data = study_zip(engine, study_id, site=site, unblind=True,  # owners only
                      muscle_files=export_files(engine, study_id, site))
-    audit.record(db, user, "export", "study", study_id, {"bytes": len(data)})
-    db.commit()
+    studies.record_export(db, user, study_id, "export", {"bytes": len(data)})
     return Response(data, media_type="application/zip", headers={
         "Content-Disposition": f'attachment; filename="study-{study_id}.zip"'})

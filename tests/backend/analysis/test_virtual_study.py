@@ -60,11 +60,11 @@ def test_a_small_virtual_study_writes_its_tables_and_figures(
                            ("P02", "umc")]
     assert [p for p, _c in got] == ["P01"] * 3 + ["P02"] * 2 and got[2] == ("P01", "eumc")
     # Timed trials: one repetition of the paper's evaluation plus the margin, exactly.
-    from backend.analysis.virtual_study import _script_s
+    from backend.analysis.virtual_study import script_duration_s
 
     for t in report.trials:
         seed = 700 + int(t.participant[1:])
-        assert t.ticks == round((_script_s(seed, "paper-evaluation") + 4.0) * 100)
+        assert t.ticks == round((script_duration_s(seed, "paper-evaluation") + 4.0) * 100)
         assert t.gaps == 0
     assert report.trials[2].calibration_attempts >= 1  # P01's E-UMC
     assert not (out / "paper-rates" / "muscle_results.json").exists()

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from backend.analysis.virtual_study import VirtualStudyConfig, _script_s, run
+from backend.analysis.virtual_study import VirtualStudyConfig, run, script_duration_s
 
 pytestmark = pytest.mark.slow
 
@@ -34,7 +34,7 @@ def test_a_short_virtual_study_passes_with_both_cores_busy(tmp_path: Path) -> No
             h.kill()
             h.wait()
     assert sorted(t.controller for t in report.trials) == ["eumc", "pec", "umc"]
-    expected = round((_script_s(cfg.eval_seed(0), cfg.eval_script) + 2.0) * 100)
+    expected = round((script_duration_s(cfg.eval_seed(0), cfg.eval_script) + 2.0) * 100)
     for t in report.trials:
         assert t.ticks == expected and t.gaps == 0, t
     assert (cfg.out / "paper-rates" / "performance.csv").stat().st_size > 0

@@ -462,3 +462,21 @@ def test_saved_again_or_relabelled_lifts_are_counted_once_with_their_label(
     assert recounted["document"]["counts"] == [5.0, 1.0, 0.0, 0.0]
     assert recounted["params"]["recounted"] is True
     engine.dispose()
+
+
+def test_unknown_ids_are_404s_naming_them(client: TestClient) -> None:
+    body = {"name": "x", "method": "map", "demonstration_trial_id": 1,
+            "population_model_set_id": 1}
+    prior = {"name": "x", "method": "equal", "utility_set_id": 1}
+    asked = {
+        ("post", "/api/participants/999999/personal-model-sets", "participant 999999"): body,
+        ("get", "/api/participants/999999/personal-model-sets", "participant 999999"): None,
+        ("get", "/api/studies/999999/personal-model-sets", "study 999999"): None,
+        ("post", "/api/participants/999999/prior-sets", "participant 999999"): prior,
+        ("get", "/api/participants/999999/prior-sets", "participant 999999"): None,
+        ("get", "/api/studies/999999/prior-sets", "study 999999"): None,
+        ("get", "/api/prior-sets/999999", "prior set 999999"): None,
+    }
+    for (method, url, entity), payload in asked.items():
+        r = client.request(method, url, json=payload)
+        assert (r.status_code, r.json()["detail"]) == (404, f"{entity} does not exist"), url

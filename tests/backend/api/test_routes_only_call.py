@@ -18,7 +18,7 @@ STATEMENTS = frozenset({"select", "delete", "update", "insert"})
 SESSION_CALLS = frozenset({"execute", "scalars", "scalar", "add", "add_all", "delete",
                            "commit", "flush", "get", "refresh", "rollback", "merge"})
 #: Route modules whose queries have not moved to a service yet.
-NOT_YET = frozenset({"emg", "personalisation", "trials"})
+NOT_YET: frozenset[str] = frozenset()
 
 
 def queries(source: str) -> list[str]:

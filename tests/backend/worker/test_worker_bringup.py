@@ -87,8 +87,11 @@ def test_capture_pulse_and_watchdog(worker: BringupWorker) -> None:
     on = [i for i, st in enumerate(statuses(pulse)) if st & Status.SOLENOID_LEFT]
     assert on and on == list(range(on[0], on[-1] + 1))  # one contiguous pulse
     assert not any(st & Status.SOLENOID_RIGHT for st in statuses(pulse))
-    # At most the 0.3 s hold: 30 samples of 10 ms.
-    assert len(on) <= 30
+    # The worker commands the solenoid for at most the 0.3 s hold on its own clock; the
+    # device sees it on for at most that plus the delay of the release, which
+    # its watchdog caps at 110 ms after the last lock's sample: 30 + 11 samples of 10 ms.
+    # (On a loaded machine the release can be late; CI once saw 32 samples.)
+    assert len(on) <= 30 + 11
     assert not statuses(pulse)[-1] & (Status.SOLENOID_LEFT | Status.SOLENOID_RIGHT)
 
     dog = worker.run(BringupWatchdog("right", LAY.offsets, LAY.directions, 2.0))

@@ -1,0 +1,41 @@
+"""A virtual study's data-collection phase: the other virtual participants record the
+demonstrations and the server segments them from the simulation's truth; the segments
+are what the study's model set is fitted from."""
+
+from __future__ import annotations
+
+from backend.analysis.virtual_study_config import VirtualStudyConfig
+from backend.analysis.virtual_study_driver import (
+    Driver,
+    ok,
+    participant_body,
+    script_duration_s,
+)
+from controller.device.base import SAMPLE_PERIOD_S
+
+
+def collect(d: Driver, cfg: VirtualStudyConfig, study_id: int) -> list[int]:
+    """Record and segment every data-collection participant; the segment ids."""
+    segment_ids: list[int] = []
+    for i in range(cfg.data_participants):
+        seed = cfg.data_seed(i)
+        p = ok(d.c.post(f"/api/studies/{study_id}/participants",
+                        json=participant_body(seed, f"D{i + 1:02d}")), 201)
+        sess = ok(d.c.post(f"/api/participants/{p['id']}/sessions",
+                           json={"kind": "data_collection", "precompression_pct": 25}), 201)
+        for script in cfg.data_scripts:
+            d.simulate(seed, script, cfg.collection_speed)
+            rec = ok(d.c.post(f"/api/sessions/{sess['id']}/recordings",
+                              json={"label": script}), 201)
+            # Until the end of the first repetition (the worker's tick count is the
+            # device's sample number since the simulation started) and 1.5 s into the
+            # next one's first stand: no lift is cut at the end. A lift that passed while
+            # the recording was being started is simply not in it.
+            end_s = script_duration_s(seed, script) + 1.5
+            d.wait_ticks(round(end_s / SAMPLE_PERIOD_S))
+            ok(d.c.post(f"/api/recordings/{rec['id']}/stop"))
+            segs = ok(d.c.post(f"/api/recordings/{rec['id']}/segment"))
+            segment_ids += [s["id"] for s in segs
+                            if s["label"] in ("squat", "stoop_left", "stoop_right")]
+        d.log(f"data collection: D{i + 1:02d} recorded ({len(segment_ids)} segments so far)")
+    return segment_ids

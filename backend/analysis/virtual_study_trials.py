@@ -1,0 +1,98 @@
+"""A virtual study's evaluation phase: every evaluation participant's planned trials in
+every rate setting's study, each a timed run of one script repetition, started and
+stopped through the API, with how each trial ran (ticks, rate, device-time gaps) read
+back from its stored ticks for the report."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from backend.analysis import tick_queries
+from backend.analysis.virtual_study_config import (
+    RATE_SETTINGS,
+    TrialTiming,
+    VirtualStudyConfig,
+    VirtualStudyReport,
+)
+from backend.analysis.virtual_study_driver import (
+    Driver,
+    ok,
+    participant_body,
+    script_duration_s,
+)
+from backend.analysis.virtual_study_emg import drain_emg, lsl_now, subscribe_emg
+from controller.controllers import registry
+
+
+def gaps(engine: Any, run_id: int) -> tuple[int, int]:
+    """Stored ticks of a run and how many device-time steps exceed 15 ms."""
+    t = tick_queries.columns(engine, run_id, fields=("t",))["t"]
+    if t.size < 2:
+        return int(t.size), 0
+    dt = np.diff(t[np.isfinite(t)])
+    return int(t.size), int(np.count_nonzero(dt > 0.015))
+
+
+def evaluate(d: Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id: int,
+             us_id: int, report: VirtualStudyReport, engine: Any) -> None:
+    """Every evaluation participant: both rate settings' trials, back to back."""
+    for j in range(cfg.participants):
+        seed = cfg.eval_seed(j)
+        code = f"P{j + 1:02d}"
+        plans: list[tuple[str, list[dict[str, Any]]]] = []
+        sessions: dict[str, int] = {}
+        for label, study_id in studies.items():
+            p = ok(d.c.post(f"/api/studies/{study_id}/participants",
+                            json=participant_body(seed, code)), 201)
+            sess = ok(d.c.post(f"/api/participants/{p['id']}/sessions",
+                               json={"kind": "evaluation", "precompression_pct": 25}), 201)
+            body: dict[str, Any] = {"tasks": [cfg.eval_script], "model_set_id": ms_id,
+                                    "utility_set_id": us_id, "include_eumc": j < cfg.eumc}
+            if cfg.emg and label == cfg.rates[0]:
+                body.update(include_baselines=True, baseline_tasks=[cfg.baseline_script])
+                sessions[label] = sess["id"]
+            plan = ok(d.c.post(f"/api/sessions/{sess['id']}/trials/plan", json=body), 201)
+            plans.append((label, plan))
+        d.simulate(seed, cfg.eval_script, cfg.speed)
+        # One calibration per participant, as per donning: the runtime keeps it for
+        # every later E-UMC trial of this participant.
+        calibrating = any(registry.needs_calibration(t["controller"])
+                          for _, plan in plans for t in plan)
+        attempts = d.calibrate() if calibrating else 0
+        script = cfg.eval_script
+        for label, plan in plans:
+            rate = RATE_SETTINGS[label]
+            sub = subscribe_emg(d, sessions[label]) if label in sessions else None
+            for trial in plan:
+                if trial["task"] != script or sub is not None or d.speed != cfg.speed:
+                    # A baseline's lifts or back to the protocol; with EMG every trial
+                    # from the script's start at full speed, the pause after it slow.
+                    script = trial["task"]
+                    d.simulate(seed, script, cfg.speed)
+                trial_s = script_duration_s(seed, script) + cfg.margin_s
+                t0 = time.monotonic()
+                body = {"duration_s": trial_s}
+                if rate is not None:
+                    body["rate_hz"] = rate
+                started = ok(d.c.post(f"/api/trials/{trial['id']}/start", json=body))
+                d.wait_run_over(started["run_id"], trial_s)
+                ended = lsl_now() if sub is not None else 0.0
+                stopped = ok(d.c.post(f"/api/trials/{trial['id']}/stop",
+                                      json={"outcome": "completed"}))
+                if sub is not None:
+                    d.simulate(seed, script, cfg.emg_idle_speed)
+                    drain_emg(d, sessions[label], sub, ended)
+                wall = time.monotonic() - t0
+                n, n_gaps = gaps(engine, stopped["run_id"])
+                report.trials.append(TrialTiming(trial["id"], label, code, trial["controller"],
+                                                 round(wall, 2), n, round(n / wall, 1),
+                                                 n_gaps,
+                                                 attempts if registry.needs_calibration(
+                                                     trial["controller"]) else 0))
+            if sub is not None:
+                ok(d.c.request("DELETE",
+                               f"/api/sessions/{sessions[label]}/emg-streams/{sub}"))
+        d.log(f"evaluation: {code} done ({sum(len(p) for _, p in plans)} trials)")
