@@ -19,7 +19,7 @@ from backend.analysis import jobs
 from backend.api import docs_assets, guide, json_text, log_redaction, viewer, web_surface
 from backend.api.deps import authorize, document_access, heavy_reads_gate
 from backend.api.errors import install_handlers
-from backend.api.openapi import document_framework_errors, name_operations
+from backend.api.openapi import api_routes, document_framework_errors, name_operations
 from backend.api.routes import (
     audit,
     auth,
@@ -200,40 +200,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(web_surface.SecurityHeaders)
     docs_assets.install(app, settings.frontend_dir)
     install_handlers(app)
-    app.include_router(health.router)
-    app.include_router(worker.router)
-    app.include_router(hardware.router)
-    app.include_router(live.router)
-    app.include_router(auth.router)
-    app.include_router(auth.users)
-    app.include_router(studies.router)
-    app.include_router(participants.router)
-    app.include_router(sessions.router)
-    app.include_router(questionnaires.router)
-    app.include_router(preferences.router)
-    app.include_router(participant_forms.router)
-    app.include_router(participant_forms.pages)
-    app.include_router(audit.router)
-    app.include_router(recordings.router)
-    app.include_router(model_sets.router)
-    app.include_router(personalisation.router)
-    app.include_router(trials.router)
-    app.include_router(trial_segments.router)
-    app.include_router(lab.router)
-    app.include_router(emg.router)
-    app.include_router(results.router)
-    app.include_router(wearers.router)
-    app.include_router(cohorts.router)
-    app.include_router(replication.router)
-    app.include_router(vocabulary.router)
-    app.include_router(device_grants.router)
-    app.include_router(console_pages.router)
-    app.include_router(guide.router)
-    app.include_router(viewer.router)
+    routers = [
+        health.router, worker.router, hardware.router, live.router, auth.router,
+        auth.users, studies.router, participants.router, sessions.router,
+        questionnaires.router, preferences.router, participant_forms.router,
+        participant_forms.pages, audit.router, recordings.router, model_sets.router,
+        personalisation.router, trials.router, trial_segments.router, lab.router,
+        emg.router, results.router, wearers.router, cohorts.router, replication.router,
+        vocabulary.router, device_grants.router, console_pages.router, guide.router,
+        viewer.router,
+    ]
+    for router in routers:
+        app.include_router(router)
     document_framework_errors(app)
     document_access(app)
-    name_operations(app)  # operationIds: the console client's names
-    upload_paths.extend(web_surface.file_routes(app))
+    name_operations(app, routers)  # operationIds: the console client's names
+    upload_paths.extend(web_surface.file_routes(api_routes(app, routers)))
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

@@ -16,10 +16,12 @@ from __future__ import annotations
 import hashlib
 import hmac
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 from urllib.parse import urlsplit
 
+from fastapi import params
+from fastapi.routing import APIRoute
 from starlette.datastructures import Headers
 from starlette.exceptions import HTTPException
 from starlette.requests import HTTPConnection
@@ -183,18 +185,10 @@ class BodyLimit:
                 await self._refuse(send, limit)
 
 
-def file_routes(app: Any) -> list[str]:
-    """Path templates of the app's routes that take a file (a `File()` parameter)."""
-    from fastapi import params
-    from fastapi.routing import APIRoute, iter_route_contexts
-
-    out = []
-    for context in iter_route_contexts(app.routes):
-        route = context.original_route
-        if isinstance(route, APIRoute) and any(
-                isinstance(p.field_info, params.File) for p in route.dependant.body_params):
-            out.append(context.path_format or route.path_format)
-    return out
+def file_routes(routes: Sequence[APIRoute]) -> list[str]:
+    """Path templates of the routes that take a file (a `File()` parameter)."""
+    return [route.path_format for route in routes
+            if any(isinstance(p.field_info, params.File) for p in route.dependant.body_params)]
 
 
 class _TooLarge(HTTPException):

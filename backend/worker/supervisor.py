@@ -277,6 +277,13 @@ class WorkerSupervisor:
 
     def _on_exit(self, proc: BaseProcess) -> None:
         code = proc.exitcode
+        # `stop` may be joining the same process from its own thread: whichever thread's
+        # waitpid loses the race gets ECHILD, and multiprocessing then reports None until
+        # the winner has stored the code, a moment later. Ask again briefly.
+        deadline = time.monotonic() + 1.0
+        while code is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            code = proc.exitcode
         with self._lock:
             if proc is not self._proc:
                 return

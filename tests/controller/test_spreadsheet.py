@@ -42,7 +42,8 @@ def test_every_number_stays_a_number(x: float) -> None:
     assert safe_cell(x) == x
     assert safe_cell(repr(x)) == repr(x)  # its text form, as the exports write floats
     [[back]] = _read(table_text(None, [[x]]))
-    assert float(back) == x
+    # An integer beyond 2**53 has no exact float: read it back as the integer it is.
+    assert (int(back) if isinstance(x, int) else float(back)) == x
 
 
 @given(st.sampled_from(FORMULA_STARTS), st.text())

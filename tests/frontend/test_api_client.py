@@ -76,7 +76,7 @@ def test_two_routes_with_one_name_stop_the_app() -> None:
     app = FastAPI()
     app.include_router(router)
     with pytest.raises(RuntimeError, match=r"trials\.list.*/api/other-trials.*/api/trials"):
-        name_operations(app)
+        name_operations(app, [router])
 
 
 def test_every_operation_is_named_and_the_socket_found(app: FastAPI) -> None:
