@@ -13,8 +13,6 @@ from pathlib import Path
 
 from controller.decision.utility_function import DEFAULT_OTHER_RULE, UtilitySet, compute_utilities
 from controller.intent.motion_model import ModelSet
-from controller.sim.demonstrations import simulated_model_set
-from controller.sim.human_dataset import reference_dataset
 
 log = logging.getLogger(__name__)
 
@@ -24,6 +22,9 @@ def ensure_models(path: Path) -> ModelSet:
     if path.is_file():
         return ModelSet.load(path)
     log.info("fitting the default model set from simulated demonstrations -> %s", path)
+    # The simulator (SciPy, the compiled plant) only on a first start: importing it would
+    # cost every process that imports the server.
+    from controller.sim.demonstrations import simulated_model_set
     models = simulated_model_set()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
@@ -40,6 +41,10 @@ def utilities_path(folder: Path, precompression_pct: float) -> Path:
 def ensure_utilities(path: Path, precompression_pct: float) -> UtilitySet:
     """Load the utility set at `path`, computing it from the reference dataset if missing
     or if it was computed from another version of the dataset or another `other` rule."""
+    # The reference dataset's generator (the simulator's activities, SciPy) only when the
+    # utilities are checked, not whenever the server is imported.
+    from controller.sim.human_dataset import reference_dataset
+
     human = reference_dataset()
     if path.is_file():
         try:

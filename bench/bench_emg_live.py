@@ -22,6 +22,19 @@ used, and the latency is taken against the amplifier's own stamp. The server run
 this process (uvicorn in a thread), as in the other console benchmarks.
 
     .venv/bin/python bench/bench_emg_live.py [--seconds 30]
+
+`--cpu`: the server's CPU for recording live EMG instead, in CPU seconds per minute of
+16 channels at 2 kHz, without a server: one process pushes synthetic EMG on an LSL
+outlet in blocks of a given size and pulls each block through an inlet as
+`backend.emg.live.EmgInlet` does (`pull` into the stream's array, montage order, volts),
+then hands it to what a recording does with it: the file (`EmgWriter.append`), the
+quality (`QualitySummary.add`) and the live strip (`LiveEnvelope.push`, a message every
+40 ms of data, as the dict handed to the WebSocket; its JSON encoding is left out).
+Blocks of 20 samples are the amplifier's 10 ms chunks at real time; 2048 the largest
+pull, as in a sped-up virtual study. The time is the pulling thread's own (liblsl's
+network threads and the push are left out).
+
+    .venv/bin/python bench/bench_emg_live.py --cpu [--seconds 60]
 """
 
 from __future__ import annotations
@@ -31,6 +44,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from pathlib import Path
@@ -84,10 +98,113 @@ def _montage() -> dict[str, object]:
     return {"placement_scheme": "SENIAM", "channels": chans}
 
 
+#: The recording path's parts, as timed by `cpu_per_minute`.
+PARTS = ("pull", "file", "quality", "strip")
+
+
+def _synthetic_emg(n: int, fs: float, channels: int) -> np.ndarray:
+    """Noise at surface-EMG amplitude with 1 s bursts every 2 s (float32, as sent)."""
+    rng = np.random.default_rng(7)
+    burst = 1.0 + 4.0 * (np.sin(2 * np.pi * 0.5 * np.arange(n) / fs)[:, None] > 0.3)
+    return np.asarray(rng.normal(0, 30e-6, (n, channels)) * burst, dtype=np.float32)
+
+
+def cpu_per_minute(block: int, seconds: float, fs: float = 2000.0,
+                   channels: int = 16) -> tuple[dict[str, float], int]:
+    """CPU seconds per minute of EMG of each part of the recording path, and the
+    number of pulls, for the amplifier pushing `block` samples at a time."""
+    from backend.emg import live
+    from backend.emg.live_envelope import LiveEnvelope
+    from backend.emg.quality_summary import QualitySummary
+    from backend.emg.store import EmgWriter
+
+    source = f"bench-emg-cpu-{uuid.uuid4().hex[:8]}"
+    info = pylsl.StreamInfo(f"BenchCPU-{source}", "EMG", channels, fs, pylsl.cf_float32,
+                            source)
+    outlet = pylsl.StreamOutlet(info, chunk_size=block)
+    (found,) = pylsl.resolve_bypred(f"source_id='{source}'", 1, 10.0)
+    inlet = pylsl.StreamInlet(found, max_buflen=360, recover=False)
+    inlet.open_stream(timeout=10.0)
+    x = _synthetic_emg(int(fs * seconds), fs, channels)
+    t0 = pylsl.local_clock()
+    labels = [f"ch{i}" for i in range(channels)]
+    cols, volts = np.arange(channels), np.ones(channels)
+    buf = live.pull_buffer(found)
+    data_time = [0.0]
+    sent: list[dict[str, object]] = []
+    strip = LiveEnvelope(fs, labels, 1, 1, publish=sent.append, clock=lambda: data_time[0])
+    cpu = dict.fromkeys(PARTS, 0.0)
+    pulls = got = 0
+    with tempfile.TemporaryDirectory(prefix="bench-emg-cpu-") as tmp:
+        writer = EmgWriter(Path(tmp) / "1.emgc", labels, fs)
+        quality = QualitySummary(fs, labels)
+        for i in range(0, x.shape[0], block):
+            part = x[i:i + block]
+            outlet.push_chunk(part, (t0 + (i + np.arange(part.shape[0])) / fs).tolist())
+            data_time[0] = (i + part.shape[0]) / fs
+            while got < i + part.shape[0]:
+                c0 = time.thread_time()
+                ts = live.pull(inlet, buf)
+                if not ts:
+                    continue
+                t = np.asarray(ts, dtype=np.float64) + inlet.time_correction(timeout=1.0)
+                samples = buf[:len(ts), cols] * volts
+                c1 = time.thread_time()
+                writer.append(t, samples)
+                c2 = time.thread_time()
+                quality.add(t, samples)
+                c3 = time.thread_time()
+                strip.push(t, samples)
+                c4 = time.thread_time()
+                for name, dt in zip(PARTS, (c1 - c0, c2 - c1, c3 - c2, c4 - c3), strict=True):
+                    cpu[name] += dt
+                got += len(ts)
+                pulls += 1
+        c0 = time.thread_time()
+        writer.close()
+        c1 = time.thread_time()
+        quality.finish()
+        cpu["file"] += c1 - c0
+        cpu["quality"] += time.thread_time() - c1
+    inlet.close_stream()
+    del inlet, outlet
+    return {k: v * 60.0 / seconds for k, v in cpu.items()}, pulls
+
+
+def cpu_main(seconds: float) -> int:
+    """`--cpu`: the table of CPU per minute of EMG for three block sizes."""
+    load0 = load_average()
+    cpu_per_minute(20, 1.0)  # compiled kernels loaded, liblsl started
+    rows: list[list[object]] = []
+    for block in (20, 200, 2048):
+        per, pulls = cpu_per_minute(block, seconds)
+        rows.append([block, pulls, *(f"{per[k]:.3f}" for k in PARTS),
+                     f"{sum(per.values()):.3f}"])
+    columns = ["amplifier block (samples)", "pulls", "pull (s/min)", "file (s/min)",
+               "quality (s/min)", "strip (s/min)", "total (s/min)"]
+    print("| " + " | ".join(columns) + " |")
+    print("|" + " --- |" * len(columns))
+    for r in rows:
+        print("| " + " | ".join(str(c) for c in r) + " |")
+    note = (f"CPU seconds of the pulling thread per minute of 16 channels at 2 kHz, "
+            f"{seconds:g} s of EMG per row; the file's part is mostly zlib (level 1)")
+    print(note)
+    path = record("emg_live_cpu", " ".join(["bench/bench_emg_live.py", *sys.argv[1:]]),
+                  columns, rows, load0, note)
+    print(f"recorded in {path}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="of latency measured (30), or of EMG per row with --cpu (60)")
+    ap.add_argument("--cpu", action="store_true",
+                    help="CPU per minute of EMG of the recording path, no server")
     args = ap.parse_args()
+    if args.cpu:
+        return cpu_main(args.seconds or 60.0)
+    args.seconds = args.seconds or 30.0
     load0 = load_average()
     source = f"bench-emg-{uuid.uuid4().hex[:8]}"
     amp = subprocess.Popen([sys.executable, "-c", AMPLIFIER, source], cwd=ROOT)

@@ -3,15 +3,17 @@
 Why: in a virtual study with `--emg` the worker process produces the wearer's EMG tick by
 tick (muscle activation, 20 samples of sEMG, an LSL chunk); that was most of the
 worker's CPU. The wearer's moments and samples are recorded first from a real
-`SimulatedExoskeleton` (not timed), then replayed into an `EmgTap`, so only the EMG's
-own cost is measured: CPU seconds (`time.process_time`, every thread of this process,
-liblsl's included) per simulated minute, for
+`SimulatedExoskeleton` (not timed), then replayed, so only the EMG's own cost is
+measured: CPU seconds (`time.process_time`, every thread of this process, liblsl's
+included) per simulated minute, best of three, for the current code and for the per-tick
+code it replaced (`tests/controller/sim/reference_emg.py`, the tests' oracle, which
+produces the same samples):
 
-- `generate`: activation and sEMG only (`publish=False`);
-- `publish`: the same plus an LSL outlet with per-sample ("spread") stamps, as the
-  in-process simulator of the worker runs it;
-- `activation` and `push`: `MuscleModel.activation` and `SurfaceEmgGenerator.push`
-  alone, one tick per call.
+- `generate`: activation and sEMG for one tick (`EmgTap.emit` without LSL);
+- `activation`: one tick's muscle activation alone;
+- `push`: one tick's `SurfaceEmgGenerator.push` alone;
+- `publish` (current only): `emit` with an LSL outlet and per-sample ("spread") stamps,
+  as the worker's in-process simulator runs it.
 
     .venv/bin/python bench/bench_emg_simulation.py [--seconds 120] [--seed 3] [--record]
 """
@@ -23,6 +25,7 @@ import os
 import sys
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,6 +43,11 @@ from controller.sim.exoskeleton import SimulatedExoskeleton  # noqa: E402
 from controller.sim.muscles import MuscleModel  # noqa: E402
 from controller.sim.participant import VirtualParticipant  # noqa: E402
 from controller.sim.surface_emg import SurfaceEmgGenerator  # noqa: E402
+from tests.controller.sim.reference_emg import (  # noqa: E402
+    ReferenceGenerator,
+    ReferenceMuscles,
+    ReferenceTap,
+)
 
 SCRIPT = "paper-evaluation"
 
@@ -95,25 +103,49 @@ def cpu_emit(replay: Replay, publish: bool) -> float:
         tap.close()
 
 
-def cpu_activation(replay: Replay) -> float:
-    """CPU seconds of `MuscleModel.activation`, one tick a call."""
-    model = MuscleModel.for_participant(replay.participant)
+def cpu_emit_reference(replay: Replay) -> float:
+    """CPU seconds of the replaced per-tick code for every recorded tick."""
+    replay.k = -1
+    tap = ReferenceTap(MuscleModel.for_participant(replay.participant), replay.seed)
     start = time.process_time()
-    for h, e in zip(replay.human, replay.exo, strict=True):
-        model.activation(h, e)
+    while not replay.finished:
+        sample = replay.tick(None)
+        tap.emit(sample, replay.human_torques(), replay.true_torques())
     return time.process_time() - start
 
 
-def cpu_push(replay: Replay) -> float:
-    """CPU seconds of `SurfaceEmgGenerator.push`, one tick a call."""
+def cpu_activation(replay: Replay, reference: bool) -> float:
+    """CPU seconds of one tick's activation, tick by tick."""
+    model = MuscleModel.for_participant(replay.participant)
+    pairs = list(zip(replay.human, replay.exo, strict=True))
+    start = time.process_time()
+    if reference:
+        old = ReferenceMuscles(model)
+        for h, e in pairs:
+            old.activation(h, e)
+    else:
+        for h, e in pairs:
+            model.tick_activation(h, e)
+    return time.process_time() - start
+
+
+def cpu_push(replay: Replay, reference: bool) -> float:
+    """CPU seconds of the generator's `push`, one tick a call."""
     model = MuscleModel.for_participant(replay.participant)
     act = np.zeros((len(replay.human), N_CHANNELS))
     act[:, :12] = model.activation(np.array(replay.human), np.array(replay.exo))
-    gen = SurfaceEmgGenerator(N_CHANNELS, replay.seed, upsample=20)
+    gen = (ReferenceGenerator if reference else SurfaceEmgGenerator)(
+        N_CHANNELS, replay.seed, None, 20)
     start = time.process_time()
     for row in act:
         gen.push(row)
     return time.process_time() - start
+
+
+def best_of_three(run: Callable[[], float]) -> float:
+    """The least CPU of three runs after a warm one (imports, liblsl, caches)."""
+    run()
+    return min(run() for _ in range(3))
 
 
 def main() -> None:
@@ -124,27 +156,30 @@ def main() -> None:
     parser.add_argument("--record", action="store_true", help="write bench/results/")
     args = parser.parse_args()
     load = load_average()
-    ticks = int(round(args.seconds * 100))
+    ticks = round(args.seconds * 100)
     replay = Replay(args.seed, ticks)
     minutes = ticks * replay.dt / 60.0
-    cases = {
-        "generate": lambda: cpu_emit(replay, publish=False),
-        "publish": lambda: cpu_emit(replay, publish=True),
-        "activation": lambda: cpu_activation(replay),
-        "push": lambda: cpu_push(replay),
+    cases: dict[str, tuple[Callable[[], float], Callable[[], float] | None]] = {
+        "generate": (lambda: cpu_emit(replay, publish=False),
+                     lambda: cpu_emit_reference(replay)),
+        "activation": (lambda: cpu_activation(replay, False),
+                       lambda: cpu_activation(replay, True)),
+        "push": (lambda: cpu_push(replay, False), lambda: cpu_push(replay, True)),
+        "publish": (lambda: cpu_emit(replay, publish=True), None),
     }
     rows: list[list[object]] = []
-    for name, run in cases.items():
-        run()  # warm: imports, liblsl, caches
-        best = min(run() for _ in range(3))
-        per_min = best / minutes
-        per_tick_us = best / ticks * 1e6
-        rows.append([name, round(per_min, 3), round(per_tick_us, 1)])
-        print(f"{name:>10}: {per_min:7.3f} CPU s per simulated minute "
-              f"({per_tick_us:6.1f} us per tick)")
+    for name, (new, old) in cases.items():
+        now = best_of_three(new) / minutes
+        before = best_of_three(old) / minutes if old is not None else None
+        rows.append([name, round(now, 3), "-" if before is None else round(before, 3),
+                     "-" if before is None else round(before / now, 1)])
+        was = "" if before is None else f"; replaced code {before:6.3f} ({before / now:.1f}x)"
+        print(f"{name:>10}: {now:6.3f} CPU s per simulated minute "
+              f"({now * replay.dt / 60.0 * 1e6:5.1f} us per tick){was}")
     if args.record:
         path = record("emg_simulation", "python bench/bench_emg_simulation.py --record",
-                      ["case", "CPU s / simulated min", "us / tick"], rows, load,
+                      ["case", "CPU s / simulated min", "replaced code", "speed-up"],
+                      rows, load,
                       note=f"{args.seconds:g} s of {SCRIPT}, seed {args.seed}; best of 3")
         print(f"wrote {path}")
 

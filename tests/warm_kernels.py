@@ -27,6 +27,7 @@ def warm() -> None:
     from backend import bootstrap
     from controller.controllers import registry
     from controller.controllers.factory import make_controller, needs_models
+    from controller.emg.processing import EnvelopeStream
     from controller.evaluation.cohort import CohortConfig, simulate_participant
     from controller.evaluation.cohort_stats import wilcoxon_p
 
@@ -44,6 +45,7 @@ def warm() -> None:
         simulate_participant(CohortConfig(participants=2, seed=1, emg=True), 0,
                              models, utilities)
     wilcoxon_p(np.array([[0.5, -1.0, 2.0, 0.5]]))
+    EnvelopeStream(2000.0, 2).push(np.zeros((4, 2)))  # the live strip's causal envelope
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
@@ -24,7 +24,9 @@ from backend.db.cohorts import CohortRecord
 from backend.db.evidence_tables import Job
 from backend.db.models import User
 from backend.schemas.cohorts import CohortIn, CohortOut
-from controller.evaluation.cohort import CohortConfig
+
+if TYPE_CHECKING:
+    from controller.evaluation.cohort import CohortConfig
 
 
 def _set(sessions: sessionmaker[Session], cohort_id: int, **values: Any) -> None:
@@ -67,6 +69,9 @@ def start_cohort(db: Session, sessions: sessionmaker[Session], jobs: JobRunner, 
                             f"{exc.unfinished}); at most {per_account} may be queued or "
                             "running per account (setting cohort_jobs_per_account): wait "
                             "for one to finish") from None
+    # Deferred as in `compute`: the cohort engine imports the simulator.
+    from controller.evaluation.cohort import CohortConfig
+
     cfg = CohortConfig(participants=body.participants, seed=body.seed,
                        controllers=tuple(body.controllers), rate_hz=body.rate_hz,
                        precompression_pct=precompression_pct)

@@ -18,14 +18,10 @@ from backend.schemas.results import ModelEvaluationOut
 from controller.config import ControllerConfig, SettingError
 from controller.controllers.factory import make_from_spec
 from controller.controllers.spec import ControllerSpec
-from controller.evaluation import (
-    DecisionOutcome,
-    TickData,
-    evaluate_lifts,
-    lifts_from_segments,
-)
+from controller.evaluation.columns import TickData
+from controller.evaluation.lifts import lifts_from_segments
+from controller.evaluation.metrics import DecisionOutcome, evaluate_lifts
 from controller.intent.motion_model import fit_model_set
-from controller.runner.replay import AngleRecording, replay_columns
 from controller.tick_record import ACTION_NAMES, MODEL_NAMES, Action
 
 
@@ -53,6 +49,10 @@ def leave_one_participant_out(engine: Engine, db: Session, model_set_id: int,
     reached 0.5 in the first half ("none" if none did) and which first lock decision
     was taken ("missed" if none).
     """
+    # The batch replay on first use: it imports the simulated mechanism, whose compiled
+    # kernels would otherwise load at every server start.
+    from controller.runner.replay import AngleRecording, replay_columns
+
     ms = db.get(ModelSetRecord, model_set_id)
     if ms is None or ms.document is None:
         raise ResultsError("model_set_id", f"model set {model_set_id} is not ready")

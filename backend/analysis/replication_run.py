@@ -36,7 +36,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable
-from functools import partial
+from functools import cache, partial
 from pathlib import Path
 from typing import Any
 
@@ -184,9 +184,12 @@ def read_study_db(path: Path) -> SeedLoad:
     return out, models, utilities
 
 
-def cohort_seed(cfg: ReplicationConfig, seed: int) -> SeedLoad:
-    """One seed of the `cohort` engine (`paper_protocol.protocol_seed`)."""
-    return protocol_seed(seed, cfg.participants, cfg.eumc, cfg.data_participants)
+def cohort_seed(cfg: ReplicationConfig, seed: int,
+                utilities: UtilitySet | None = None) -> SeedLoad:
+    """One seed of the `cohort` engine (`paper_protocol.protocol_seed`); `utilities`:
+    the paper's set (`default_utilities(PAPER_PRECOMPRESSION)`), the same for every
+    seed, if the caller has it."""
+    return protocol_seed(seed, cfg.participants, cfg.eumc, cfg.data_participants, utilities)
 
 
 def _figure(fig: Figure) -> tuple[bytes, bytes]:
@@ -209,16 +212,31 @@ def _first_seed(rep: Replication, trials: SeedTrials, models: ModelSet | None) -
         rep.figures["motion_models"] = _figure(motion_models_figure(models))
 
 
-def _sources(cfg: ReplicationConfig, log: Callable[[str], None]
+def _sources(cfg: ReplicationConfig, log: Callable[[str], None],
+             paper_utilities: Callable[[], UtilitySet]
              ) -> list[tuple[str, Callable[[], SeedLoad]]]:
     def from_study(seed: int) -> SeedLoad:
         return read_study_db(run_study_seed(cfg, seed, log))
 
+    last: dict[Path, SeedLoad] = {}
+
+    def from_db(path: Path) -> SeedLoad:
+        # A file given again right after itself is read once (the one before is kept
+        # until the next file, no longer).
+        key = path.resolve()
+        if key not in last:
+            last.clear()
+            last[key] = read_study_db(path)
+        return last[key]
+
     if cfg.from_db:
-        return [(str(p), partial(read_study_db, Path(p))) for p in cfg.from_db]
+        return [(str(p), partial(from_db, Path(p))) for p in cfg.from_db]
     if cfg.engine == "study":
         return [(f"seed {s}", partial(from_study, s)) for s in cfg.seed_list()]
-    return [(f"seed {s}", partial(cohort_seed, cfg, s)) for s in cfg.seed_list()]
+    def from_cohort(seed: int) -> SeedLoad:
+        return cohort_seed(cfg, seed, paper_utilities())
+
+    return [(f"seed {s}", partial(from_cohort, s)) for s in cfg.seed_list()]
 
 
 def personalisation_step(cfg: ReplicationConfig, utilities: UtilitySet,
@@ -248,7 +266,10 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
     rep = Replication(cfg)
     first_models: ModelSet | None = None
     utilities: UtilitySet | None = None
-    sources = _sources(cfg, log)
+    # The paper's utility set is the same for every seed and the offset cohort:
+    # computed once, when first needed.
+    paper_utilities = cache(partial(default_utilities, PAPER_PRECOMPRESSION))
+    sources = _sources(cfg, log, paper_utilities)
     t0 = time.monotonic()
     steps = len(sources) + 2 + (1 if cfg.personalisation_participants else 0)
     for i, (label, load) in enumerate(sources):
@@ -265,13 +286,14 @@ def run(cfg: ReplicationConfig, log: Callable[[str], None] = print,
         report((i + 1) / steps)
     rep.phases["seeds"] = round(time.monotonic() - t0, 1)
     if utilities is None:
-        utilities = default_utilities(PAPER_PRECOMPRESSION)
+        utilities = paper_utilities()
     t0 = time.monotonic()
     rep.checks = method_checks(utilities)
     rep.figures["utilities"] = _figure(utility_difference_figure(utilities.table.values))
     rep.figures["actuator"] = _figure(actuator_figure())
     rep.figures["chi_square"] = _figure(chi_square_figure())
-    rep.offsets = offset_regression(cfg.offset_participants, cfg.first_seed, log)
+    rep.offsets = offset_regression(cfg.offset_participants, cfg.first_seed, log,
+                                    paper_utilities())
     for name in ("both", "difference"):
         o = rep.offsets[name]
         label = ("mean |offset| of both hips (deg)" if name == "both"

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
@@ -33,27 +33,23 @@ from backend.live import trial_quality
 from backend.schemas.results import StudyResultsOut
 from backend.schemas.wearers import LONG_USE_TASK
 from controller.controllers import registry
-from controller.evaluation import (
+from controller.evaluation.columns import TickData
+from controller.evaluation.ground_truth import NO_TRUTH, TrialTruth, ground_truth
+from controller.evaluation.study import RecordingEvaluation, controller_label, evaluate_recording
+from controller.evaluation.tables import (
     FalsePositiveTable,
     PerformanceTable,
     QuestionnaireScore,
     QuestionnaireTable,
-    RecordingEvaluation,
     Table,
-    TickData,
-    controller_label,
-    controller_output_figure,
-    evaluate_recording,
     lift_table,
-    onset_to_lock_figure,
     onset_to_lock_table,
-    peak_torque_figure,
-    render_figure,
 )
-from controller.evaluation.ground_truth import NO_TRUTH, TrialTruth, ground_truth
-from controller.evaluation.rendering import RenderedFigure
 from controller.intent.motion_model import ModelSet
 from controller.tick_codec import FIELD_NAMES
+
+if TYPE_CHECKING:
+    from controller.evaluation.rendering import RenderedFigure
 
 #: Table names served under `/api/studies/{id}/results/{table}.csv|.md`.
 TABLE_NAMES = ("performance", "performance_by_kind", "false_positives", "questionnaires",
@@ -146,6 +142,9 @@ class StudyResults:
 
     def figure(self, name: str) -> RenderedFigure:
         """One of `FIGURE_NAMES`, rendered as PNG and SVG."""
+        # Matplotlib only when a figure is drawn: importing it costs every server start.
+        from controller.evaluation.figures import onset_to_lock_figure, peak_torque_figure
+        from controller.evaluation.rendering import render_figure
         evs = [e for e in self.evaluations if e.lifts]
         if name == "peak_torques":
             return render_figure(peak_torque_figure(evs))
@@ -350,6 +349,9 @@ def results_document(res: StudyResults) -> StudyResultsOut:
 
 def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure:
     """The five-panel controller output of the whole trial, with its model set."""
+    # Matplotlib and SciPy only when a figure is drawn: importing them costs every start.
+    from controller.evaluation.rendering import render_figure
+    from controller.evaluation.timeline import controller_output_figure
     cols = trial_columns(engine, trial)
     if len(cols) == 0:
         raise ResultsError("status", f"trial {trial.id} has no stored ticks")

@@ -39,18 +39,11 @@ from backend.db.models import Participant, StudySession
 from backend.schemas.wearers import LONG_USE_TASK, WearerProgressOut
 from controller.controllers import registry
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.evaluation import (
-    FalsePositives,
-    GaitTrial,
-    Lift,
-    LiftOutcome,
-    TickData,
-    evaluate_recording,
-    lifts_from_segments,
-    trial_kind,
-)
+from controller.evaluation.columns import TickData
 from controller.evaluation.ground_truth import NO_TRUTH
-from controller.evaluation.learning_curve import SessionUse, learning_curves, session_use
+from controller.evaluation.lifts import GaitTrial, Lift, lifts_from_segments, trial_kind
+from controller.evaluation.metrics import FalsePositives, LiftOutcome
+from controller.evaluation.study import evaluate_recording
 
 #: Long-use trials in these states count; others are skipped.
 COUNTED = ("completed", "interrupted")
@@ -132,6 +125,10 @@ def wearer_progress(db: Session, participant_id: int,
 
     Ticks are read on the session's own connection: one request, one pooled
     connection (a second one per request starves the pool under load)."""
+    # The learning curves' statistics (SciPy) on first use: every server start imports
+    # this module, and SciPy costs it ~0.7 s of CPU.
+    from controller.evaluation.learning_curve import SessionUse, learning_curves, session_use
+
     part = db.get(Participant, participant_id)
     if part is None:
         raise NotFoundError("participant", participant_id)

@@ -23,18 +23,17 @@ from controller.config import ControllerConfig, SettingError
 from controller.controllers import registry
 from controller.controllers.factory import make_from_spec, needs_models
 from controller.controllers.spec import ControllerSpec
-from controller.evaluation import (
+from controller.evaluation.columns import TickData
+from controller.evaluation.ground_truth import ground_truth, has_truth
+from controller.evaluation.lifts import GaitTrial
+from controller.evaluation.metrics import (
     DecisionOutcome,
-    GaitTrial,
     LiftOutcome,
-    TickData,
-    controller_label,
     count_false_positives,
     evaluate_lifts,
     summarise_onset_to_lock,
 )
-from controller.evaluation.ground_truth import ground_truth, has_truth
-from controller.runner.replay import AngleRecording, replay_columns
+from controller.evaluation.study import controller_label
 
 
 def summary(outcomes: Sequence[LiftOutcome], cols: TickData, gait: Sequence[GaitTrial],
@@ -78,6 +77,10 @@ def what_if(engine: Engine, db: Session, trial: Trial, controller: str,
     `rate_hz` sets every controller's rate. Nothing is written: the original ticks and
     trial row are only read. Both runs are scored against the same ground truth.
     """
+    # The batch replay on first use: it imports the simulated mechanism, whose compiled
+    # kernels would otherwise load at every server start.
+    from controller.runner.replay import AngleRecording, replay_columns
+
     cols = trial_columns(engine, trial)
     if len(cols) == 0:
         raise ResultsError("status", f"trial {trial.id} has no stored ticks")

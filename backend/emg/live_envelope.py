@@ -77,6 +77,9 @@ class LiveEnvelope:
         self._v: list[NDArray[np.float64]] = []
         self._last_sent = -np.inf
         self._t_end = 0.0
+        #: The flags as sent, rebuilt only when a flag or count changed (a message
+        #: every 40 ms, the flags every 0.5 s).
+        self._flag_list: list[EmgChannelFlags] | None = None
 
     @property
     def display_hz(self) -> float:
@@ -90,16 +93,17 @@ class LiveEnvelope:
         t = np.asarray(timestamps, dtype=np.float64)
         if x.shape[0] == 0:
             return None
-        self.non_finite += (~np.isfinite(x)).sum(axis=0)
+        finite = np.isfinite(x)
+        if not finite.all():
+            self.non_finite += (~finite).sum(axis=0)
+            self._flag_list = None
         self._flags(x)
         env = self.stream.push(x)
-        # Global sample numbers of this block; keep those on the display grid.
-        idx = np.arange(self._seen, self._seen + x.shape[0])
+        # Keep the rows whose global sample number is on the display grid.
+        first = -self._seen % self.step
         self._seen += x.shape[0]
-        keep = np.flatnonzero(idx % self.step == 0)
-        for k in keep:
-            self._t.append(float(t[k]))
-            self._v.append(env[k])
+        self._t.extend(t[first::self.step].tolist())
+        self._v.extend(env[first::self.step])
         self._t_end = float(t[-1])
         now = self.clock()
         if not self._t or now - self._last_sent < MIN_INTERVAL_S:
@@ -114,26 +118,25 @@ class LiveEnvelope:
             return
         w = np.concatenate(self._raw)
         self._raw, self._raw_n = [], 0
-        for c in range(w.shape[1]):
-            col = w[:, c]
-            finite = col[np.isfinite(col)]
-            self.clipping[c] = quality.clipped_samples(col) > 0
-            self.flat[c] = bool(finite.size == 0 or
-                                np.sqrt(np.mean((finite - finite.mean()) ** 2))
-                                < quality.FLAT_LINE_RMS_V)
+        self.clipping[:] = quality.clipped_counts(w) > 0
+        # A channel with no finite sample (RMS NaN) is flat.
+        self.flat[:] = ~(quality.dc_removed_rms(w) >= quality.FLAT_LINE_RMS_V)
+        self._flag_list = None
 
     def message(self) -> LiveEmg:
         """The envelope values gathered since the last message (and clears them)."""
         v = np.asarray(self._v).reshape(len(self._v), len(self.labels))
+        if self._flag_list is None:
+            self._flag_list = [
+                EmgChannelFlags(clipping=bool(self.clipping[c]), flat=bool(self.flat[c]),
+                                non_finite=int(self.non_finite[c]))
+                for c in range(len(self.labels))]
         msg = LiveEmg(
             session_id=self.session_id, subscription_id=self.subscription_id,
             recording_id=self.recording_id, fs=self.display_hz, t=list(self._t),
             t_end=self._t_end, clock_correction_s=self.clock_correction_s,
             sent_at=time.time(), labels=self.labels,
-            values=[[float(y) for y in v[:, c]] for c in range(v.shape[1])],
-            flags=[EmgChannelFlags(clipping=bool(self.clipping[c]), flat=bool(self.flat[c]),
-                                   non_finite=int(self.non_finite[c]))
-                   for c in range(len(self.labels))])
+            values=v.T.tolist(), flags=list(self._flag_list))
         self._t, self._v = [], []
         return msg
 

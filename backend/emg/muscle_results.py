@@ -45,7 +45,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,10 +67,12 @@ from controller.emg import quality
 from controller.emg.normalisation import UNITS, moving_average_max, mvc_reference
 from controller.emg.outcomes import CYCLE_POINTS, LiftOutcome, lift_outcome
 from controller.emg.processing import EmgProcessing, EmgSettingsError, fill_non_finite, process
-from controller.evaluation import TickData, muscle_stats
+from controller.evaluation import muscle_stats
+from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import LIFT_KINDS
-from controller.evaluation.muscle_figures import envelope_cycle_figure, reduction_figure
-from controller.evaluation.rendering import RenderedFigure, render_figure
+
+if TYPE_CHECKING:
+    from controller.evaluation.rendering import RenderedFigure
 
 #: Seconds of EMG read either side of a trial or an MVC repetition: the zero-phase
 #: filters' start-up transient (a 6 Hz 4th-order low-pass settles within about 0.5 s)
@@ -216,14 +218,16 @@ class MuscleResults:
         trial may hold only some lift kinds: that group has no baseline data)."""
         return self._reductions()[1]
 
-    def _reductions(self) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-        """Reductions and gaps; a family the statistics refuse becomes a stated gap,
-        never an error for the whole study."""
+    def _reductions(self, groups: Sequence[str] = GROUPS, metrics: Sequence[str] = METRICS
+                    ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        """Reductions and gaps of the `groups` x `metrics` families (default: all); a
+        family the statistics refuse becomes a stated gap, never an error for the whole
+        study. Each family is computed on its own, so asking for fewer changes none."""
         out: list[dict[str, Any]] = []
         gaps: list[dict[str, Any]] = []
         for baseline in self.baselines():
-            for group in GROUPS:
-                for metric in METRICS:
+            for group in groups:
+                for metric in metrics:
                     rows = self.outcome_rows(metric, group)
                     if not rows:
                         continue
@@ -373,6 +377,10 @@ class MuscleResults:
     def figure(self, name: str, baseline: str | None = None) -> RenderedFigure:
         """`muscle_envelopes` (every lift) or `muscle_reduction` (mean envelope, every
         lift, against `baseline`: no exoskeleton if planned, else the first)."""
+        # Matplotlib only when a figure is drawn: importing it costs every server start.
+        from controller.evaluation.muscle_figures import envelope_cycle_figure, reduction_figure
+        from controller.evaluation.rendering import render_figure
+
         if name == "muscle_envelopes":
             cyc = self.cycles()
             ordered = {c: cyc[c] for c in self.conditions() if c in cyc}
@@ -382,8 +390,8 @@ class MuscleResults:
             bases = self.baselines()
             base = baseline or (NO_EXOSKELETON if NO_EXOSKELETON in bases else
                                 (bases[0] if bases else NO_EXOSKELETON))
-            reds = [r for r in self.reductions()
-                    if r["group"] == "all" and r["metric"] == "mean"]
+            # The one family drawn, not all nine (each is computed on its own).
+            reds = self._reductions(("all",), ("mean",))[0]
             return render_figure(reduction_figure(reds, self.channels, base))
         raise results.ResultsError("figure", f"unknown figure {name!r}; choose one of "
                                    f"{', '.join(FIGURES)}")

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import struct
 import zlib
@@ -138,9 +139,11 @@ class EmgWriter:
             raise EmgStoreError(f"{t.shape[0]} timestamps for {x.shape[0]} samples")
         if not x.shape[0]:
             return
-        fin = t[np.isfinite(t)]
-        if fin.size:
-            lo, hi = float(fin.min()), float(fin.max())
+        lo, hi = float(t.min()), float(t.max())
+        if not (math.isfinite(lo) and math.isfinite(hi)):  # both are only if every stamp is
+            fin = t[np.isfinite(t)]
+            lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (math.nan, math.nan)
+        if math.isfinite(lo):
             self.first_t = lo if self.first_t is None else min(self.first_t, lo)
             self.last_t = hi if self.last_t is None else max(self.last_t, hi)
         self._t.append(t)

@@ -8,11 +8,19 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from backend.schemas.fields import UtcDatetime
-from controller.evaluation.cohort import cohort_controllers
 
 #: A console cohort runs on the server's job thread: bounded so one request cannot hold
 #: it for long (1,000 participants take a few minutes; the CLI has no such limit).
 MAX_API_PARTICIPANTS = 1000
+
+def _cohort_controllers() -> tuple[str, ...]:
+    """`controller.evaluation.cohort.cohort_controllers`, imported on first use: the
+    cohort engine brings the simulator (SciPy, compiled kernels), which every server start
+    would otherwise import with this schema."""
+    from controller.evaluation.cohort import cohort_controllers
+
+    return cohort_controllers()
+
 
 class CohortIn(BaseModel):
     """What to simulate."""
@@ -22,7 +30,7 @@ class CohortIn(BaseModel):
     participants: int = Field(default=100, ge=2, le=MAX_API_PARTICIPANTS)
     seed: int = Field(default=1, ge=0, le=99_999)
     # Bounded by the validator: each registered plan controller at most once.
-    controllers: list[str] = Field(default_factory=lambda: list(cohort_controllers()),
+    controllers: list[str] = Field(default_factory=lambda: list(_cohort_controllers()),
                                    min_length=1)
     rate_hz: float | None = Field(default=None, ge=1.0, le=100.0, description=(
         "every controller at this rate; null: the paper's rates"))
@@ -30,7 +38,7 @@ class CohortIn(BaseModel):
     @field_validator("controllers")
     @classmethod
     def _known(cls, v: list[str]) -> list[str]:
-        known = cohort_controllers()
+        known = _cohort_controllers()
         unknown = [c for c in v if c not in known]
         if unknown:
             raise ValueError(f"unknown controller(s) {unknown}; choose from "

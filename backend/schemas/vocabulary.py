@@ -23,7 +23,6 @@ from backend.schemas.evidence import SegmentLabel
 from backend.schemas.live import STREAM_FIELDS, DatabaseHealth, DeviceHealth, WorkerHealth
 from controller.controllers import registry
 from controller.evaluation.lifts import CORRECT_ACTION
-from controller.sim.scripts import SCRIPT_NAMES
 from controller.tick_record import (
     CATEGORY_NAMES,
     MODEL_NAMES,
@@ -159,6 +158,10 @@ def _controller(name: str) -> ControllerName:
 def vocabulary() -> Vocabulary:
     """The vocabulary as the definitions stand now (a controller module may register
     while the server runs, so nothing is cached)."""
+    # The script names on first use: `controller.sim.scripts` imports the simulator (SciPy
+    # splines built at import), which every server start would otherwise pay for.
+    from controller.sim.scripts import SCRIPT_NAMES
+
     correct: dict[str, Action] = {str(k): a for k, a in CORRECT_ACTION.items()}
     return Vocabulary(
         tick_fields=list(TickRecord.field_names()),

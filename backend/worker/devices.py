@@ -11,9 +11,16 @@ def make_device(config: WorkerConfig) -> Device:
     if config.device_kind == "sim":
         import os
 
-        from controller.sim.emg_amplifier import server_source_id
         from controller.sim.simulated_device import SimulatedDevice
 
+        source_id = None
+        if config.device_emg_lsl:
+            # Only then: the EMG simulator's imports (SciPy's signal and statistics)
+            # cost a worker without EMG more than a second of CPU at every start.
+            from controller.sim.emg_amplifier import server_source_id
+
+            # The server (this worker's parent) subscribes its own simulator by this id.
+            source_id = server_source_id(os.getppid())
         return SimulatedDevice(
             seed=config.device_seed,
             script=config.device_script,
@@ -22,8 +29,7 @@ def make_device(config: WorkerConfig) -> Device:
             precompression_pct=config.precompression_pct,
             speed=config.device_speed,
             emg_lsl=config.device_emg_lsl,
-            # The server (this worker's parent) subscribes its own simulator by this id.
-            emg_source_id=server_source_id(os.getppid()),
+            emg_source_id=source_id,
         )
     if config.device_kind == "udp":
         from pathlib import Path

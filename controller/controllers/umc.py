@@ -25,7 +25,8 @@ from controller.intent.motion_model import ModelSet
 from controller.intent.onset import ModelBank, OnsetCriteria, bank_kernel, window_start
 from controller.intent.posteriors import IntentEstimator, intent_kernel
 from controller.intent.prior_safety import PriorBounds
-from controller.kernel import Compiled, Kernel, KernelController
+from controller.kernel.controller import KernelController
+from controller.kernel.core import Compiled, Kernel
 from controller.kernel.entry_points import entry_points
 from controller.kernel.records import BoolArray, FloatArray, IntArray
 from controller.kernel.tick import (

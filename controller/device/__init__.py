@@ -1,6 +1,8 @@
 """Hardware behind an interface: the exoskeleton as a source of samples and a sink of
-lock commands."""
+lock commands.
 
-from controller.device.base import Device, DeviceError, LockCommand, Sample, Status
+- `base`: the interface (`Device`, `DeviceError`, `LockCommand`, `Sample`, `Status`).
+- `protocol`: the wire protocol; `auth`: its authentication; `udp`: the host side.
 
-__all__ = ["Device", "DeviceError", "LockCommand", "Sample", "Status"]
+The package re-exports nothing: import from the module.
+"""

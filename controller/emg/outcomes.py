@@ -66,7 +66,11 @@ def _check_envelope(envelope: NDArray[Any]) -> FloatArray:
 
 def window_outcome(envelope: NDArray[Any], fs: float, window: Window) -> WindowOutcome:
     """Peak, mean and iEMG per channel over `window` (sample indices, stop excluded)."""
-    env = _check_envelope(envelope)
+    return _window_outcome(_check_envelope(envelope), fs, window)
+
+
+def _window_outcome(env: FloatArray, fs: float, window: Window) -> WindowOutcome:
+    """`window_outcome` of an envelope `_check_envelope` has passed."""
     if not fs > 0:
         raise ValueError(f"fs must be positive, got {fs}")
     start, stop = check_window(window, env.shape[0])
@@ -82,7 +86,11 @@ def normalised_cycle(envelope: NDArray[Any], window: Window,
                      n_points: int = CYCLE_POINTS) -> FloatArray:
     """The envelope over `window` resampled (linear interpolation) to `n_points` equally
     spaced points from the first to the last sample of the window (0 to 100 %)."""
-    env = _check_envelope(envelope)
+    return _normalised_cycle(_check_envelope(envelope), window, n_points)
+
+
+def _normalised_cycle(env: FloatArray, window: Window, n_points: int) -> FloatArray:
+    """`normalised_cycle` of an envelope `_check_envelope` has passed."""
     start, stop = check_window(window, env.shape[0])
     if stop - start < 2:
         raise ValueError(f"window {window} needs at least 2 samples for a cycle")
@@ -94,12 +102,14 @@ def normalised_cycle(envelope: NDArray[Any], window: Window,
 
 def lift_outcome(envelope: NDArray[Any], fs: float, lift: Window,
                  phases: Mapping[str, Window] | None = None) -> LiftOutcome:
-    """Outcomes of one lift; each phase window must lie inside the lift."""
+    """Outcomes of one lift; each phase window must lie inside the lift. The envelope
+    is checked once for all of them (the check reads every sample of it)."""
     phases = phases or {}
     start, stop = check_window(lift, np.asarray(envelope).shape[0])
     for name, (p0, p1) in phases.items():
         if not start <= p0 < p1 <= stop:
             raise ValueError(f"phase {name!r} {(p0, p1)} is not inside the lift {lift}")
-    return LiftOutcome(window_outcome(envelope, fs, lift),
-                       {k: window_outcome(envelope, fs, w) for k, w in phases.items()},
-                       normalised_cycle(envelope, lift))
+    env = _check_envelope(envelope)
+    return LiftOutcome(_window_outcome(env, fs, lift),
+                       {k: _window_outcome(env, fs, w) for k, w in phases.items()},
+                       _normalised_cycle(env, lift, CYCLE_POINTS))

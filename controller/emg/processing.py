@@ -23,9 +23,10 @@ float64 either way. The filtering is `zero_phase.zero_phase`: scipy's `sosfiltfi
 per channel, to rounding, computed for 16 channels side by side in place in the output,
 so both precisions take about the same time and no per-channel copies are made.
 
-Live, `EnvelopeStream` runs the same filters causally (`sosfilt` with state): it lags
-and its ripple differs from the zero-phase envelope, but on a steady signal it settles
-to the same level (tested); it is for the console's strip, never for results.
+Live, `EnvelopeStream` runs the same filters causally (`sosfilt` with state, computed
+by `zero_phase.CausalEnvelope` for all channels in one pass): it lags and its ripple
+differs from the zero-phase envelope, but on a steady signal it settles to the same
+level (tested); it is for the console's strip, never for results.
 """
 
 from __future__ import annotations
@@ -36,9 +37,8 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
-from controller.emg.zero_phase import LANES, zero_phase
+from controller.emg.zero_phase import LANES, CausalEnvelope, zero_phase
 
 FloatArray = NDArray[np.float64]
 
@@ -191,6 +191,9 @@ def design(settings: EmgProcessing, fs: float) -> FilterDesign:
     Raises EmgSettingsError when `fs` is too low for the settings (the message says
     which edge and what rate would do).
     """
+    # SciPy on first use, not at import: it costs every server start ~0.7 s of CPU.
+    from scipy import signal
+
     if not np.isfinite(fs) or fs <= 0:
         raise EmgSettingsError(f"sampling rate must be a positive number of Hz, got {fs}")
     nyquist = fs / 2.0
@@ -335,8 +338,7 @@ class EnvelopeStream:
         if n_channels < 1:
             raise ValueError(f"need at least one channel, got {n_channels}")
         self.n_channels = n_channels
-        self._bp_zi: FloatArray | None = None
-        self._env_zi = np.zeros((len(self.design.envelope), 2, n_channels))
+        self._filters = CausalEnvelope(self.design.bandpass, self.design.envelope, n_channels)
         self._last = np.zeros(n_channels)
         self.non_finite_samples = 0
         """NaN/inf samples received so far; each is replaced by the channel's last finite
@@ -359,10 +361,4 @@ class EnvelopeStream:
                 held = np.maximum.accumulate(held)
                 arr[:, c] = np.where(held >= 0, col[np.maximum(held, 0)], self._last[c])
         self._last = arr[-1].copy()
-        if self._bp_zi is None:
-            zi = signal.sosfilt_zi(self.design.bandpass)
-            self._bp_zi = zi[:, :, None] * arr[0][None, None, :]
-        y, self._bp_zi = signal.sosfilt(self.design.bandpass, arr, axis=0, zi=self._bp_zi)
-        env, self._env_zi = signal.sosfilt(self.design.envelope, np.abs(y), axis=0,
-                                           zi=self._env_zi)
-        return np.asarray(env, dtype=np.float64)
+        return self._filters.push(arr)

@@ -9,13 +9,12 @@ verdict on the physiology.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from controller.emg.normalisation import Window, check_window
 from controller.emg.processing import MAINS_FREQUENCIES
@@ -126,39 +125,96 @@ class QualityReport:
                 "timing": None if self.timing is None else self.timing.to_dict()}
 
 
-def _runs_at(mask: NDArray[np.bool_], min_run: int) -> int:
-    """Samples of `mask` that lie in runs of at least `min_run` consecutive True."""
+def _runs_at(mask: NDArray[np.bool_], min_run: int) -> NDArray[np.int64]:
+    """Per column of the (n, k) `mask`: its samples in runs of at least `min_run`
+    consecutive True."""
+    n, k = mask.shape
     if not mask.any():
-        return 0
-    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    edges = np.diff(padded)
-    starts, stops = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+        return np.zeros(k, dtype=np.int64)
+    # The columns end to end, each between two False, so no run spans two columns.
+    padded = np.zeros((k, n + 2), dtype=np.int8)
+    padded[:, 1:-1] = mask.T
+    edges = np.diff(padded.ravel())
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     lengths = stops - starts
-    return int(lengths[lengths >= min_run].sum())
+    long = lengths >= min_run
+    out = np.zeros(k, dtype=np.int64)
+    np.add.at(out, starts[long] // (n + 2), lengths[long])
+    return out
+
+
+def clipped_counts(x: NDArray[Any], input_range: tuple[float, float] | None = None
+                   ) -> NDArray[np.int64]:
+    """`clipped_samples` of every column of an (n, k) array (float64) at once."""
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.ndim != 2:
+        raise ValueError(f"expected an (n_samples, n_channels) array, got shape {arr.shape}")
+    finite = np.isfinite(arr)
+    usable = finite.any(axis=0)
+    if input_range is not None:
+        low, high = input_range
+        span = high - low
+        if span <= 0:
+            return np.zeros(arr.shape[1], dtype=np.int64)
+        tol = CLIPPING_TOLERANCE * span
+        lows, highs = np.full(arr.shape[1], low + tol), np.full(arr.shape[1], high - tol)
+    else:
+        every = finite.all()
+        low_v = (arr if every else np.where(finite, arr, np.inf)).min(axis=0, initial=np.inf)
+        high_v = (arr if every else np.where(finite, arr, -np.inf)).max(axis=0,
+                                                                          initial=-np.inf)
+        with np.errstate(invalid="ignore"):  # columns with nothing finite: inf - inf
+            spans = high_v - low_v
+        usable &= spans > 0
+        tols = CLIPPING_TOLERANCE * np.where(usable, spans, 0.0)
+        lows, highs = low_v + tols, high_v - tols
+    with np.errstate(invalid="ignore"):
+        at_high = (arr >= highs) & usable
+        at_low = (arr <= lows) & usable
+    run = 1 if input_range is not None else CLIPPING_MIN_RUN
+    return _runs_at(at_high, run) + _runs_at(at_low, run)
 
 
 def clipped_samples(x: NDArray[Any], input_range: tuple[float, float] | None = None) -> int:
     """Samples of one channel at a rail of `input_range`, or in runs of CLIPPING_MIN_RUN
     at its own extremes when the range is not known (NaN ignored)."""
-    finite = x[np.isfinite(x)]
-    if finite.size == 0:
-        return 0
-    low, high = input_range if input_range is not None else (finite.min(), finite.max())
-    span = high - low
-    if span <= 0:
-        return 0
-    tol = CLIPPING_TOLERANCE * span
-    with np.errstate(invalid="ignore"):
-        at_high = x >= high - tol
-        at_low = x <= low + tol
-    run = 1 if input_range is not None else CLIPPING_MIN_RUN
-    return _runs_at(at_high, run) + _runs_at(at_low, run)
+    return int(clipped_counts(np.asarray(x, dtype=np.float64)[:, None], input_range)[0])
+
+
+def _centred(arr: NDArray[np.float64], finite: NDArray[np.bool_]
+             ) -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+    """(columns, their finite samples minus their mean, one row per column) for every
+    column with a finite sample: the wholly finite columns together in one pass, each
+    other column alone. A row's arithmetic is the same either way (reductions along a
+    contiguous row), so a channel's figures do not depend on its neighbours (tested)."""
+    whole = finite.all(axis=0) & (arr.shape[0] > 0)
+    cols = np.flatnonzero(whole)
+    if cols.size:
+        rows = np.ascontiguousarray(arr[:, cols].T)
+        yield cols, rows - rows.mean(axis=1)[:, None]
+    for c in np.flatnonzero(~whole & finite.any(axis=0)):
+        good = arr[finite[:, c], c][None, :]
+        yield np.array([c]), good - good.mean(axis=1)[:, None]
+
+
+def dc_removed_rms(x: NDArray[Any]) -> NDArray[np.float64]:
+    """Per column of an (n, k) array: the RMS of its finite samples about their mean
+    (NaN for a column with none), the flat-line measure."""
+    arr = np.asarray(x, dtype=np.float64)
+    out = np.full(arr.shape[1], np.nan)
+    for cols, centred in _centred(arr, np.isfinite(arr)):
+        out[cols] = np.sqrt(np.mean(centred**2, axis=1))
+    return out
 
 
 def _spectrum(x: NDArray[np.float64], fs: float) -> tuple[NDArray[Any], NDArray[Any]]:
-    nperseg = min(len(x), max(8, round(WELCH_SEGMENT_S * fs)))
-    f, p = signal.welch(x, fs=fs, nperseg=nperseg, detrend="constant")
-    return f, p
+    """Welch densities of each row of `x` (rows are channels)."""
+    # SciPy on first use, not at import: it costs every server start ~0.7 s of CPU.
+    from scipy import signal
+
+    nperseg = min(x.shape[-1], max(8, round(WELCH_SEGMENT_S * fs)))
+    f, p = signal.welch(x, fs=fs, nperseg=nperseg, detrend="constant", axis=-1)
+    return f, np.ascontiguousarray(p)
 
 
 def mains_ratio(f: NDArray[Any], p: NDArray[Any], mains_hz: float) -> float:
@@ -175,6 +231,59 @@ def mains_ratio(f: NDArray[Any], p: NDArray[Any], mains_hz: float) -> float:
     return peak / base
 
 
+def _channels(raw: NDArray[np.float64], fs: float, numbers: Sequence[int],
+              input_range: tuple[float, float] | None,
+              mains_hz: int | None) -> tuple[ChannelQuality, ...]:
+    """`channel_quality` of every column of `raw` (numbered `numbers`): the columns'
+    reductions and spectra computed together, each channel's flags from its own."""
+    n, k = raw.shape
+    finite = np.isfinite(raw)
+    non_finite = (~finite).sum(axis=0)
+    good_n = finite.sum(axis=0)
+    clipped = clipped_counts(raw, input_range)
+    rms = np.zeros(k)
+    spectral: dict[int, tuple[float, int, float]] = {}
+    candidates = [mains_hz] if mains_hz is not None else list(MAINS_FREQUENCIES)
+    for cols, centred in _centred(raw, finite):
+        if centred.shape[1] < 2:
+            continue
+        rms[cols] = np.sqrt(np.mean(centred**2, axis=1))
+        busy = rms[cols] >= FLAT_LINE_RMS_V
+        if not busy.any():
+            continue
+        f, p = _spectrum(centred[busy], fs)
+        for c, row in zip(cols[busy], p, strict=True):
+            ratios = [(mains_ratio(f, row, m), m) for m in candidates if m < fs / 2]
+            ratio, hz = max(ratios) if ratios else (0.0, 0)
+            total = float(row[1:].sum())
+            low = float(row[1:][f[1:] < MOTION_CUTOFF_HZ].sum())
+            spectral[int(c)] = (float(ratio), int(hz), low / total if total > 0 else 0.0)
+    out = []
+    for c, number in enumerate(numbers):
+        flags: list[str] = [NON_FINITE] if non_finite[c] else []
+        nf = int(non_finite[c])
+        if good_n[c] < 2:
+            out.append(ChannelQuality(number, n, nf, 0.0, 0, 0.0, 0, 0.0,
+                                      (*flags, FLAT_LINE)))
+            continue
+        if clipped[c]:
+            flags.append(CLIPPING)
+        r = float(rms[c])
+        if r < FLAT_LINE_RMS_V:
+            flags.append(FLAT_LINE)
+            out.append(ChannelQuality(number, n, nf, r, int(clipped[c]), 0.0, 0, 0.0,
+                                      tuple(flags)))
+            continue
+        ratio, hz, share = spectral[c]
+        if ratio > MAINS_RATIO:
+            flags.append(MAINS)
+        if share > MOTION_SHARE:
+            flags.append(MOTION_ARTEFACT)
+        out.append(ChannelQuality(number, n, nf, r, int(clipped[c]), ratio, hz, share,
+                                  tuple(flags)))
+    return tuple(out)
+
+
 def channel_quality(x: NDArray[Any], fs: float, channel: int = 0,
                     input_range: tuple[float, float] | None = None,
                     mains_hz: int | None = None) -> ChannelQuality:
@@ -182,38 +291,8 @@ def channel_quality(x: NDArray[Any], fs: float, channel: int = 0,
 
     `mains_hz` None tests both 50 and 60 Hz and reports the worse.
     """
-    raw = np.asarray(x, dtype=np.float64)
-    finite = np.isfinite(raw)
-    non_finite = int((~finite).sum())
-    flags: list[str] = []
-    if non_finite:
-        flags.append(NON_FINITE)
-    good = raw[finite]
-    if good.size < 2:
-        return ChannelQuality(channel, len(raw), non_finite, 0.0, 0, 0.0, 0, 0.0,
-                              (*flags, FLAT_LINE))
-    centred = good - good.mean()
-    rms = float(np.sqrt(np.mean(centred**2)))
-    clipped = clipped_samples(raw, input_range)
-    if clipped:
-        flags.append(CLIPPING)
-    if rms < FLAT_LINE_RMS_V:
-        flags.append(FLAT_LINE)
-        return ChannelQuality(channel, len(raw), non_finite, rms, clipped, 0.0, 0, 0.0,
-                              tuple(flags))
-    f, p = _spectrum(centred, fs)
-    candidates = [mains_hz] if mains_hz is not None else list(MAINS_FREQUENCIES)
-    ratios = [(mains_ratio(f, p, m), m) for m in candidates if m < fs / 2]
-    ratio, hz = max(ratios) if ratios else (0.0, 0)
-    if ratio > MAINS_RATIO:
-        flags.append(MAINS)
-    total = float(p[1:].sum())
-    low = float(p[1:][f[1:] < MOTION_CUTOFF_HZ].sum())
-    share = low / total if total > 0 else 0.0
-    if share > MOTION_SHARE:
-        flags.append(MOTION_ARTEFACT)
-    return ChannelQuality(channel, len(raw), non_finite, rms, clipped, float(ratio), int(hz),
-                          share, tuple(flags))
+    raw = np.asarray(x, dtype=np.float64).reshape(-1, 1)
+    return _channels(raw, fs, [channel], input_range, mains_hz)[0]
 
 
 def timing_quality(timestamps: NDArray[Any], fs: float) -> TimingQuality:
@@ -260,8 +339,7 @@ def assess(raw: NDArray[Any], fs: float, timestamps: NDArray[Any] | None = None,
         raise ValueError(f"fs must be positive, got {fs}")
     if timestamps is not None and len(timestamps) != arr.shape[0]:
         raise ValueError(f"{len(timestamps)} timestamps for {arr.shape[0]} samples")
-    channels = tuple(channel_quality(arr[:, c], fs, c, input_range, mains_hz)
-                     for c in range(arr.shape[1]))
+    channels = _channels(arr, fs, range(arr.shape[1]), input_range, mains_hz)
     timing = None if timestamps is None else timing_quality(np.asarray(timestamps), fs)
     return QualityReport(channels, timing)
 

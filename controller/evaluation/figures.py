@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.markers import MarkerStyle
 
 from controller.evaluation.lifts import LIFT_KINDS
 from controller.evaluation.metrics import LockTiming, onset_to_lock_times
@@ -90,13 +91,17 @@ def peak_torque_figure(
     top = 0.0
     for i, c in enumerate(ctls):
         ax = axes[i] if layout == "panels" else axes[0]
+        marker = controller_marker(c, i)
+        # A black outline for filled markers; a line marker ("x", "+") is all outline,
+        # drawn in the motion's colour (matplotlib would ignore the black, and warn).
+        outline = "black" if MarkerStyle(marker).is_filled() else None
         for k in LIFT_KINDS:
             x, y = _peaks(evaluations, c, k)
             if x.size:
                 top = max(top, float(x.max()), float(y.max()))
             ax.scatter(
-                x, y, s=22, marker=controller_marker(c, i), c=KIND_COLOURS[k],
-                edgecolors="black", linewidths=0.4, alpha=0.85,
+                x, y, s=22, marker=marker, c=KIND_COLOURS[k], edgecolors=outline,
+                linewidths=0.4, alpha=0.85,
             )
         if layout == "panels":
             ax.set_title(controller_label(c))

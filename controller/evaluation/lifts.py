@@ -21,7 +21,7 @@ from typing import Literal
 import numpy as np
 
 from controller.evaluation.columns import Columns, TickData
-from controller.sim.activities import GAIT_KINDS
+from controller.sim.activity_kinds import GAIT_KINDS
 from controller.tick_record import MODEL_NAMES, Action
 
 LiftKind = Literal["squat", "stoop_left", "stoop_right"]

@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 FloatArray = NDArray[np.float64]
 
@@ -144,6 +143,9 @@ def mean_t_interval(x: Sequence[float] | FloatArray, alpha: float = 0.05
     if sd == 0.0 or not math.isfinite(sd):
         return mean, mean, mean, (1.0 if mean == 0.0 else 0.0)
     se = sd / math.sqrt(a.size)
+    # SciPy on first use, not at import: it costs every server start ~0.7 s of CPU.
+    from scipy import stats
+
     q = float(stats.t.ppf(1.0 - alpha / 2.0, a.size - 1))
     t = mean / se
     p = float(2.0 * stats.t.sf(abs(t), a.size - 1))
@@ -190,6 +192,9 @@ def friedman(x: FloatArray) -> tuple[float, float]:
     """Friedman chi-square statistic and p-value of `x` (rows: participants, columns:
     conditions), mid-ranks for ties and the tie correction of the statistic; every
     row all-tied gives 0 and p = 1. Works for two conditions too (scipy's needs 3)."""
+    # SciPy on first use, not at import: it costs every server start ~0.7 s of CPU.
+    from scipy import stats
+
     n, k = x.shape
     ranks = np.apply_along_axis(stats.rankdata, 1, x)
     r = ranks.sum(axis=0)

@@ -65,13 +65,17 @@ PUBLISHED_STAIRS: dict[str, dict[str, Any]] = {
 }
 
 
-def protocol_seed(seed: int, participants: int, eumc: int, data_participants: int
+def protocol_seed(seed: int, participants: int, eumc: int, data_participants: int,
+                  utilities: UtilitySet | None = None
                   ) -> tuple[SeedTrials, ModelSet, UtilitySet]:
     """The protocol of one seed replayed through the controllers in this process: the
     virtual study's participants (`seed*100 + 1 + j`) and data-collection seeds
-    (`seed*100 + 50 + i`), each controller on its own repetition of the script."""
+    (`seed*100 + 50 + i`), each controller on its own repetition of the script.
+    `utilities`: `default_utilities(PAPER_PRECOMPRESSION)` if the caller already has
+    it (it is the same for every seed), else computed here."""
     models = simulated_model_set(seeds=[seed * 100 + 50 + i for i in range(data_participants)])
-    utilities = default_utilities(PAPER_PRECOMPRESSION)
+    if utilities is None:
+        utilities = default_utilities(PAPER_PRECOMPRESSION)
     docs = (models.to_json(), utilities.to_json())
     settings = ControllerConfig(precompression_pct=PAPER_PRECOMPRESSION)
     start = models.start_posture()
@@ -144,13 +148,16 @@ def method_checks(utilities: UtilitySet) -> dict[str, float]:
             "chi_square_tail": float(likelihood(7.5, 3)), "actuator_violations": bad / n}
 
 
-def offset_regression(participants: int, seed: int,
-                      log: Callable[[str], None]) -> dict[str, Any]:
+def offset_regression(participants: int, seed: int, log: Callable[[str], None],
+                      utilities: UtilitySet | None = None) -> dict[str, Any]:
     """UMC minus E-UMC correct decisions (per 20 lifts, the paper's counting rule)
-    against the donning offset, over a virtual cohort; ordinary least squares."""
-    ccfg = CohortConfig(participants=participants, seed=seed, controllers=("umc", "eumc"))
+    against the donning offset, over a virtual cohort; ordinary least squares.
+    `utilities`: `default_utilities(PAPER_PRECOMPRESSION)` if the caller already has
+    it, else the cohort computes it."""
+    ccfg = CohortConfig(participants=participants, seed=seed, controllers=("umc", "eumc"),
+                        precompression_pct=PAPER_PRECOMPRESSION)
     log(f"offsets: simulating a cohort of {ccfg.participants}")
-    cohort = simulate_cohort(ccfg)
+    cohort = simulate_cohort(ccfg, utilities=utilities)
     off = np.array([p.body["offset_deg"] for p in cohort.participants], dtype=np.float64)
     gain = (cohort.values("umc", "correct_pct") - cohort.values("eumc", "correct_pct")) / 5.0
     out: dict[str, Any] = {"participants": ccfg.participants, "seed": ccfg.seed,

@@ -11,13 +11,14 @@ study's report be diffed and cached.
 from __future__ import annotations
 
 import io
-from dataclasses import dataclass
+import threading
 from pathlib import Path
 from typing import Any
 
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import PlaceHolderLayoutEngine
 from matplotlib.typing import RcKeyType
 
 from controller.controllers import registry
@@ -76,21 +77,45 @@ def new_figure(width_in: float, height_in: float, dpi: int = DEFAULT_DPI) -> Fig
     return fig
 
 
-@dataclass(frozen=True, slots=True)
 class RenderedFigure:
-    """A figure as PNG and SVG bytes.
+    """A figure as PNG and SVG bytes, each format drawn when first asked for.
+
+    Drawing is most of a figure's cost and a route serves one format per request, so
+    the other is never drawn for it; a caller that wants both pays for both, once.
+    Safe to read from several threads (one draw at a time per figure).
 
     Attributes:
-        png: the PNG file's bytes.
-        svg: the SVG file's bytes (UTF-8 XML).
         width_px: PNG width in pixels (figure width in inches times dpi).
         height_px: PNG height in pixels.
     """
 
-    png: bytes
-    svg: bytes
-    width_px: int
-    height_px: int
+    __slots__ = ("_bytes", "_fig", "_lock", "height_px", "width_px")
+
+    def __init__(self, fig: Figure, width_px: int, height_px: int) -> None:
+        self._fig: Figure | None = fig
+        self._bytes: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self.width_px = width_px
+        self.height_px = height_px
+
+    def _render(self, fmt: str) -> bytes:
+        with self._lock:
+            if fmt not in self._bytes:
+                assert self._fig is not None  # dropped only once both formats exist
+                self._bytes[fmt] = _draw(self._fig, fmt)
+                if len(self._bytes) == 2:
+                    self._fig = None  # nothing left to draw: let the figure go
+            return self._bytes[fmt]
+
+    @property
+    def png(self) -> bytes:
+        """The PNG file's bytes."""
+        return self._render("png")
+
+    @property
+    def svg(self) -> bytes:
+        """The SVG file's bytes (UTF-8 XML)."""
+        return self._render("svg")
 
     def save(self, stem: Path | str) -> tuple[Path, Path]:
         """Write `<stem>.png` and `<stem>.svg` (folders created); returns both paths."""
@@ -102,14 +127,29 @@ class RenderedFigure:
         return png, svg
 
 
-def render_figure(fig: Figure) -> RenderedFigure:
-    """Render `fig` at its own size and dpi. The size is kept exactly (no tight bounding
-    box), so callers can lay figures out by their documented pixel size."""
-    dpi = float(fig.get_dpi())
-    w_in, h_in = fig.get_size_inches()
+def _draw(fig: Figure, fmt: str) -> bytes:
+    """One format of `fig` at its own size and dpi (no tight bounding box)."""
+    out = io.BytesIO()
     with matplotlib.rc_context(_RC):
-        png = io.BytesIO()
-        fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None})
-        svg = io.BytesIO()
-        fig.savefig(svg, format="svg", dpi=dpi, metadata={"Date": None})
-    return RenderedFigure(png.getvalue(), svg.getvalue(), round(w_in * dpi), round(h_in * dpi))
+        if fmt == "png":
+            fig.savefig(out, format="png", dpi=fig.get_dpi(), metadata={"Software": None})
+        else:
+            fig.savefig(out, format="svg", dpi=fig.get_dpi(), metadata={"Date": None})
+    return out.getvalue()
+
+
+def render_figure(fig: Figure) -> RenderedFigure:
+    """`fig` for rendering at its own size and dpi. The size is kept exactly (no tight
+    bounding box), so callers can lay figures out by their documented pixel size.
+
+    A layout already applied (`Figure.tight_layout` leaves a placeholder engine behind)
+    is final: the placeholder is removed, so that saving does not draw the whole figure
+    once more, rendering nothing, before drawing it (matplotlib does that for any
+    figure with a layout engine); the drawing is the same."""
+    if isinstance(fig.get_layout_engine(), PlaceHolderLayoutEngine):
+        with matplotlib.rc_context({"figure.autolayout": False,
+                                    "figure.constrained_layout.use": False}):
+            fig.set_layout_engine(None)  # None with both rc switches off: no engine
+    w_in, h_in = fig.get_size_inches()
+    dpi = float(fig.get_dpi())
+    return RenderedFigure(fig, round(w_in * dpi), round(h_in * dpi))

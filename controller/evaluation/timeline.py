@@ -15,17 +15,21 @@ Every panel also shades each lift in its motion's colour.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 from matplotlib.axes import Axes
+from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Ellipse, Patch
 from scipy.stats import chi2
 
 from controller.evaluation.columns import Columns, FloatArray, TickData
+from controller.evaluation.decimation import column_extremes, step_changes, true_runs
 from controller.evaluation.lifts import LIFT_KINDS, Lift
 from controller.evaluation.rendering import DEFAULT_DPI, KIND_COLOURS, KIND_LABELS, new_figure
 from controller.tick_record import ACTION_NAMES, CATEGORY_NAMES
@@ -42,6 +46,10 @@ MAX_GAP_S = 0.15
 _LEFT, _RIGHT = "#6a3d9a", "#b15928"
 #: Event markers (console, LSL, system): a colour no panel uses for data.
 _MARKER = "#e7298a"
+#: Columns per pixel of a time panel's width into which its lines are thinned (at most
+#: four samples a column, `decimation.column_extremes`): two, so that the columns need
+#: not line up with the pixels and the SVG can be zoomed a little.
+COLUMNS_PER_PIXEL = 2
 
 
 class MotionModelLike(Protocol):
@@ -89,16 +97,40 @@ def confidence_ellipse(
 
 def _gap_broken(t: FloatArray, y: FloatArray, max_gap: float) -> tuple[FloatArray, FloatArray]:
     """The finite samples of `y`, with a NaN inserted wherever two are further apart in
-    time than `max_gap`, so a line plot does not bridge ticks where nothing was computed."""
+    time than `max_gap`, so a line plot does not bridge ticks where nothing was computed.
+    The break sits at the time of the sample before it, so time stays in order."""
     ok = np.isfinite(y)
     tt, yy = t[ok], y[ok]
     if tt.size < 2:
         return tt, yy
     breaks = np.flatnonzero(np.diff(tt) > max_gap) + 1
     return (
-        np.insert(tt, breaks, np.nan).astype(np.float64),
+        np.insert(tt, breaks, tt[breaks - 1]).astype(np.float64),
         np.insert(yy, breaks, np.nan).astype(np.float64),
     )
+
+
+def _time_ordered(t: FloatArray) -> bool:
+    """Whether `t` is a clean time axis (finite, never going back): only then are lines
+    thinned and strips drawn as spans; otherwise every sample is drawn as it comes."""
+    return bool(np.isfinite(t).all() and (t.size < 2 or np.all(np.diff(t) >= 0)))
+
+
+def _columns(fig: Figure, ax: Axes) -> int:
+    """Thinning columns across `ax` (`COLUMNS_PER_PIXEL` per pixel of its width)."""
+    width_px = ax.get_position().width * fig.get_figwidth() * fig.dpi
+    return max(1, math.ceil(width_px * COLUMNS_PER_PIXEL))
+
+
+def _thin(x: FloatArray, y: FloatArray, columns: int, span: tuple[float, float],
+          ordered: bool) -> tuple[FloatArray, FloatArray]:
+    """The samples of the line `(x, y)` that draw it as a whole into `columns` columns
+    across `span` (every column's first, last, lowest and highest sample, every break);
+    the line itself when it is short or its time is not in order."""
+    if not ordered or x.size <= 4 * columns:
+        return x, y
+    keep = column_extremes(x, y, columns, *span)
+    return x[keep], y[keep]
 
 
 def _flexion_end(q_mean: FloatArray, lift: Lift, offset: int) -> int:
@@ -111,11 +143,35 @@ def _flexion_end(q_mean: FloatArray, lift: Lift, offset: int) -> int:
 
 
 def _shade_lifts(ax: Axes, lifts: Sequence[Lift], t: FloatArray, offset: int) -> None:
+    """Each lift shaded over the panel's height in its motion's colour: the rectangles
+    `axvspan` would draw, as one collection (one artist, not one per lift)."""
     n = t.size
+    verts: list[list[tuple[float, float]]] = []
+    colours: list[str] = []
     for lf in lifts:
         a, b = max(lf.start - offset, 0), min(lf.end - offset, n - 1)
         if a <= b:
-            ax.axvspan(float(t[a]), float(t[b]), color=KIND_COLOURS[lf.kind], alpha=0.08, lw=0)
+            x0, x1 = float(t[a]), float(t[b])
+            verts.append([(x0, 0.0), (x1, 0.0), (x1, 1.0), (x0, 1.0)])
+            colours.append(KIND_COLOURS[lf.kind])
+    if verts:
+        ax.add_collection(PolyCollection(
+            verts, facecolors=colours, edgecolors="none", linewidths=0, alpha=0.08,
+            transform=ax.get_xaxis_transform(which="grid")), autolim=False)
+
+
+def _held(ax: Axes, t: FloatArray, held: npt.NDArray[np.bool_], band: tuple[float, float],
+          colour: str, label: str, ordered: bool) -> None:
+    """A lock command's strip in panel E: filled where `held`, each run of held ticks
+    from its first tick's time to its last's (as `fill_between(..., step="post")`
+    fills it), drawn as one rectangle per run rather than a polygon through every tick."""
+    if not ordered:
+        ax.fill_between(t, *band, where=held, step="post", color=colour, alpha=0.6, lw=0,
+                        label=label)
+        return
+    spans = [(float(t[a]), float(t[b] - t[a])) for a, b in true_runs(held) if b > a]
+    ax.broken_barh(spans, (band[0], band[1] - band[0]), color=colour, alpha=0.6, lw=0,
+                   label=label)
 
 
 def _panel_label(ax: Axes, text: str) -> None:
@@ -224,9 +280,16 @@ def controller_output_figure(
     if title:
         fig.suptitle(title)
 
+    ordered = _time_ordered(t)
+    span = (float(t[0]), float(t[-1]))
+    n_columns = _columns(fig, ax_b)
+
     # (A) models and trajectory
     handles: list[Line2D | Patch] = []
-    extent: list[float] = [float(v) for v in np.concatenate([ql, qr]) if np.isfinite(v)]
+    angles = np.concatenate([ql, qr])
+    angles = angles[np.isfinite(angles)]
+    # Only the range of the values is used (below): their lowest and highest are enough.
+    extent: list[float] = [float(angles.min()), float(angles.max())] if angles.size else []
     if models is not None:
         h_models, e_models = draw_models(ax_a, models, progress_points)
         handles += h_models
@@ -253,10 +316,11 @@ def controller_output_figure(
     # (B) angles
     for q, colour, label in ((ql, _LEFT, "left"), (qr, _RIGHT, "right")):
         if parts:
-            ax_b.plot(t, q, color=colour, lw=0.9, alpha=0.3)
-            ax_b.plot(t, np.where(flex, q, np.nan), color=colour, lw=1.1, label=label)
+            ax_b.plot(*_thin(t, q, n_columns, span, ordered), color=colour, lw=0.9, alpha=0.3)
+            ax_b.plot(*_thin(t, np.where(flex, q, np.nan), n_columns, span, ordered),
+                      color=colour, lw=1.1, label=label)
         else:
-            ax_b.plot(t, q, color=colour, lw=1.0, label=label)
+            ax_b.plot(*_thin(t, q, n_columns, span, ordered), color=colour, lw=1.0, label=label)
     ax_b.set_ylabel("hip flexion (deg)")
     _legend(ax_b, 2)
     _panel_label(ax_b, "(B) hip angles")
@@ -268,7 +332,7 @@ def controller_output_figure(
     )
     if has_post:
         for cat, p in zip(CATEGORY_NAMES, post_names, strict=True):
-            tt, yy = _gap_broken(t, cols.float_(p), MAX_GAP_S)
+            tt, yy = _thin(*_gap_broken(t, cols.float_(p), MAX_GAP_S), n_columns, span, ordered)
             ax_c.plot(tt, yy, color=KIND_COLOURS[cat], lw=1.0, marker=".", ms=2,
                       label=KIND_LABELS[cat])
         ax_c.axhline(0.5, color="0.5", lw=0.6, ls=":")
@@ -290,7 +354,7 @@ def controller_output_figure(
         best = np.argmax(np.where(np.isfinite(post), post, -1.0), axis=1)
         for j, kind in enumerate(LIFT_KINDS):
             y = np.where(ok & (best == j), prog[:, j], np.nan)
-            tt, yy = _gap_broken(t, y, MAX_GAP_S)
+            tt, yy = _thin(*_gap_broken(t, y, MAX_GAP_S), n_columns, span, ordered)
             ax_d.plot(tt, yy, color=KIND_COLOURS[kind], lw=1.0, marker=".", ms=2,
                       label=KIND_LABELS[kind])
         _legend(ax_d, 3)
@@ -302,11 +366,13 @@ def controller_output_figure(
 
     # (E) control signals
     action = cols.int_("action").astype(np.float64)
-    ax_e.plot(t, action, color="black", lw=1.0, drawstyle="steps-post", label="action")
-    ax_e.fill_between(t, 0.4, 0.65, where=cols.bool_("lock_left"), step="post", color=_LEFT,
-                      alpha=0.6, lw=0, label="left held")
-    ax_e.fill_between(t, 0.05, 0.3, where=cols.bool_("lock_right"), step="post",
-                      color=_RIGHT, alpha=0.6, lw=0, label="right held")
+    steps = step_changes(action) if ordered else np.arange(n)
+    # Not snapped to the pixel grid, as the step line through every tick never was
+    # (matplotlib snaps only short paths): the same picture as before the thinning.
+    ax_e.plot(t[steps], action[steps], color="black", lw=1.0, drawstyle="steps-post",
+              label="action", snap=False)
+    _held(ax_e, t, cols.bool_("lock_left"), (0.4, 0.65), _LEFT, "left held", ordered)
+    _held(ax_e, t, cols.bool_("lock_right"), (0.05, 0.3), _RIGHT, "right held", ordered)
     ax_e.set_yticks([0.175, 0.525, 1, 2, 3, 4],
                     ["R held", "L held", *[a.replace("_", " ") for a in ACTION_NAMES]])
     ax_e.set_ylim(-0.05, 4.3)

@@ -31,7 +31,7 @@ from controller.evaluation.lifts import GaitTrial, lifts_from_truth, trials_from
 from controller.evaluation.metrics import DecisionOutcome, count_false_positives
 from controller.evaluation.study import evaluate_recording
 from controller.runner.replay import AngleRecording
-from controller.sim.activities import ACTIVITIES, GAIT_KINDS
+from controller.sim.activity_kinds import ACTIVITIES, GAIT_KINDS
 from controller.sim.participant import VirtualParticipant
 from controller.sim.scripts import LiftStep, Script, Stand, Step, get_script, realise
 from controller.tick_record import MODEL_NAMES

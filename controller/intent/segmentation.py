@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import savgol_filter
 
 from controller.device.base import SAMPLE_PERIOD_S
 
@@ -184,6 +183,9 @@ def segment_lifts(
     win = max(round(p.smooth_window_s * fs) | 1, (p.smooth_order + 2) | 1)
     if k_len < win:
         raise ValueError(f"recording of {k_len} samples is shorter than the smoothing window")
+    # SciPy on first use, not at import: it costs every server start ~0.7 s of CPU.
+    from scipy.signal import savgol_filter
+
     qs = savgol_filter(q, win, p.smooth_order, axis=0, mode="interp")
     vs = savgol_filter(q, win, p.smooth_order, deriv=1, delta=dt, axis=0, mode="interp")
     base = _baseline(qs, vs, fs, p)

@@ -11,12 +11,6 @@
   its decision step.
 - `controller`: `KernelController`, the `Controller` a decision module subclasses.
 
-How a tick flows and how to add a controller: `docs/controller-kernel.md` and
-`docs/adding-a-controller.md`.
+The package re-exports nothing: import from the module. How a tick flows and how to
+add a controller: `docs/controller-kernel.md` and `docs/adding-a-controller.md`.
 """
-
-from controller.kernel.controller import KernelController
-from controller.kernel.core import Compiled, Kernel
-from controller.kernel.records import ROW, ROW_FIELDS, TickState
-
-__all__ = ["ROW", "ROW_FIELDS", "Compiled", "Kernel", "KernelController", "TickState"]

@@ -44,7 +44,8 @@ from controller.controllers.spec import ControllerSpec
 from controller.device.base import SAMPLE_PERIOD_S
 from controller.intent.calibration import calibrate
 from controller.interface import Controller
-from controller.kernel import ROW, ROW_FIELDS, KernelController
+from controller.kernel.controller import KernelController
+from controller.kernel.records import ROW, ROW_FIELDS
 from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
 from controller.runner.loop import ControlLoop
 from controller.sim.replay_device import ReplayDevice

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
 from controller.device.base import SAMPLE_PERIOD_S
+from controller.sim.activity_kinds import ACTIVITY_CODE, GAIT_KINDS, LIFT_KINDS
 from controller.sim.biomechanics import (
     Anthropometrics,
     FloatArray,
@@ -48,20 +49,6 @@ from controller.sim.biomechanics import (
     top_down_hip_moment,
 )
 from controller.sim.participant import VirtualParticipant
-
-ACTIVITIES: tuple[str, ...] = (
-    "stand",
-    "squat",
-    "stoop_left",
-    "stoop_right",
-    "walk",
-    "turn",
-    "stairs_up",
-    "stairs_down",
-)
-ACTIVITY_CODE: dict[str, int] = {name: i for i, name in enumerate(ACTIVITIES)}
-LIFT_KINDS: tuple[str, str, str] = ("squat", "stoop_left", "stoop_right")
-GAIT_KINDS: tuple[str, ...] = ("walk", "turn", "stairs_up", "stairs_down")
 
 STOOP_TRUNK_RATIO = 0.95
 CROSS_FADE_S = 0.8

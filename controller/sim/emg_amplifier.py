@@ -43,6 +43,10 @@ N_CHANNELS = 16
 N_SPARE = N_CHANNELS - len(CHANNELS)
 SAMPLES_PER_TICK = 20
 RESYNC_S = 0.25
+#: The spare inputs' activation, appended to the muscles' in a tick.
+_SPARE = [0.0] * N_SPARE
+#: Sample numbers 1..n within a tick, for spread stamps.
+_STEPS = np.arange(1, SAMPLES_PER_TICK + 1)
 
 #: Electrode placement of each muscle: SENIAM's recommendation where SENIAM has the
 #: muscle, common practice otherwise (said so). Bipolar Ag/AgCl, 20 mm apart (SENIAM).
@@ -243,8 +247,8 @@ class EmgTap:
 
     def activation(self) -> np.ndarray:
         """Activation (16,) of the last tick: 12 muscles, then 0 on the spare inputs."""
-        act = self.muscles.activation(self.model.human_torques(), self.model.true_torques())[0]
-        return np.concatenate([act, np.zeros(N_SPARE)])
+        act = self.muscles.tick_activation(self.model.human_torques(), self.model.true_torques())
+        return np.array(act + _SPARE)
 
     def emit(self, sample: Sample, late_s: float = 0.0) -> EmgBlock | None:
         """Generate the EMG of the tick that ended at `sample` and push it (None: not
@@ -282,7 +286,8 @@ class EmgTap:
         period = 1.0 / self.generator.settings.fs
         prev = self._stamps.last if self._stamps.last is not None else now - n * period
         last = max(now, prev + n * 1e-7)
-        stamps = prev + (last - prev) * np.arange(1, n + 1) / n
+        steps = _STEPS if n == SAMPLES_PER_TICK else np.arange(1, n + 1)
+        stamps = prev + (last - prev) * steps / n
         self._outlet.push_chunk(block.samples.astype(np.float32), stamps.tolist())
         self._stamps.last = last
         self.stats.samples_pushed += n

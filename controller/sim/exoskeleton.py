@@ -14,7 +14,7 @@ import numpy as np
 
 from controller.device.base import SAMPLE_PERIOD_S, GroundTruth, LockCommand, Sample
 from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
-from controller.sim.activities import ACTIVITIES
+from controller.sim.activity_kinds import ACTIVITIES
 from controller.sim.participant import VirtualParticipant
 from controller.sim.plant import ExoPlant
 from controller.sim.scripts import Trajectory, get_script, realise
@@ -32,9 +32,8 @@ class _Chunk:
         self.link_left: list[float] = link[:, 0].tolist()
         self.link_right: list[float] = link[:, 1].tolist()
         rng = np.random.default_rng(np.random.SeedSequence([0x401_5E, int(seed), int(rep)]))
-        self.noise: list[tuple[float, float, float, float]] = [
-            (a, b, c, d) for a, b, c, d in rng.standard_normal((self.n, 4)).tolist()
-        ]
+        #: Standard normal draws for the four encoders, a row per sample.
+        self.noise: list[list[float]] = rng.standard_normal((self.n, 4)).tolist()
         self.activity: list[str] = [ACTIVITIES[c] for c in traj.activity.tolist()]
         self.lift: list[int] = traj.lift.tolist()
         self.progress: list[float] = traj.progress.tolist()
@@ -136,10 +135,10 @@ class SimulatedExoskeleton:
             else:
                 i = chunk.n - 1
         self._i = i
+        plant = self.plant
         left, right = self._lock if self.worn else (False, False)
-        status = self.plant.step(left, right, chunk.link_left[i], chunk.link_right[i])
-        noise = chunk.noise[(k - self._start) % chunk.n]
-        counts = self.plant.counts(noise)
+        status = plant.step(left, right, chunk.link_left[i], chunk.link_right[i])
+        counts = plant.counts(chunk.noise[(k - self._start) % chunk.n])
         truth = GroundTruth(chunk.activity[i], chunk.lift[i], chunk.progress[i])
         self._k = k + 1
         if not self.loop and self._k - self._start >= chunk.n:

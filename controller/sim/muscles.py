@@ -43,7 +43,10 @@ stoop), knee moments (the hamstrings also flex the knee), length and velocity ef
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -200,6 +203,57 @@ class MuscleModel:
                 )
         base = np.array([BASELINE[mu] for mu, _ in CHANNELS])
         return np.asarray(base + (1.0 - base) * out, dtype=np.float64)
+
+    def tick_activation(self, human_nm: Sequence[float],
+                        exo_nm: Sequence[float]) -> list[float]:
+        """One tick's activation: `activation(human_nm, exo_nm)[0]` as 12 Python floats,
+        from (left, right) moments and torques. The same operations in the same order,
+        so the same values; a tick of the simulated amplifier would otherwise spend most
+        of its time in numpy's per-call overhead on arrays of two and twelve values.
+        (`0.0 if v < 0.0 else v` keeps a NaN, as np.maximum and np.clip do.)"""
+        hip_l = float(human_nm[0]) - float(exo_nm[0])
+        hip_r = float(human_nm[1]) - float(exo_nm[1])
+        net = (0.5 * (LUMBAR_TO_HIP * (hip_l + hip_r)), hip_l, hip_r)
+        # Extension demands, then flexion demands, as `_SOURCE` numbers them.
+        demand = [0.0 if v < 0.0 else v for v in net]
+        demand += [ACTIVE_FLEXION * (0.0 if v > 0.0 else -v) for v in net]
+        tab = self._tick
+        need = [share * demand[src] / top for src, share, top in tab.need]
+        out = [0.0 if v < 0.0 else 1.0 if v > 1.0 else v for v in need]
+        for c, agonist, co in tab.co_contraction:
+            v = out[c] + co * out[agonist]
+            out[c] = 0.0 if v < 0.0 else 1.0 if v > 1.0 else v
+        return [base + above * a for (base, above), a in zip(tab.base, out, strict=True)]
+
+    @cached_property
+    def _tick(self) -> _Tick:
+        """`tick_activation`'s constants per channel, built once per model."""
+        return _Tick(
+            need=tuple((_SOURCE[(JOINT[m], s)], SHARES[m], self.max_nm[(m, s)])
+                       for m, s in CHANNELS),
+            co_contraction=tuple(
+                (CHANNELS.index((m, s)), CHANNELS.index((a, s)), CO_CONTRACTION[m])
+                for s in SIDES for m, a in _AGONIST.items()),
+            base=tuple((BASELINE[m], 1.0 - BASELINE[m]) for m, _ in CHANNELS),
+        )
+
+
+class _Tick(NamedTuple):
+    """`MuscleModel`'s constants per channel (`CHANNELS` order), for one tick at a time."""
+
+    need: tuple[tuple[int, float, float], ...]  # (demand answered, share, maximum Nm)
+    co_contraction: tuple[tuple[int, int, float], ...]  # (antagonist, agonist, factor)
+    base: tuple[tuple[float, float], ...]  # (baseline b, 1 - b)
+
+
+#: Index of each (joint, side)'s demand in `tick_activation`: each side's half of the
+#: lumbar extension moment, hip extension left and right, then the flexions alike.
+_SOURCE: dict[tuple[str, str], int] = {
+    **{("lumbar_extension", s): 0 for s in SIDES},
+    ("hip_extension", "left"): 1, ("hip_extension", "right"): 2,
+    **{("lumbar_flexion", s): 3 for s in SIDES},
+    ("hip_flexion", "left"): 4, ("hip_flexion", "right"): 5,
+}
 
 
 def channel_label(muscle: str, side: str) -> str:

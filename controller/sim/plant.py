@@ -32,6 +32,7 @@ has the same effect on deflection and torque in every path.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ from controller.lowlevel.actuator import (
     maccepa_torque,
     max_deflection,
 )
-from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout, angle_to_count
 
 PULL_IN_S = 0.02
 NOISE_DEG = 0.04
@@ -69,6 +70,12 @@ HARD_STOP_LEFT = int(Status.HARD_STOP_LEFT)
 HARD_STOP_RIGHT = int(Status.HARD_STOP_RIGHT)
 SOLENOID_LEFT = int(Status.SOLENOID_LEFT)
 SOLENOID_RIGHT = int(Status.SOLENOID_RIGHT)
+#: Every combination of the six bits `plant_step` reports, as `Status` values: looked up
+#: per tick instead of constructing the flag (the enum's constructor runs Python code).
+_STATUS_OF: tuple[Status, ...] = tuple(Status(bits) for bits in range(64))
+# One encoder's constants (a row of `ExoPlant`'s encoder table): the two harmonics of the
+# non-linearity and the noise level.
+_AMP1, _PHASE1, _AMP2, _PHASE2, _NOISE = range(5)
 
 
 @njit("float64(float64, float64, float64)", cache=True, nogil=True)
@@ -142,6 +149,35 @@ def plant_step(
     if st[1, _HARD_STOP] != 0.0:
         status |= HARD_STOP_RIGHT
     return status
+
+
+@njit("int64(float64, float64[::1], int64, int64, float64)", cache=True, nogil=True)
+def _reading(angle: float, enc: FloatArray, offset: int, direction: int, noise: float) -> int:
+    """One encoder's count at link angle `angle`: `EncoderModel.error`, then the noise,
+    then `EncoderLayout.count`, in that arithmetic's order."""
+    error = enc[_AMP1] * math.sin(angle + enc[_PHASE1]) + enc[_AMP2] * math.sin(
+        2.0 * angle + enc[_PHASE2])
+    return angle_to_count(angle + error + enc[_NOISE] * noise, offset, direction)
+
+
+@njit(
+    "UniTuple(int64, 4)(float64[:, ::1], float64[:, ::1], int64[:, ::1], float64, float64,"
+    " float64, float64)",
+    cache=True, nogil=True,
+)
+def encoder_counts(
+    st: FloatArray, enc: FloatArray, layout: npt.NDArray[np.int64], n0: float, n1: float,
+    n2: float, n3: float,
+) -> tuple[int, int, int, int]:
+    """The four encoder counts of the link angles in `st` (rows left, right), for the
+    encoder table `enc` (rows in sample order), the layout's (offset, direction) rows
+    and the standard normal draws `n0`..`n3`: `ExoPlant.counts` in one compiled call."""
+    return (
+        _reading(st[0, OUTPUT], enc[0], layout[0, 0], layout[0, 1], n0),
+        _reading(st[0, CAM], enc[1], layout[1, 0], layout[1, 1], n1),
+        _reading(st[1, OUTPUT], enc[2], layout[2, 0], layout[2, 1], n2),
+        _reading(st[1, CAM], enc[3], layout[3, 0], layout[3, 1], n3),
+    )
 
 
 class HipModule:
@@ -283,8 +319,24 @@ class ExoPlant:
                               state=self.state[0], constants=self.constants[0])
         self.right = HipModule(precompression_pct, params, float(phases[1]), dt,
                                state=self.state[1], constants=self.constants[1])
-        self.layout = layout
-        self.encoders = encoders if encoders is not None else EncoderModel.from_seed()
+        self._layout = layout
+        self._encoders = encoders if encoders is not None else EncoderModel.from_seed()
+        e = self._encoders
+        #: The encoders (rows in sample order) and the layout as `encoder_counts` reads them.
+        self._encoder_table = np.array(
+            [[e.amp1[i], e.phase1[i], e.amp2[i], e.phase2[i], e.noise_rad] for i in range(4)])
+        self._layout_table = np.array(
+            [[layout.offsets[i], layout.directions[i]] for i in range(4)], dtype=np.int64)
+
+    @property
+    def layout(self) -> EncoderLayout:
+        """How the encoders are mounted (fixed at construction)."""
+        return self._layout
+
+    @property
+    def encoders(self) -> EncoderModel:
+        """The encoders' non-linearity and noise (fixed at construction)."""
+        return self._encoders
 
     def reset(self, left: float, right: float) -> None:
         """Both sides unlocked at the given link angles."""
@@ -293,23 +345,25 @@ class ExoPlant:
 
     def step(self, lock_left: bool, lock_right: bool, left: float, right: float) -> Status:
         """Advance both sides one tick; returns the mechanism's status bits."""
-        return Status(
+        return _STATUS_OF[
             plant_step(self.state, self.constants, bool(lock_left), bool(lock_right),
                        float(left), float(right))
-        )
+        ]
 
     def link_angles(self) -> tuple[float, float, float, float]:
         """True (left output, left cam, right output, right cam) angles (rad)."""
-        a, b, c, d = self.state[:, :CAM + 1].ravel().tolist()
-        return a, b, c, d
+        left, right = self.state.tolist()
+        return left[OUTPUT], left[CAM], right[OUTPUT], right[CAM]
 
-    def counts(self, noise: tuple[float, float, float, float]) -> tuple[int, int, int, int]:
-        """Encoder readings of the current link angles; `noise` are standard normal draws."""
-        enc = self.encoders
-        sd = enc.noise_rad
-        a = self.link_angles()
-        m = [a[i] + enc.error(i, a[i]) + sd * noise[i] for i in range(4)]
-        return self.layout.encode(m[0], m[1], m[2], m[3])
+    def counts(self, noise: Sequence[float]) -> tuple[int, int, int, int]:
+        """Encoder readings of the current link angles; `noise` are standard normal draws.
+
+        Per encoder: angle + `EncoderModel.error` + noise level x draw, quantised by the
+        layout (`encoder_counts`, compiled: the Python version of these four readings
+        cost as much as the rest of a simulated tick)."""
+        return encoder_counts(self.state, self._encoder_table, self._layout_table,
+                              float(noise[0]), float(noise[1]), float(noise[2]),
+                              float(noise[3]))
 
     def torques(self) -> tuple[float, float]:
         """Exoskeleton extension torque (Nm), left and right."""

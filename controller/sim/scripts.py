@@ -23,7 +23,6 @@ from numpy.typing import NDArray
 
 from controller.device.base import SAMPLE_PERIOD_S
 from controller.sim.activities import (
-    ACTIVITIES,
     GaitPiece,
     Segment,
     draw_lift,
@@ -33,6 +32,7 @@ from controller.sim.activities import (
     stand,
     walk_amplitude,
 )
+from controller.sim.activity_kinds import ACTIVITIES
 from controller.sim.biomechanics import FloatArray
 from controller.sim.participant import VirtualParticipant
 

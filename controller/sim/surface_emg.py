@@ -28,7 +28,11 @@ the muscle's activation. Per channel:
 
 Everything is seeded: every component draws from its own generator, so the output does
 not depend on how the stream is cut into blocks (one call for an hour or 20 samples a
-tick give the same samples, up to the filter's floating-point order). Faults for tests
+tick give the same samples, up to the floating-point order of the hum's per-block matrix
+product). The band-limited noise and the hum's time courses depend on the sample clock
+only, not on activation, so they are computed `AHEAD` samples at a time (one draw, one
+filter call carrying its state) and a tick takes its 20 rows: numpy's per-call overhead
+on a tick's tiny arrays was most of the simulated amplifier's cost. Faults for tests
 (`Faults`): clipping, flat channels, dropped samples, a stream that stops.
 
 Ground truth kept per sample: the interpolated activation and the generating amplitude
@@ -57,6 +61,8 @@ ARTEFACT_HZ = (1.0, 8.0)
 ARTEFACT_DECAY_S = (0.1, 0.3)
 SENSOR_TABLE = 1 << 16
 ARTEFACT_LENGTH_S = 1.5  # a transient is cut after this long (e^-5 of it at most left)
+#: Samples of band noise and of the clock's time courses computed in one go (2 s).
+AHEAD = 4000
 
 
 @dataclass(frozen=True)
@@ -153,7 +159,23 @@ class SurfaceEmgGenerator:
         self.mains_phase = fixed.uniform(0.0, 2.0 * math.pi, n_channels)
         self._sos = signal.butter(BAND_ORDER, s.band_hz, btype="bandpass", fs=s.fs, output="sos")
         self._norm = 1.0 / _unit_noise_gain(self._sos)
+        self._scale = self.gain_v * self._norm
         self._zi = np.zeros((self._sos.shape[0], 2, n_channels))
+        #: Band noise at unit RMS drawn and filtered ahead; the next sample's row.
+        self._band = np.empty((0, n_channels))
+        self._band_at = 0
+        #: The clock's time courses from sample `_clock_at` on: time (s) and, with
+        #: mains, the hum's three (`_mains_basis`).
+        self._clock_at = 0
+        self._t = np.empty(0)
+        self._basis = np.empty((0, 3))
+        #: Interpolation weights of the previous and of the current tick's activation.
+        frac = (np.arange(1, upsample + 1) / upsample)[:, None]
+        self._w_prev = 1.0 - frac
+        self._w_next = frac
+        f = s.faults
+        self._faulty = (f.clip_v is not None or bool(f.flat) or f.drop_every > 0
+                        or f.stop_after_s is not None)
         #: Sensor noise: a table of SENSOR_TABLE samples per channel, drawn once and
         #: repeated (a 33 s period at 2 kHz, invisible to amplitude analysis); drawing it
         #: afresh for every sample would double the generator's cost.
@@ -189,20 +211,25 @@ class SurfaceEmgGenerator:
         to each tick's value over its `upsample` samples (the tick's last sample equals
         the tick's activation)."""
         prev = activation[:1] if self._last_activation is None else self._last_activation
-        knots = np.vstack([prev, activation])  # (K + 1, ch)
-        frac = (np.arange(1, self.upsample + 1) / self.upsample)[None, :, None]
-        out = (1.0 - frac) * knots[:-1, None, :] + frac * knots[1:, None, :]
+        if activation.shape[0] == 1:  # one tick: (upsample, 1) weights x (1, ch)
+            out = self._w_prev * prev
+            out += self._w_next * activation
+        else:
+            knots = np.vstack([prev, activation])  # (K + 1, ch)
+            out = (self._w_prev[None] * knots[:-1, None, :]
+                   + self._w_next[None] * knots[1:, None, :]).reshape(-1, self.n_channels)
         self._last_activation = activation[-1:].copy()
-        return out.reshape(-1, self.n_channels)
+        return out
 
     def push(self, activation: ArrayLike) -> EmgBlock:
         """The samples for `activation` (K, ch) at the tick rate, or (ch,) for one tick."""
-        a = np.atleast_2d(np.asarray(activation, dtype=np.float64))
+        a = np.asarray(activation, dtype=np.float64)
+        a = a[None, :] if a.ndim == 1 else np.atleast_2d(a)
         if a.shape[1] != self.n_channels:
             raise ValueError(f"activation has {a.shape[1]} channels, expected {self.n_channels}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError("activation must be finite")
-        return self._generate(np.clip(self._interpolate(a), 0.0, 1.0))
+        return self._generate(_clip_unit(self._interpolate(a)))
 
     def push_samples(self, activation: ArrayLike) -> EmgBlock:
         """Like `push`, with activation already at the sample rate (n, ch)."""
@@ -210,48 +237,79 @@ class SurfaceEmgGenerator:
         if a.shape[1] != self.n_channels:
             raise ValueError(f"activation has {a.shape[1]} channels, expected {self.n_channels}")
         self._last_activation = a[-1:].copy()
-        return self._generate(np.clip(a, 0.0, 1.0))
+        return self._generate(_clip_unit(a.copy()))
 
     def _generate(self, act: FloatArray) -> EmgBlock:
-        s = self.settings
         n = act.shape[0]
         start = self._n
-        shape = (n, self.n_channels)
-        white = self._muscle_rng.standard_normal(shape, dtype=np.float32)
-        band, self._zi = signal.sosfilt(self._sos, white, axis=0, zi=self._zi)
-        x = np.asarray(band, dtype=np.float64)
-        x *= act
-        x *= self.gain_v * self._norm
-        rows = np.arange(start, start + n) % self._sensor.shape[0]
-        x += self._sensor[rows]
-        idx = np.arange(start, start + n)
-        t = idx / s.fs
-        if s.mains_hz is not None:
-            # sin(wt + p) = sin(wt) cos(p) + cos(wt) sin(p) and sin(3u) = 3 sin(u) -
-            # 4 sin(u)^3: three time courses per block, mixed per channel in one product.
-            w = 2.0 * math.pi * s.mains_hz * t
-            sw = np.sin(w)
-            x += np.stack([sw, np.cos(w), 3.0 * sw - 4.0 * sw**3], axis=1) @ self._mains_mix
+        x = self._band_noise(n) * act
+        x *= self._scale
+        row = start % SENSOR_TABLE
+        if row + n <= SENSOR_TABLE:
+            x += self._sensor[row:row + n]
+        else:
+            x += self._sensor[np.arange(start, start + n) % SENSOR_TABLE]
+        t, basis = self._clock(start, n)
+        if self.settings.mains_hz is not None:
+            # Mixed per block, as the time courses' rows come (one product per block).
+            x += basis @ self._mains_mix
         if self._artefacts:
-            x += self._artefact_part(start, n)
+            self._add_artefacts(x, start, n)
         self._n = start + n
-        return self._apply_faults(EmgBlock(t, x, act, self.gain_v), idx)
+        block = EmgBlock(t, x, act, self.gain_v)
+        return self._apply_faults(block, start) if self._faulty else block
 
-    def _artefact_part(self, start: int, n: int) -> FloatArray:
-        out = np.zeros((n, self.n_channels))
+    def _band_noise(self, n: int) -> FloatArray:
+        """The next `n` rows of band-limited unit noise (a view: read, never written).
+        Drawn and filtered `AHEAD` rows at a time: the draws and the filter run sample
+        by sample, so the rows are the same whatever the blocks."""
+        have = self._band.shape[0] - self._band_at
+        if have < n:
+            white = self._muscle_rng.standard_normal((max(n - have, AHEAD), self.n_channels),
+                                                     dtype=np.float32)
+            band, self._zi = signal.sosfilt(self._sos, white, axis=0, zi=self._zi)
+            self._band = np.concatenate([self._band[self._band_at:], band]) if have else band
+            self._band_at = 0
+        at = self._band_at
+        self._band_at = at + n
+        return self._band[at:at + n]
+
+    def _clock(self, start: int, n: int) -> tuple[FloatArray, FloatArray]:
+        """Time (n,) of samples `start`.. (a copy) and the hum's time courses (n, 3) (a
+        view; empty without mains), computed `AHEAD` samples at a time."""
+        lo = start - self._clock_at
+        if lo < 0 or lo + n > self._t.shape[0]:
+            t = np.arange(start, start + max(n, AHEAD)) / self.settings.fs
+            self._clock_at, self._t, lo = start, t, 0
+            if self.settings.mains_hz is not None:
+                self._basis = _mains_basis(self.settings.mains_hz, t)
+        return self._t[lo:lo + n].copy(), self._basis[lo:lo + n]
+
+    def _add_artefacts(self, x: FloatArray, start: int, n: int) -> None:
+        """Add the motion artefacts running in samples `start`.. to `x` (n, ch); drop
+        those that have ended. Overlapping ones are summed first, then added."""
+        parts: list[tuple[int, FloatArray]] = []
         keep: list[tuple[int, FloatArray]] = []
         for at, shape in self._artefacts:
             lo, hi = max(start, at), min(start + n, at + shape.shape[0])
             if lo < hi:
-                out[lo - start:hi - start] += shape[lo - at:hi - at]
+                parts.append((lo - start, shape[lo - at:hi - at]))
             if at + shape.shape[0] > start + n:
                 keep.append((at, shape))
         self._artefacts = keep
-        return out
+        if len(parts) == 1:
+            lo, part = parts[0]
+            x[lo:lo + part.shape[0]] += part
+        elif parts:
+            out = np.zeros_like(x)
+            for lo, part in parts:
+                out[lo:lo + part.shape[0]] += part
+            x += out
 
-    def _apply_faults(self, block: EmgBlock, idx: NDArray[np.int64]) -> EmgBlock:
+    def _apply_faults(self, block: EmgBlock, start: int) -> EmgBlock:
         f = self.settings.faults
         x = block.samples
+        idx = np.arange(start, start + x.shape[0])
         if f.clip_v is not None:
             np.clip(x, -f.clip_v, f.clip_v, out=x)
         for ch in f.flat:
@@ -264,6 +322,21 @@ class SurfaceEmgGenerator:
         if keep.all():
             return block
         return EmgBlock(block.t[keep], x[keep], block.activation[keep], block.gain_v)
+
+
+def _mains_basis(mains_hz: float, t: FloatArray) -> FloatArray:
+    """The hum's three time courses (n, 3) at times `t`: sin(wt + p) = sin(wt) cos(p) +
+    cos(wt) sin(p) and sin(3u) = 3 sin(u) - 4 sin(u)^3, so one product with the
+    per-channel mix (`_mains_mix`) gives every channel's hum."""
+    w = 2.0 * math.pi * mains_hz * t
+    sw = np.sin(w)
+    return np.stack([sw, np.cos(w), 3.0 * sw - 4.0 * sw**3], axis=1)
+
+
+def _clip_unit(x: FloatArray) -> FloatArray:
+    """`x` clipped to 0..1 in place (np.clip's values without its per-call overhead)."""
+    np.maximum(x, 0.0, out=x)
+    return np.minimum(x, 1.0, out=x)
 
 
 def generate(

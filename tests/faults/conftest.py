@@ -2,30 +2,28 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from collections.abc import Iterator
 
 import pytest
 
 from tests import c_device
+from tests.faults.busy import Spinners
 
 
 @pytest.fixture
-def busy_cores() -> Iterator[int]:
-    """Every core busy with a spinning process for the duration of the test (races and
-    timeouts show up under load, not on an idle machine); yields how many."""
-    n = os.cpu_count() or 2
-    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
-                for _ in range(n)]
+def spinners() -> Iterator[Spinners]:
+    """Every core busy from the moment the test calls `start()` to its end."""
+    busy = Spinners()
     try:
-        yield n
+        yield busy
     finally:
-        for p in spinners:
-            p.kill()
-        for p in spinners:
-            p.wait(10)
+        busy.stop()
+
+
+@pytest.fixture
+def busy_cores(spinners: Spinners) -> int:
+    """Every core busy with a spinning process for the duration of the test; how many."""
+    return spinners.start()
 
 
 @pytest.fixture(params=c_device.IMPLEMENTATIONS)

@@ -19,6 +19,7 @@ from backend.db.cohorts import CohortRecord
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.evidence_tables import Job, ModelSetRecord, Trial
 from backend.db.models import Participant, StudySession
+from tests.faults.busy import Spinners
 from tests.faults.served import Served, alive, make_trials, serve
 from tests.login import USERNAME
 from tests.polling import free_udp_port, wait_for
@@ -70,11 +71,16 @@ def _cohort_computing(s: Served, before: set[int]) -> tuple[dict[str, Any], int]
 
 def test_sigterm_cancels_a_running_cohort_within_seconds(
         tmp_path: Path, db_url: str, experimenter: dict[str, str],
-        default_sets: tuple[Path, Path], busy_cores: int) -> None:
+        default_sets: tuple[Path, Path], spinners: Spinners) -> None:
+    """Every core is busy from the moment the cohort computes to the server's exit: the
+    second cohort queued behind it, the signal and the whole shutdown run under load.
+    The server and the job's process start on the quieter machine (under two busy loops
+    the two starts took 75 s here; how fast they start is not what this test asserts)."""
     with serve(tmp_path, db_url, default_sets, free_udp_port(), **ENV) as s:
         s.log_in(experimenter)
         before = children(s.proc.pid)
         cohort, child = _cohort_computing(s, before)
+        busy_cores = spinners.start()
         r = s.client.post("/api/cohorts", json=LONG)
         assert r.status_code == 202, r.text
         waiting = r.json()

@@ -1,8 +1,8 @@
 """Learned priors never add a lock, on the running processes.
 
-The real worker process runs the UMC on the simulated exoskeleton served as its own UDP
-device process, during walking and during stairs, with two stored prior sets as a
-trial gets them (`ControllerSpec` with the `LearnedPriors` record): the most skewed
+The real worker process runs the UMC on the simulated exoskeleton, during walking and
+during stairs, with two stored prior sets as a trial gets them (`ControllerSpec` with
+the `LearnedPriors` record): the most skewed
 history there is (every lift confirmed as "stoop left", projected onto the safety
 bound) and one from use with nothing confirmed (the EM estimate from posteriors that
 all point at "stoop left"). Every UMC evaluation the worker made is then decided again
@@ -15,7 +15,16 @@ priors' on the same movement.
 Priors from outside that are not safe are refused: the worker, sent them past the
 server's checks (settings priors, and a record whose document claims looser roles),
 runs `none` and never locks; the API answers 422 (`tests/backend/api/
-test_personalisation_api.py` for prior sets, and the worker route here)."""
+test_personalisation_api.py` for prior sets, and the worker route here).
+
+The wearer is the worker's own simulated device, sped up (`SIM_SPEED`), not a device
+process on UDP paced at 100 Hz: a lock decision depends on the samples and the priors,
+never on when a sample arrives, and a sped-up simulation delivers every sample in order
+(it waits for the worker, `backend.worker.machine.hold`), so the worker decides on
+exactly the 2,000 ticks of device time per run it would at real time, in about a
+tenth of the wall time. What the UDP link itself can do to a lock (late, forged,
+replayed or dropped packets) is tested on device processes in test_protocol_faults.py
+and test_link_attacks.py."""
 
 from __future__ import annotations
 
@@ -36,21 +45,22 @@ from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
 from controller.controllers.spec import ControllerSpec
-from controller.device.auth import create_key
 from controller.intent.label_shift import learn_from_unconfirmed
 from controller.intent.learned_priors import LearnedPriors, learn_from_confirmed
 from controller.intent.posteriors import EQUAL_PRIORS
 from controller.intent.prior_safety import PriorBounds, lock_decided
 from controller.tick_record import MODEL_NAMES, Action, TickRecord
 from tests.backend.worker.unchecked import unchecked_spec
-from tests.faults.device_rig import device_process
 from tests.login import bearer
-from tests.polling import free_udp_port, wait_for
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
 
 #: Ticks per run (device time: 20 s of the wearer's movement).
 RUN_TICKS = 2000
+#: The simulated wearer this many times faster than real time (it waits whenever the
+#: worker falls behind, so every tick is decided on however busy the machine is).
+SIM_SPEED = 20.0
 STOOP_LEFT_SKEW = (0.05, 0.8, 0.05, 0.1)
 
 
@@ -80,11 +90,12 @@ class Runs:
 
 
 @contextmanager
-def worker(port: int, key_file: Path) -> Iterator[tuple[WorkerSupervisor, Runs]]:
+def worker(script: str) -> Iterator[tuple[WorkerSupervisor, Runs]]:
+    """The real worker process, its simulated wearer following `script` at `SIM_SPEED`."""
     runs = Runs()
     sup = WorkerSupervisor(
-        WorkerConfig(device_kind="udp", device_host="127.0.0.1", device_port=port,
-                     device_key_file=str(key_file), spec=ControllerSpec("none"),
+        WorkerConfig(device_kind="sim", device_seed=1, device_script=script,
+                     device_speed=SIM_SPEED, spec=ControllerSpec("none"),
                      status_interval=0.1),
         WorkerCallbacks(on_ticks=runs.batch, on_run_started=runs.started))
     sup.start()
@@ -127,7 +138,7 @@ def _stored_prior_sets(bounds: PriorBounds) -> dict[str, LearnedPriors]:
 
 @pytest.mark.parametrize("script", ["walking", "stairs"])
 def test_learned_priors_lock_no_more_than_equal_priors(
-        script: str, default_sets: tuple[Path, Path], tmp_path: Path) -> None:
+        script: str, default_sets: tuple[Path, Path]) -> None:
     models_path, utilities_dir = default_sets
     models = json.loads(models_path.read_text())
     utilities = json.loads(next(utilities_dir.glob("*.json")).read_text())
@@ -135,12 +146,9 @@ def test_learned_priors_lock_no_more_than_equal_priors(
     bounds = PriorBounds.for_table(table)
     stored = _stored_prior_sets(bounds)
     assert stored["skewed"].estimate[1] > 0.9  # the history is as skewed as it gets
-    key_file = tmp_path / "device.key"
-    create_key(key_file)
-    port = free_udp_port()
     sets = {"models": models, "utilities": utilities}
     found: dict[str, tuple[int, int, int]] = {}
-    with device_process(port, key_file, script), worker(port, key_file) as (sup, runs):
+    with worker(script) as (sup, runs):
         # Past the server's checks: unsafe settings priors, and a record whose document
         # claims roles that would allow them. The worker refuses both and stays unlocked.
         forged = {**stored["skewed"].to_json(), "values": list(STOOP_LEFT_SKEW),
@@ -198,15 +206,13 @@ def _with_record(spec: ControllerSpec, document: dict[str, Any]) -> ControllerSp
 
 
 def test_the_worker_route_refuses_unsafe_priors(settings: Settings,
-                                                experimenter: dict[str, str],
-                                                tmp_path: Path) -> None:
+                                                experimenter: dict[str, str]) -> None:
     """POST /api/worker/controller with priors outside the bound: 422 naming them, and
-    the worker keeps running `none`."""
-    key_file = tmp_path / "device.key"
-    settings = settings.model_copy(update={
-        "start_worker": True, "device_kind": "udp", "device_spawn_simulator": True,
-        "device_address": f"127.0.0.1:{free_udp_port()}", "device_script": "walking",
-        "device_key_file": key_file, "run_dir": tmp_path})
+    the worker keeps running `none`. The refusal is the server's, before anything
+    reaches the worker, so the worker's own simulated wearer serves (no device process
+    to start)."""
+    settings = settings.model_copy(update={"start_worker": True,
+                                           "device_script": "walking"})
     with TestClient(create_app(settings)) as client:
         client.headers.update(bearer(client, experimenter))
         wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 20, 120,

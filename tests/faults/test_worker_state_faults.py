@@ -4,6 +4,12 @@ Each test does what a user could do with the API on a real worker process (simul
 wearer in the worker) and checks the outcome in the database: no controller survives
 its trial, one trial at a time, no silent controller change, trials closed with their
 real tick counts.
+
+The simulated wearer runs sped up (`SIM_SPEED`) where a test waits on the wearer's
+movement: what these tests assert is which controller runs and what is stored, never
+when a sample arrives, and a sped-up simulation delivers every tick in order (it waits
+for the database, `Runtime._wait_for_recorder`), so the same squats are seen in a
+fraction of the wall time.
 """
 
 from __future__ import annotations
@@ -27,12 +33,16 @@ from backend.db.engine import make_engine
 from backend.db.evidence_tables import Recording, Trial
 from backend.db.models import Run
 from backend.main import create_app
+from tests.faults.busy import Spinners
 from tests.faults.served import make_trials, stored_ticks
 from tests.live_server import running_server
 from tests.login import USERNAME, bearer
 from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow
+
+#: The simulated wearer this many times faster than real time.
+SIM_SPEED = 8.0
 
 
 def _trial(db_url: str, trial_id: int) -> Trial:
@@ -57,9 +67,11 @@ def _run(db_url: str, run_id: int) -> Run:
 
 @pytest.fixture
 def live(settings: Settings, experimenter: dict[str, str]) -> Iterator[TestClient]:
-    """A server with its worker (in-process simulated squats), logged in by token."""
+    """A server with its worker (in-process simulated squats, sped up), logged in by
+    token."""
     settings = settings.model_copy(update={"start_worker": True,
-                                           "device_script": "squat-sequence"})
+                                           "device_script": "squat-sequence",
+                                           "device_speed": SIM_SPEED})
     with TestClient(create_app(settings)) as client:
         client.headers.update(bearer(client, experimenter))
         wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 20, 90,
@@ -78,14 +90,22 @@ def _start_pec_until_it_locks(client: TestClient, db_url: str, trial_id: int) ->
 
 
 def _locks_in_new_run(client: TestClient, db_url: str, old_run: int, ticks: int) -> int:
-    """Lock commands in the first `ticks` ticks of the run after `old_run`."""
+    """Lock commands in the run after `old_run`, once it holds at least `ticks` ticks
+    and the wearer's first whole squat (down and up again: what the dead trial's PEC
+    locked on)."""
     def new_run() -> int | None:
         run_id = client.get("/api/health").json()["database"]["current_run_id"]
         return run_id if run_id not in (None, old_run) else None
 
     run_id = wait_for(new_run, 60, "the restarted worker's run")
     assert _run(db_url, run_id).controller == "none"
-    wait_for(lambda: len(stored_ticks(db_url, run_id)) >= ticks, 60, f"{ticks} new ticks")
+
+    def squatted() -> bool:
+        truth = stored_ticks(db_url, run_id, "truth_activity")
+        return len(truth) >= ticks and "squat" in truth \
+            and "stand" in truth[truth.index("squat"):]
+
+    wait_for(squatted, 60, f"{ticks} new ticks and a whole squat")
     locks = stored_ticks(db_url, run_id, "lock_left") + stored_ticks(db_url, run_id,
                                                                       "lock_right")
     return sum(bool(x) for x in locks)
@@ -116,7 +136,7 @@ def test_a_restarted_worker_never_resumes_a_dead_trials_controller(
 
     assert live.post("/api/worker/restart").status_code == 200
     assert live.get("/api/health").json()["worker"]["controller"] == "none"
-    # 3 s of squats with nothing that locks: not one lock command.
+    # 3 s and a whole squat with nothing that locks: not one lock command.
     assert _locks_in_new_run(live, db_url, run_id, 300) == 0
 
 
@@ -143,7 +163,9 @@ def test_no_controller_change_while_a_trial_runs_and_counts_close_it(
 
 
 def test_parallel_trial_starts_one_wins(settings: Settings, experimenter: dict[str, str],
-                                        db_url: str, busy_cores: int) -> None:
+                                        db_url: str, spinners: Spinners) -> None:
+    """Four starts at once on a loaded machine: every core is busy from just before the
+    starts (the race) to the end; the server and its worker start before the load."""
     settings = settings.model_copy(update={"start_worker": True,
                                            "device_script": "walking"})
     ids = make_trials(db_url, USERNAME, ("pec", "pec", "pec", "pec"))
@@ -151,6 +173,7 @@ def test_parallel_trial_starts_one_wins(settings: Settings, experimenter: dict[s
         token = c.post("/api/auth/token", json=experimenter).json()["access_token"]
         c.headers["Authorization"] = f"Bearer {token}"
         wait_for(lambda: c.get("/api/health").json()["worker"]["ticks"] > 20, 90, "ticks")
+        spinners.start()
         codes: dict[int, int] = {}
         barrier = threading.Barrier(len(ids))
 

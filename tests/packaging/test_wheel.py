@@ -26,6 +26,7 @@ import sysconfig
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import httpx
@@ -59,6 +60,11 @@ class Installed:
                               timeout=timeout, check=False, umask=0o022)
         assert proc.returncode == 0, (args, proc.stdout[-3000:], proc.stderr[-3000:])
         return proc
+
+    @cached_property
+    def version(self) -> str:
+        """The number `exostudy --version` prints, asked once (each run imports the CLI)."""
+        return self.run("--version").stdout.split()[1]
 
 
 @pytest.fixture(scope="module")
@@ -142,9 +148,13 @@ def test_db_upgrade_makes_the_database_in_the_data_folder(installed: Installed) 
     assert installed.run("doctor").stdout.startswith("ok: ")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def served(installed: Installed) -> Iterator[str]:
-    """`exostudy serve` from the wheel, with its worker and a spawned UDP simulator."""
+    """`exostudy serve` from the wheel, with its worker and a spawned UDP simulator.
+
+    One test's: kept for the module, the server, its worker and the simulator went on
+    ticking at 100 Hz through the virtual study and the cohort (about 20 s of CPU, and
+    they competed with the study for the machine's cores)."""
     installed.run("db", "upgrade")
     installed.run("user", "add", "wheel", "--admin", stdin=PASSWORD + "\n")
     port = free_tcp_port()
@@ -157,17 +167,21 @@ def served(installed: Installed) -> Iterator[str]:
                                 env=env, stdout=out, stderr=subprocess.STDOUT,
                                 umask=0o022)
     base = f"http://127.0.0.1:{port}"
+    # One client for the polls: `httpx.get` builds a client (and its TLS context) per
+    # call, 30 ms of CPU each, a sixth of a core at this rate while the server starts.
+    poller = httpx.Client(base_url=base, timeout=5)
 
     def up() -> bool:
         if proc.poll() is not None:
             raise AssertionError(f"server exited: {log.read_text()[-3000:]}")
         try:
-            return httpx.get(f"{base}/api/health", timeout=5).status_code == 200
+            return poller.get("/api/health").status_code == 200
         except httpx.HTTPError:
             return False
 
     try:
-        wait_for(up, 180, "the installed server to answer", poll=0.2)
+        with poller:
+            wait_for(up, 180, "the installed server to answer", poll=0.2)
         yield base
     finally:
         proc.send_signal(signal.SIGTERM)
@@ -205,7 +219,7 @@ def test_serve_from_the_wheel(installed: Installed, served: str) -> None:
                 } == {"exostudy.db": "0o600", "exostudy.db-wal": "0o600",
                       "exostudy.db-shm": "0o600"}
         health = c.get("/api/health").json()
-        assert health["version"] == installed.run("--version").stdout.split()[1]
+        assert health["version"] == installed.version
         # The worker runs from the wheel and the spawned UDP simulator sends samples.
         wait_for(lambda: c.get("/api/health").json()["device"]["alive"], 120,
                  "samples from the wheel's device simulator", poll=0.5)
@@ -224,7 +238,7 @@ def virtual_study(installed: Installed) -> Path:
 def test_a_small_virtual_study_from_the_wheel(installed: Installed, virtual_study: Path
                                               ) -> None:
     summary = json.loads((virtual_study / "summary.json").read_text())
-    assert summary["exostudy_version"] == installed.run("--version").stdout.split()[1]
+    assert summary["exostudy_version"] == installed.version
     assert (virtual_study / "paper-rates" / "performance.md").is_file()
     # One evaluation participant, UMC and PEC: two trials, each with its ticks.
     assert len(summary["trials"]) == 2, summary["trials"]
@@ -233,7 +247,7 @@ def test_a_small_virtual_study_from_the_wheel(installed: Installed, virtual_stud
 
 def test_results_export_and_cohort_from_the_wheel(installed: Installed, virtual_study: Path
                                                   ) -> None:
-    version = installed.run("--version").stdout.split()[1]
+    version = installed.version
     db = str(virtual_study / "study.db")
     results = installed.cwd / "results"
     installed.run("results", "--study", "1", "--db", db, "--out", str(results),

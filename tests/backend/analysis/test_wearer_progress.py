@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from backend.analysis.wearer_progress import long_use_truth, marker_bouts
-from controller.evaluation import GaitTrial, TickData
+from controller.evaluation.columns import TickData
+from controller.evaluation.lifts import GaitTrial
 from tests.controller.evaluation.tick_builder import TickBuilder
 
 

@@ -292,3 +292,76 @@ def test_one_subscription_per_stream_whatever_the_race_or_the_key(
         assert r.status_code == 409 and "another study" in r.text, r.text
         assert f"session {sess}" not in r.text
         client.delete(f"{url}/{subs[0]['id']}")
+
+
+def _pulled_as_lists(inlet: pylsl.StreamInlet) -> tuple[list[Any], list[float]]:
+    """How the inlet pulled before it pulled into an array: one sample with a wait,
+    then what else had arrived, as Python lists."""
+    first, ts0 = inlet.pull_sample(timeout=0.2)
+    if ts0 is None:
+        return [], []
+    chunk, ts = inlet.pull_chunk(timeout=0.0, max_samples=2047)
+    return [first, *chunk], [ts0, *ts]
+
+
+@pytest.mark.parametrize("fmt", [pylsl.cf_float32, pylsl.cf_double64, pylsl.cf_int16,
+                                 pylsl.cf_int32])
+def test_pulling_into_an_array_gives_the_samples_the_lists_gave(fmt: int) -> None:
+    """Two inlets on one outlet: the array pull and the list pull it replaced yield the
+    same volts (montage order, scaled) and stamps, whatever the stream's number type."""
+    from backend.emg import live
+
+    source = f"test-pull-{uuid.uuid4().hex[:8]}"
+    info = pylsl.StreamInfo(f"Pull-{source}", "EMG", 4, 2000.0, fmt, source)
+    outlet = pylsl.StreamOutlet(info, chunk_size=50)
+    (found,) = pylsl.resolve_bypred(f"source_id='{source}'", 1, 10.0)
+    inlets = [pylsl.StreamInlet(found, max_buflen=360, recover=False) for _ in range(2)]
+    for inlet in inlets:
+        inlet.open_stream(timeout=10.0)
+    cols, volts = np.array([2, 0, 3]), np.array([1e-6, 1e-3, 1.0])
+    rng = np.random.default_rng(fmt)
+    data = rng.normal(0, 3000, (5000, 4))
+    if fmt == pylsl.cf_float32:
+        data[rng.integers(5000, size=5), rng.integers(4, size=5)] = [np.nan, np.inf, -np.inf,
+                                                                     1e-40, -0.0]
+    elif fmt != pylsl.cf_double64:
+        data = np.round(data)
+    for k in range(0, 5000, 250):
+        outlet.push_chunk(data[k:k + 250].tolist(), (10.0 + np.arange(k, k + 250) / 2000.0)
+                          .tolist())
+    buf = live.pull_buffer(found)
+    new_x, new_t, old_x, old_t = [], [], [], []
+
+    def pulled() -> bool:
+        ts = live.pull(inlets[0], buf)
+        if ts:
+            new_x.append(buf[:len(ts), cols] * volts)
+            new_t.extend(ts)
+        chunk, ts2 = _pulled_as_lists(inlets[1])
+        if ts2:
+            old_x.append(np.asarray(chunk, dtype=np.float64)[:, cols] * volts)
+            old_t.extend(ts2)
+        return len(new_t) >= 5000 and len(old_t) >= 5000
+
+    wait_for(pulled, 30, "every sample through both inlets", poll=0.0)
+    assert len(new_t) == len(old_t) == 5000
+    np.testing.assert_array_equal(new_t, old_t)
+    np.testing.assert_array_equal(np.concatenate(new_x), np.concatenate(old_x))
+    assert np.concatenate(new_x).dtype == np.float64
+    for inlet in inlets:
+        inlet.close_stream()
+
+
+def test_a_pull_buffer_only_for_numbers() -> None:
+    from types import SimpleNamespace
+
+    from backend.emg import live
+
+    def info(fmt: int) -> Any:
+        return SimpleNamespace(channel_format=lambda: fmt, channel_count=lambda: 3)
+
+    assert live.pull_buffer(info(pylsl.cf_int16)).dtype == np.int16
+    assert live.pull_buffer(info(pylsl.cf_float32)).shape == (2048, 3)
+    for fmt in (pylsl.cf_string, 0):
+        with pytest.raises(ValueError, match="not a number type"):
+            live.pull_buffer(info(fmt))

@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from backend.emg.live_envelope import DISPLAY_HZ, MIN_INTERVAL_S, LiveEnvelope
-from backend.schemas.live import LiveEmg
+from backend.schemas.live import EmgChannelFlags, LiveEmg
+from controller.emg import quality
 from controller.emg.processing import EnvelopeStream
 
 FS = 2000.0
@@ -93,3 +94,88 @@ def test_at_most_one_message_per_interval_and_strict_json() -> None:
         assert msg.type == "emg" and msg.recording_id == 9 and msg.fs == DISPLAY_HZ
         assert len(msg.values) == 3 and all(len(v) == len(msg.t) for v in msg.values)
         assert msg.t_end >= msg.t[-1]
+
+
+class _OneChannelAtATime(LiveEnvelope):
+    """The strip as it was before it worked on all channels at once: display samples
+    picked one by one, flags measured channel by channel, flags rebuilt per message."""
+
+    def push(self, timestamps: np.ndarray, samples: np.ndarray) -> LiveEmg | None:
+        x = np.asarray(samples, dtype=np.float64)
+        t = np.asarray(timestamps, dtype=np.float64)
+        if x.shape[0] == 0:
+            return None
+        self.non_finite += (~np.isfinite(x)).sum(axis=0)
+        self._flags(x)
+        env = self.stream.push(x)
+        idx = np.arange(self._seen, self._seen + x.shape[0])
+        self._seen += x.shape[0]
+        for k in np.flatnonzero(idx % self.step == 0):
+            self._t.append(float(t[k]))
+            self._v.append(env[k])
+        self._t_end = float(t[-1])
+        now = self.clock()
+        if not self._t or now - self._last_sent < MIN_INTERVAL_S:
+            return None
+        self._last_sent = now
+        return self._send()
+
+    def _flags(self, x: np.ndarray) -> None:
+        self._raw.append(x)
+        self._raw_n += x.shape[0]
+        if self._raw_n < self._window:
+            return
+        w = np.concatenate(self._raw)
+        self._raw, self._raw_n = [], 0
+        for c in range(w.shape[1]):
+            col = w[:, c]
+            finite = col[np.isfinite(col)]
+            self.clipping[c] = quality.clipped_samples(col) > 0
+            self.flat[c] = bool(finite.size == 0 or np.sqrt(np.mean(
+                (finite - finite.mean()) ** 2)) < quality.FLAT_LINE_RMS_V)
+
+    def message(self) -> LiveEmg:
+        v = np.asarray(self._v).reshape(len(self._v), len(self.labels))
+        msg = LiveEmg(
+            session_id=self.session_id, subscription_id=self.subscription_id,
+            recording_id=self.recording_id, fs=self.display_hz, t=list(self._t),
+            t_end=self._t_end, clock_correction_s=self.clock_correction_s,
+            sent_at=0.0, labels=self.labels,
+            values=[[float(y) for y in v[:, c]] for c in range(v.shape[1])],
+            flags=[EmgChannelFlags(clipping=bool(self.clipping[c]), flat=bool(self.flat[c]),
+                                   non_finite=int(self.non_finite[c]))
+                   for c in range(len(self.labels))])
+        self._t, self._v = [], []
+        return msg
+
+
+@settings(max_examples=25, deadline=None)
+@given(sizes=st.lists(st.integers(0, 1500), min_size=1, max_size=30),
+       holes=st.lists(st.tuples(st.integers(0, 10**6), st.sampled_from([np.nan, np.inf])),
+                      max_size=6),
+       seed=st.integers(0, 2**32 - 1), off=st.booleans())
+def test_messages_equal_the_one_channel_at_a_time_strip(
+        sizes: list[int], holes: list[tuple[int, float]], seed: int, off: bool) -> None:
+    n = sum(sizes)
+    x = _signal(n) * np.random.default_rng(seed).uniform(0.5, 2.0)
+    for at, value in holes if n else []:
+        x[at % n, at % 3] = value
+    if off and n > 1500:  # the first channel's electrode off for a while: nothing finite
+        x[500:1500, 0] = np.nan
+    t = 100.0 + np.arange(n) / FS
+    clock = Clock()
+    got: list[dict] = []
+    expected: list[dict] = []
+    new = LiveEnvelope(FS, ["a", "b", "c"], 1, 2, publish=got.append, clock=clock)
+    old = _OneChannelAtATime(FS, ["a", "b", "c"], 1, 2, publish=expected.append, clock=clock)
+    k = 0
+    for size in sizes:
+        clock.now += size / FS  # as fast as the samples come
+        new.push(t[k:k + size], x[k:k + size])
+        old.push(t[k:k + size], x[k:k + size])
+        k += size
+    got.append(new.message().model_dump(mode="json"))
+    expected.append(old.message().model_dump(mode="json"))
+    for m in got + expected:
+        m.pop("sent_at")
+    assert got == expected

@@ -177,6 +177,10 @@ def test_reductions_follow_the_conditions_amplitudes(db_url: str, settings: Sett
     for name in muscle_results.FIGURES:
         fig = res.figure(name)
         assert fig.png[:4] == b"\x89PNG" and len(fig.svg) > 1000
+    # The reduction figure computes the one family it draws: the rows of the whole.
+    drawn = res._reductions(("all",), ("mean",))[0]
+    assert drawn and drawn == [r for r in res.reductions()
+                               if r["group"] == "all" and r["metric"] == "mean"]
     made["engine"].dispose()
 
 

@@ -95,3 +95,26 @@ def test_wrong_shapes_are_refused_and_abort_leaves_nothing(tmp_path: Path) -> No
         w.append(np.arange(3), np.ones((2, 2)))
     w.abort()
     assert list(tmp_path.iterdir()) == []
+
+
+@settings(max_examples=40, deadline=None)
+@given(blocks=st.lists(st.lists(st.one_of(
+    st.floats(-1e6, 1e6), st.sampled_from([np.nan, np.inf, -np.inf])), max_size=6),
+    min_size=1, max_size=6))
+def test_span_is_the_finite_stamps_extremes_whatever_the_blocks(
+        tmp_path_factory: pytest.TempPathFactory, blocks: list[list[float]]) -> None:
+    """The span as it was taken block by block from the finite stamps only (the fast
+    path of wholly finite blocks gives the same)."""
+    w = store.EmgWriter(tmp_path_factory.mktemp("s") / "1.emgc", ["a"], 2000.0)
+    first: float | None = None
+    last: float | None = None
+    for stamps in blocks:
+        t = np.asarray(stamps, dtype=np.float64)
+        w.append(t, np.zeros((t.size, 1)))
+        fin = t[np.isfinite(t)]
+        if fin.size:
+            lo, hi = float(fin.min()), float(fin.max())
+            first = lo if first is None else min(first, lo)
+            last = hi if last is None else max(last, hi)
+    w.abort()
+    assert (w.first_t, w.last_t) == (first, last)

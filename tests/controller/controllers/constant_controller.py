@@ -13,7 +13,8 @@ from numba import njit
 from controller.config import ControllerConfig
 from controller.controllers.registry import PlanPlace, register
 from controller.controllers.spec import ControllerSpec
-from controller.kernel import Kernel, KernelController
+from controller.kernel.controller import KernelController
+from controller.kernel.core import Kernel
 from controller.kernel.entry_points import entry_points
 from controller.kernel.tick import NO_LOCK
 

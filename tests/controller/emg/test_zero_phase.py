@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
-from controller.emg.zero_phase import pad_length, zero_phase
+from controller.emg.zero_phase import CausalEnvelope, pad_length, zero_phase
 
 FS = 2000.0
 BANDPASS = np.vstack([signal.butter(4, [20, 450], btype="bandpass", fs=FS, output="sos"),
@@ -69,3 +69,26 @@ def test_padding_is_sosfiltfilts() -> None:
 def test_refuses_what_it_cannot_filter(src: np.ndarray, lanes: int, message: str) -> None:
     with pytest.raises((ValueError, TypeError), match=message):
         zero_phase(BANDPASS, src, np.zeros(src.shape), lanes=lanes)
+
+
+@settings(max_examples=15, deadline=None)
+@given(channels=st.integers(1, 19), seed=st.integers(0, 2**16),
+       cuts=st.lists(st.integers(0, 1500), max_size=6))
+def test_causal_envelope_is_sosfilt_twice_whatever_the_blocks(channels: int, seed: int,
+                                                              cuts: list[int]) -> None:
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((1500, channels)) * 1e-4 + rng.uniform(-5e-3, 5e-3, channels)
+    zi = signal.sosfilt_zi(BANDPASS)[:, :, None] * x[0][None, None, :]
+    y, _ = signal.sosfilt(BANDPASS, x, axis=0, zi=zi)
+    expected = signal.sosfilt(ENVELOPE, np.abs(y), axis=0)
+    live = CausalEnvelope(BANDPASS, ENVELOPE, channels)
+    bounds = [0, *sorted(cuts), 1500]
+    got = np.vstack([live.push(x[a:b]) for a, b in zip(bounds, bounds[1:], strict=False)])
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_causal_envelope_refuses_another_channel_count() -> None:
+    with pytest.raises(ValueError, match="at least one channel"):
+        CausalEnvelope(BANDPASS, ENVELOPE, 0)
+    with pytest.raises(ValueError, match=r"shape \(n, 3\)"):
+        CausalEnvelope(BANDPASS, ENVELOPE, 3).push(np.zeros((10, 2)))

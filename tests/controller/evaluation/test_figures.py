@@ -12,16 +12,11 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from controller.evaluation import (
-    RecordingEvaluation,
-    RenderedFigure,
-    controller_output_figure,
-    lifts_from_truth,
-    onset_to_lock_figure,
-    peak_torque_figure,
-    render_figure,
-)
-from controller.evaluation.timeline import confidence_ellipse
+from controller.evaluation.figures import onset_to_lock_figure, peak_torque_figure
+from controller.evaluation.lifts import lifts_from_truth
+from controller.evaluation.rendering import RenderedFigure, render_figure
+from controller.evaluation.study import RecordingEvaluation
+from controller.evaluation.timeline import confidence_ellipse, controller_output_figure
 from controller.tick_record import Action
 
 from .tick_builder import TickBuilder, lifting_recording
@@ -158,3 +153,75 @@ def test_controller_output_figure_draws_markers_inside_the_stretch() -> None:
     for ax in fig.axes[1:5]:
         xs = [ln.get_xdata()[0] for ln in ax.get_lines() if ln.get_linestyle() == "--"]
         assert xs == [pytest.approx(want)]
+
+
+def long_trial(n: int = 20_000) -> dict[str, np.ndarray]:
+    """A 200 s trial: noisy hip angles with one tick's spike, posteriors every tick,
+    two locks, and a gap where the controller computed nothing."""
+    rng = np.random.default_rng(5)
+    b = TickBuilder(n)
+    b.cols["q_left"][:] = np.radians(5.0 + rng.normal(0.0, 1.0, n))
+    b.cols["q_right"][:] = np.radians(5.0 + rng.normal(0.0, 1.0, n))
+    b.cols["q_left"][n * 5 // 8] = np.radians(60.0)
+    p = rng.uniform(0.0, 1.0, n)  # `TickBuilder.posterior` at every tick
+    for cat in ("squat", "stoop_left", "stoop_right", "other"):
+        b.cols[f"post_{cat}"][:] = p if cat == "squat" else (1.0 - p) / 3.0
+    for cat in ("squat", "stoop_left", "stoop_right", "other"):
+        b.cols[f"post_{cat}"][n * 2 // 5:n * 9 // 20] = np.nan
+    b.run(n * 3 // 20, Action.LOCK_BOTH)
+    b.run(n * 3 // 20 + 100, Action.NO_LOCK)
+    b.run(n * 3 // 4, Action.LOCK_LEFT)
+    return b.columns()
+
+
+def test_a_long_trial_is_drawn_from_few_samples_that_keep_every_peak() -> None:
+    cols = long_trial()
+    fig = controller_output_figure(cols, dpi=40)
+    ax_b, ax_c, _ax_d, ax_e = fig.axes[1:5]
+    t = cols["t"] - cols["t"][0]
+    for line, q in zip(ax_b.get_lines(), (cols["q_left"], cols["q_right"]), strict=True):
+        y = np.asarray(line.get_ydata(), dtype=np.float64)
+        assert y.size < 0.5 * q.size  # at most four samples a column
+        assert float(np.nanmax(y)) == float(np.degrees(q).max())
+        assert float(np.nanmin(y)) == float(np.degrees(q).min())
+    squat = ax_c.get_lines()[0]
+    y = np.asarray(squat.get_ydata(), dtype=np.float64)
+    assert y.size < 0.5 * t.size and int(np.isnan(y).sum()) == 1  # the gap stays one break
+    # The action steps where it changes; the lock strips span the held ticks.
+    action = ax_e.get_lines()[0]
+    assert list(action.get_ydata()) == [float(a) for a in (
+        Action.NO_LOCK, Action.LOCK_BOTH, Action.NO_LOCK, Action.LOCK_LEFT, Action.LOCK_LEFT)]
+    left, right = (c for c in ax_e.collections if c.get_label() in ("left held", "right held"))
+    spans = [(float(p.vertices[:, 0].min()), float(p.vertices[:, 0].max()))
+             for p in left.get_paths()]
+    assert spans == [pytest.approx((t[3_000], t[3_029])), pytest.approx((t[15_000], t[15_029]))]
+    assert len(right.get_paths()) == 1
+    check(render_figure(fig), 520, 320, dpi=40)
+
+
+def test_a_figure_draws_the_same_whichever_format_comes_first() -> None:
+    """Each format is drawn when asked for; a laid-out figure (`tight_layout`, as the
+    muscle figures are) is drawn without its layout pass, in either order."""
+    from controller.evaluation.muscle_figures import envelope_cycle_figure
+
+    def figure() -> RenderedFigure:
+        cycles = {"umc": {"n": 2, "mean": np.linspace(0.0, 1.0, 303).reshape(101, 3),
+                          "sd": np.full((101, 3), 0.05)}}
+        # Small (dpi 30): what is compared is the order, not the picture.
+        return render_figure(envelope_cycle_figure(cycles, ["a", "b", "c"], "MVC", dpi=30))
+
+    png_first, svg_first = figure(), figure()
+    png = png_first.png
+    assert svg_first.svg == png_first.svg and svg_first.png == png
+
+
+def test_line_markers_draw_without_a_warning() -> None:
+    import warnings
+
+    study = [lifting_recording("1", name, good=True, intent=False)
+             for name in ("springs_free", "no_exoskeleton")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for layout in ("panels", "single"):
+            check(render_figure(peak_torque_figure(study, layout=layout)),
+                  400 * (2 if layout == "panels" else 1), 420)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controller.evaluation import (
+from controller.evaluation.columns import TickData
+from controller.evaluation.lifts import (
     GaitTrial,
     Lift,
-    TickData,
     lift_kind,
     lifts_from_segments,
     lifts_from_truth,

@@ -9,19 +9,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.evaluation import (
+from controller.evaluation.lifts import GaitTrial, Lift, lifts_from_truth, trials_from_truth
+from controller.evaluation.metrics import (
     DecisionOutcome,
-    GaitTrial,
-    Lift,
     count_false_positives,
     evaluate_lift,
     evaluate_lifts,
-    evaluate_recording,
-    lifts_from_truth,
     lock_decisions,
     summarise_onset_to_lock,
-    trials_from_truth,
 )
+from controller.evaluation.study import evaluate_recording
 from controller.tick_record import Action
 
 from .tick_builder import TickBuilder

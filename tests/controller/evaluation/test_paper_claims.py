@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from controller.evaluation import GaitTrial, evaluate_recording, lifts_from_truth
 from controller.evaluation.columns import TickData
+from controller.evaluation.lifts import GaitTrial, lifts_from_truth
 from controller.evaluation.paper_claims import (
     CLAIMS,
     MARGIN_PER_10_LIFTS,
@@ -23,6 +23,7 @@ from controller.evaluation.paper_claims import (
     seed_measures,
     trial_data,
 )
+from controller.evaluation.study import evaluate_recording
 from controller.evaluation.verdicts import Verdict
 from controller.tick_record import Action
 

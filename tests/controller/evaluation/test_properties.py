@@ -8,16 +8,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controller.evaluation import (
-    FalsePositiveTable,
-    PerformanceTable,
-    count_false_positives,
-    evaluate_lifts,
-    evaluate_recording,
-    lift_table,
-    lifts_from_truth,
-    trials_from_truth,
-)
+from controller.evaluation.lifts import lifts_from_truth, trials_from_truth
+from controller.evaluation.metrics import count_false_positives, evaluate_lifts
+from controller.evaluation.study import evaluate_recording
+from controller.evaluation.tables import FalsePositiveTable, PerformanceTable, lift_table
 from controller.tick_record import Action
 
 from .tick_builder import TickBuilder

@@ -7,18 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller.evaluation import (
-    DecisionOutcome,
-    FalsePositiveTable,
-    PerformanceTable,
-    TickData,
-    evaluate_recording,
-    lifts_from_truth,
-    peak_torque_figure,
-    render_figure,
-    trials_from_truth,
-    whole_recording_trial,
-)
+from controller.evaluation.columns import TickData
+from controller.evaluation.figures import peak_torque_figure
+from controller.evaluation.lifts import lifts_from_truth, trials_from_truth, whole_recording_trial
+from controller.evaluation.metrics import DecisionOutcome
+from controller.evaluation.rendering import render_figure
+from controller.evaluation.study import evaluate_recording
+from controller.evaluation.tables import FalsePositiveTable, PerformanceTable
 
 from .tick_builder import simulate_pec
 

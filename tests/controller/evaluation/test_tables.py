@@ -7,12 +7,12 @@ import io
 
 import pytest
 
-from controller.evaluation import (
+from controller.evaluation.study import RecordingEvaluation
+from controller.evaluation.tables import (
     FalsePositiveTable,
     PerformanceTable,
     QuestionnaireScore,
     QuestionnaireTable,
-    RecordingEvaluation,
     Table,
     lift_table,
     onset_to_lock_table,

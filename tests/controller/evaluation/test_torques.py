@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from controller.evaluation import evaluate_lift, recompute_torques
+from controller.evaluation.metrics import evaluate_lift
+from controller.evaluation.torques import recompute_torques
 from controller.lowlevel.actuator import maccepa_torque
 
 from .tick_builder import TickBuilder

@@ -13,14 +13,8 @@ import numpy as np
 
 from controller.controllers.pec import PEC
 from controller.device.base import LockCommand
-from controller.evaluation import (
-    GaitTrial,
-    Lift,
-    LiftKind,
-    RecordingEvaluation,
-    evaluate_recording,
-    lifts_from_truth,
-)
+from controller.evaluation.lifts import GaitTrial, Lift, LiftKind, lifts_from_truth
+from controller.evaluation.study import RecordingEvaluation, evaluate_recording
 from controller.interface import Controller
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.tick_record import Action, TickRecord

@@ -12,7 +12,8 @@ from controller.controllers import pec
 from controller.controllers.factory import make_controller
 from controller.controllers.pec import PEC
 from controller.device.base import Sample
-from controller.kernel import ROW, ROW_FIELDS, Compiled, Kernel
+from controller.kernel.core import Compiled, Kernel
+from controller.kernel.records import ROW, ROW_FIELDS
 from controller.runner.replay import AngleRecording, replay_columns
 from controller.sim.recording import simulate_angles
 from controller.tick_record import TickFlag, TickRecord

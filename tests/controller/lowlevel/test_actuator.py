@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from scipy.optimize import brentq
 
 from controller.lowlevel.actuator import (
+    PAPER_ACTUATOR,
+    MaccepaParams,
     at_hard_stop,
     maccepa_torque,
     max_deflection,
@@ -97,3 +100,56 @@ def test_scalar_torque_model_equals_the_vectorised_one(p: float, a: float) -> No
     from controller.lowlevel.actuator import TorqueModel
 
     assert TorqueModel(p)(a) == pytest.approx(maccepa_torque(a, p), abs=1e-9)
+
+
+# -- the per-tick path against the code it replaced ----------------------------------------
+
+
+def _oracle_max_deflection(pct: float, p: MaccepaParams = PAPER_ACTUATOR) -> float:
+    """`max_deflection` as it was: the root found afresh on every call."""
+    room = p.max_compression_mm * (1.0 - pct / 100.0)
+    if room <= 0.0:
+        return 0.0
+    return float(brentq(lambda a: float(spring_elongation_mm(a, p)) - room, 0.0,
+                        math.radians(150.0), xtol=1e-10))
+
+
+def _oracle_torque(alpha: float, pct: float, p: MaccepaParams = PAPER_ACTUATOR) -> float:
+    """`maccepa_torque` of one deflection as it was: the array code on a 0-d array."""
+    a = np.asarray(alpha, dtype=np.float64)
+    a_c = np.clip(a, 0.0, _oracle_max_deflection(pct, p))
+    B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
+    i = C * np.cos(a_c) - B
+    h = C * np.sin(a_c) - R
+    e = np.sqrt(i * i + h * h - R * R)
+    lam = np.pi / 2 - np.arctan(e / R) + np.arctan2(h, i)
+    elong = e + R * lam - (C - B)
+    force = p.stiffness_n_per_mm * (p.max_compression_mm * pct / 100.0 + elong)
+    return float(np.where(a > 0.0, force * C * np.sin(lam - a_c) / 1000.0, 0.0))
+
+
+_OTHER = MaccepaParams(lever_arm_mm=12.0, roller_distance_mm=28.0, disk_radius_mm=6.0,
+                       stiffness_n_per_mm=40.0)
+
+
+@given(st.floats(0.0, 100.0), st.floats(-0.5, 3.0), st.sampled_from([PAPER_ACTUATOR, _OTHER]))
+def test_one_deflection_gives_the_bits_of_the_array_code(
+    p: float, a: float, params: MaccepaParams
+) -> None:
+    assert max_deflection(p, params) == _oracle_max_deflection(p, params)
+    want = _oracle_torque(a, p, params)
+    assert maccepa_torque(a, p, params) == want
+    assert maccepa_torque(np.float64(a), p, params) == want
+    assert float(maccepa_torque(np.array([a]), p, params)[0]) == want
+
+
+@pytest.mark.parametrize("p", [0.0, 25.0, 60.0, 100.0])
+def test_one_deflection_gives_the_bits_of_the_array_code_at_and_past_the_limit(
+    p: float
+) -> None:
+    top = _oracle_max_deflection(p)
+    for a in (top, math.nextafter(top, 0.0), math.nextafter(top, 9.0), top + 1.0, math.inf,
+              5e-324, 0.0, -0.0, -math.inf):
+        assert maccepa_torque(a, p) == _oracle_torque(a, p), a
+    with pytest.raises(ValueError, match="NaN"):
+        maccepa_torque(math.nan, p)

@@ -7,7 +7,6 @@ import pytest
 
 from controller.device.base import SAMPLE_PERIOD_S
 from controller.sim.activities import (
-    ACTIVITY_CODE,
     GaitPiece,
     draw_lift,
     gait,
@@ -16,6 +15,7 @@ from controller.sim.activities import (
     stand,
     walk_amplitude,
 )
+from controller.sim.activity_kinds import ACTIVITY_CODE
 from controller.sim.participant import VirtualParticipant
 
 PEOPLE = [VirtualParticipant.from_seed(s) for s in range(12)]

@@ -10,7 +10,7 @@ import pytest
 from controller.device.base import LockCommand, Status
 from controller.lowlevel.actuator import maccepa_torque
 from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
-from controller.sim.activities import ACTIVITIES
+from controller.sim.activity_kinds import ACTIVITIES
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.sim.participant import VirtualParticipant
 

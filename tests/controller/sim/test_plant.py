@@ -7,11 +7,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from controller.device.base import Status
 from controller.lowlevel.actuator import maccepa_torque, max_deflection
-from controller.lowlevel.encoders import DEFAULT_LAYOUT
-from controller.sim.plant import EncoderModel, ExoPlant, HipModule
+from controller.lowlevel.encoders import DEFAULT_LAYOUT, EncoderLayout
+from controller.sim.plant import CAM, OUTPUT, EncoderModel, ExoPlant, HipModule
 
 D = math.radians
 PITCH = D(9.0)
@@ -226,3 +228,43 @@ def test_plant_status_equals_the_reference_models_on_both_sides() -> None:
         seen |= status
     assert seen & Status.LOCKED_LEFT and seen & Status.LOCKED_RIGHT
     assert seen & Status.HARD_STOP_LEFT and seen & Status.HARD_STOP_RIGHT
+
+
+def _reference_counts(plant: ExoPlant, noise: tuple[float, float, float, float]
+                      ) -> tuple[int, int, int, int]:
+    """`ExoPlant.counts` as it was in Python: angle + non-linearity + noise, encoded."""
+    enc = plant.encoders
+    a = plant.link_angles()
+    m = [a[i] + enc.error(i, a[i]) + enc.noise_rad * noise[i] for i in range(4)]
+    return plant.layout.encode(m[0], m[1], m[2], m[3])
+
+
+@given(
+    st.lists(st.floats(-7.0, 7.0), min_size=4, max_size=4),
+    st.lists(st.floats(-6.0, 6.0), min_size=4, max_size=4),
+    st.sampled_from([EncoderModel.from_seed(), EncoderModel.from_seed(11),
+                     EncoderModel.ideal()]),
+    st.sampled_from([DEFAULT_LAYOUT, EncoderLayout((0, 16383, 5, 8191), (-1, 1, 1, -1))]),
+)
+def test_compiled_counts_equal_the_python_encoder_model(
+    angles: list[float], noise: list[float], enc: EncoderModel, layout: EncoderLayout
+) -> None:
+    plant = ExoPlant(25.0, layout, enc)
+    plant.state[0, OUTPUT], plant.state[0, CAM], plant.state[1, OUTPUT], plant.state[1, CAM] = (
+        angles)
+    drawn = (noise[0], noise[1], noise[2], noise[3])
+    assert plant.counts(drawn) == _reference_counts(plant, drawn)
+
+
+def test_status_is_the_flag_of_the_bits_the_compiled_step_returns() -> None:
+    plant = ExoPlant(25.0)
+    plant.reset(0.0, 0.0)
+    seen = set()
+    for k, a in enumerate(np.concatenate([ramp(0, 100, 300), ramp(100, 0, 300)] * 3)):
+        lock = (k // 40) % 3 != 0
+        status = plant.step(lock, (k // 70) % 2 == 0, float(a), float(a) * 0.9)
+        assert type(status) is Status
+        bits = int(status)
+        assert status == Status(bits)
+        seen.add(bits)
+    assert len(seen) > 4

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controller.sim.activities import ACTIVITIES
+from controller.sim.activity_kinds import ACTIVITIES
 from controller.sim.exoskeleton import SimulatedExoskeleton
 from controller.sim.recording import CSV_COLUMNS, simulate_angles, simulate_to_csv
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from controller.device.base import SAMPLE_PERIOD_S
-from controller.sim.activities import ACTIVITIES
+from controller.sim.activity_kinds import ACTIVITIES
 from controller.sim.participant import VirtualParticipant
 from controller.sim.scripts import SCRIPT_NAMES, Trajectory, get_script, realise
 
