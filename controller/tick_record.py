@@ -201,7 +201,7 @@ def _slot_setting_init() -> Callable[..., None]:
         scope[f"_set_{f.name}"] = getattr(TickRecord, f.name).__set__
         body.append(f"    _set_{f.name}(self, {f.name})")
     source = f"def __init__(self, {', '.join(params)}):\n" + "\n".join(body) + "\n"
-    exec(source, scope)  # noqa: S102 - our own field names, checked above
+    exec(source, scope)  # our own field names, checked above
     init: Callable[..., None] = scope["__init__"]
     original = TickRecord.__init__
     init.__qualname__ = original.__qualname__

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import pytest
 from hypothesis import given
@@ -45,12 +46,12 @@ def _same(a: tuple[object, ...], b: tuple[object, ...]) -> bool:
 @given(st.fixed_dictionaries({n: _VALUE[t] for n, t in _TYPES.items()}), st.integers(0, 55),
        st.booleans())
 def test_construction_stores_what_the_dataclass_init_stores(
-    values: dict[str, object], given_n: int, by_keyword: bool
+    values: dict[str, Any], given_n: int, by_keyword: bool
 ) -> None:
     names = TickRecord.field_names()
     chosen = {n: values[n] for n in names[:max(2, given_n)]}  # seq and t are required
     if by_keyword:
-        got, want = TickRecord(**chosen), _Oracle(**chosen)  # type: ignore[arg-type]
+        got, want = TickRecord(**chosen), _Oracle(**chosen)
     else:
         got, want = TickRecord(*chosen.values()), _Oracle(*chosen.values())
     assert _same(got.as_tuple(), dataclasses.astuple(want))

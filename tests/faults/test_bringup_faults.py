@@ -14,6 +14,7 @@ from controller.device.auth import load_or_create_key
 from controller.device.base import Sample, Status
 from controller.device.protocol import CommandPacket, ProtocolError, decode_frame
 from controller.lowlevel.encoders import DEFAULT_LAYOUT
+from tests.faults.busy import Spinners
 from tests.faults.device_rig import Proxy, device_process
 from tests.polling import free_udp_port, wait_for
 
@@ -31,7 +32,11 @@ def _decoded(datagrams: list[bytes], key: bytes) -> list[object]:
 
 
 def test_worker_killed_mid_pulse_the_device_watchdog_releases(
-        tmp_path: Path, device_implementation: str, busy_cores: int) -> None:
+        tmp_path: Path, device_implementation: str, spinners: Spinners) -> None:
+    """Every core is busy from the pulse request on: the pulse, the kill and the
+    watchdog's release happen under load. The device and the worker start before it
+    (under two busy loops their start took 11-12 s of the test's 13 here, and how fast
+    they start is not what this test asserts)."""
     key_file = tmp_path / "device.key"
     key = load_or_create_key(key_file)
     port = free_udp_port()
@@ -46,6 +51,7 @@ def test_worker_killed_mid_pulse_the_device_watchdog_releases(
         try:
             wait_for(lambda: (st := sup.state.status) is not None and st.device.alive, 90,
                      "the device to stream")
+            spinners.start()
             sup.request_bringup(BringupPulse("left", 0.3, DEFAULT_LAYOUT.offsets,
                                              DEFAULT_LAYOUT.directions, 2.0))
 

@@ -19,12 +19,13 @@ test_personalisation_api.py` for prior sets, and the worker route here).
 
 The wearer is the worker's own simulated device, sped up (`SIM_SPEED`), not a device
 process on UDP paced at 100 Hz: a lock decision depends on the samples and the priors,
-never on when a sample arrives, and a sped-up simulation delivers every sample in order
-(it waits for the worker, `backend.worker.machine.hold`), so the worker decides on
-exactly the 2,000 ticks of device time per run it would at real time, in about a
-tenth of the wall time. What the UDP link itself can do to a lock (late, forged,
-replayed or dropped packets) is tested on device processes in test_protocol_faults.py
-and test_link_attacks.py."""
+never on when a sample arrives, and a sped-up simulation skips no sample (a reader
+that falls behind gets the samples due meanwhile, in order: `SimulatedDevice.read`;
+it waits for a server that falls behind: `backend.worker.machine.hold`). So the worker
+decides on the same 2,000 ticks of device time per run as at real time, and the two
+runs of a test take about 2 s instead of 40. What the UDP link itself can do to a lock
+(late, forged, replayed or dropped packets) is tested on device processes in
+test_protocol_faults.py and test_link_attacks.py."""
 
 from __future__ import annotations
 
@@ -58,8 +59,8 @@ pytestmark = pytest.mark.slow
 
 #: Ticks per run (device time: 20 s of the wearer's movement).
 RUN_TICKS = 2000
-#: The simulated wearer this many times faster than real time (it waits whenever the
-#: worker falls behind, so every tick is decided on however busy the machine is).
+#: The simulated wearer this many times faster than real time (it skips no sample when
+#: the worker falls behind, so every tick is decided on however busy the machine is).
 SIM_SPEED = 20.0
 STOOP_LEFT_SKEW = (0.05, 0.8, 0.05, 0.1)
 

@@ -7,9 +7,9 @@ real tick counts.
 
 The simulated wearer runs sped up (`SIM_SPEED`) where a test waits on the wearer's
 movement: what these tests assert is which controller runs and what is stored, never
-when a sample arrives, and a sped-up simulation delivers every tick in order (it waits
-for the database, `Runtime._wait_for_recorder`), so the same squats are seen in a
-fraction of the wall time.
+when a sample arrives, and a sped-up simulation skips no tick (a late reader gets the
+samples due meanwhile, in order; it waits for the database, `Runtime.
+_wait_for_recorder`), so the same squats are seen in an eighth of the wall time.
 """
 
 from __future__ import annotations

@@ -168,9 +168,11 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
         assert len(mine) == int(row["lifts"])
         assert sum(o.decision.value == "correct" for o in mine) == int(row["correct"])
         assert sum(bool(o.recognised) for o in mine) == int(row["recognised"])
+    # Every measure at its smallest; with `from_db`, `participants` sizes only the muscle
+    # section's EMG cohort (as small as `test_replication.py`'s).
     rep = replicate(ReplicationConfig(out=tmp_path / "rep", from_db=(out / "study.db",) * 2,
-                                      offset_participants=4, stair_participants=2,
-                                      personalisation_participants=0),
+                                      participants=2, eumc=1, offset_participants=4,
+                                      stair_participants=2, personalisation_participants=0),
                     log=lambda _m: None)
     assert [s.source for s in rep.seeds] == ["from-db", "from-db"]
     assert (tmp_path / "rep" / "report.html").is_file()

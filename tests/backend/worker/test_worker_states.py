@@ -498,3 +498,22 @@ def test_the_real_worker_refuses_what_a_running_trial_does_not_take() -> None:
     finally:
         sup.stop()
     assert not sup.state.alive and sup.state.exit_code == 0
+
+
+def test_the_loops_command_check_answers_as_connection_poll_does() -> None:
+    """The loop asks the pipe once per tick through a registered poll (`_poller`), not
+    `Connection.poll`: it must see a command, nothing, and the server's end alike."""
+    from backend.worker.machine import _poller
+
+    a, b = mp.Pipe(duplex=False)
+    waiting = _poller(a)
+    assert (waiting(), a.poll()) == (False, False)
+    b.send(StopWorker("test"))
+    assert (waiting(), a.poll()) == (True, True)
+    a.recv()
+    assert (waiting(), a.poll()) == (False, False)
+    b.close()  # the server is gone: `receive` meets the end of the pipe
+    assert (waiting(), a.poll()) == (True, True)
+    with pytest.raises(EOFError):
+        a.recv()
+    a.close()

@@ -141,7 +141,7 @@ def test_counts_round_trip_through_the_layout_within_the_noise() -> None:
     for a in rng.uniform(-0.5, 2.0, 3000):
         plant.reset(float(a), float(a))
         noise = tuple(float(x) for x in rng.standard_normal(4))
-        got = DEFAULT_LAYOUT.joint_angles(plant.counts(noise))  # type: ignore[arg-type]
+        got = DEFAULT_LAYOUT.joint_angles(plant.counts(noise))
         nl = enc.error(0, float(a))
         errors.append(got[0] - a - nl)
         nonlin.append(nl)
