@@ -20,6 +20,7 @@ BENCHES = [
     ("replay of a 10-minute recording", ["bench_replay.py"]),
     ("simulation speed", ["bench_simulation.py"]),
     ("CSV export of a 10-minute trial", ["bench_export.py"]),
+    ("result figures: controller output and muscle envelopes", ["bench_figures.py"]),
     ("tick recorder into SQLite", ["bench_recorder.py"]),
     ("a tick from the worker to a database row: records vs one block",
      ["bench_tick_transport.py"]),
