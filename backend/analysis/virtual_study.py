@@ -151,6 +151,11 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
             segment_ids = collect(d, cfg, first)
             report.phases["data collection"] = time.monotonic() - t0
             t0 = time.monotonic()
+            # No recording runs while the sets are fitted: the simulated wearer at real
+            # time, or its sped-up ticks (stored, never read) compete with the jobs for
+            # the cores (at 400x the phase took 5-14 s instead of 2-5 s). Each trial sets
+            # its own wearer and speed.
+            d.simulate(cfg.eval_seed(0), cfg.eval_script, 1.0)
             ms = ok(client.post(f"/api/studies/{first}/model-sets", json={
                 "name": "virtual data collection", "segment_ids": segment_ids}), 202)
             us = ok(client.post(f"/api/studies/{first}/utility-sets", json={

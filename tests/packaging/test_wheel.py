@@ -153,8 +153,8 @@ def served(installed: Installed) -> Iterator[str]:
     """`exostudy serve` from the wheel, with its worker and a spawned UDP simulator.
 
     One test's: kept for the module, the server, its worker and the simulator went on
-    ticking at 100 Hz through the virtual study and the cohort (about 20 s of CPU, and
-    they competed with the study for the machine's cores)."""
+    ticking at 100 Hz through the virtual study and the cohort (10 to 20 s of CPU alone,
+    more on a loaded machine, and they competed with the study for the cores)."""
     installed.run("db", "upgrade")
     installed.run("user", "add", "wheel", "--admin", stdin=PASSWORD + "\n")
     port = free_tcp_port()
