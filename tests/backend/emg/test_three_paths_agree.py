@@ -125,7 +125,11 @@ def _live(client: TestClient, settings: Settings, session: int, x: np.ndarray
 
 def _samples(settings: Settings, rec: dict[str, Any]) -> np.ndarray:
     t, got = store.read_window(store.recording_path(settings, rec["id"]))
-    np.testing.assert_allclose(np.diff(t), 1 / FS, atol=2e-5)  # in order, no gaps
+    # In order, no gaps: a lost sample makes a step of 1 ms, a reordered one a negative
+    # step. The server adds liblsl's running estimate of the sender's clock offset,
+    # re-read at every pull; on a loaded machine a re-estimate moved it by 27 us between
+    # two pulls (a fresh-clone run, 2026-11-27), so steps may be off by a fifth of a period.
+    np.testing.assert_allclose(np.diff(t), 1 / FS, atol=1e-4)
     return got
 
 
