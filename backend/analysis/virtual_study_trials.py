@@ -36,9 +36,11 @@ def gaps(engine: Any, run_id: int) -> tuple[int, int]:
     return int(t.size), int(np.count_nonzero(dt > 0.015))
 
 
-def evaluate(d: Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id: int,
-             us_id: int, report: VirtualStudyReport, engine: Any) -> None:
-    """Every evaluation participant: both rate settings' trials, back to back."""
+def evaluate(d: Driver, cfg: VirtualStudyConfig, studies: dict[str, int],
+             sets: dict[int, tuple[int, int]], report: VirtualStudyReport,
+             engine: Any) -> None:
+    """Every evaluation participant: both rate settings' trials, back to back. `sets`:
+    each study's (model set, utility set), which a trial must take from its own study."""
     for j in range(cfg.participants):
         seed = cfg.eval_seed(j)
         code = f"P{j + 1:02d}"
@@ -49,6 +51,7 @@ def evaluate(d: Driver, cfg: VirtualStudyConfig, studies: dict[str, int], ms_id:
                             json=participant_body(seed, code)), 201)
             sess = ok(d.c.post(f"/api/participants/{p['id']}/sessions",
                                json={"kind": "evaluation", "precompression_pct": 25}), 201)
+            ms_id, us_id = sets[study_id]
             body: dict[str, Any] = {"tasks": [cfg.eval_script], "model_set_id": ms_id,
                                     "utility_set_id": us_id, "include_eumc": j < cfg.eumc}
             if cfg.emg and label == cfg.rates[0]:
