@@ -176,3 +176,23 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
                     log=lambda _m: None)
     assert [s.source for s in rep.seeds] == ["from-db", "from-db"]
     assert (tmp_path / "rep" / "report.html").is_file()
+
+
+def test_both_rate_settings_run_each_on_its_own_studys_sets(
+        tmp_path: Path) -> None:
+    """The command's default, two rate settings as two studies: a trial must take its
+    model and utility sets from its participant's study, so each study fits its own
+    (the default run once failed at its first 100 Hz trial with a 409). The smallest
+    such study: one participant, lifts only."""
+    cfg = VirtualStudyConfig(out=tmp_path / "vs", participants=1, data_participants=2,
+                             eumc=0, seed=7, speed=30.0, rates=("paper-rates", "100hz"),
+                             margin_s=4.0, eval_script="lift-evaluation",
+                             model_evaluation=False)
+    report = run(cfg, log=lambda _m: None)
+    assert sorted(report.studies) == ["100hz", "paper-rates"]
+    got = sorted((t.study, t.controller) for t in report.trials)
+    assert got == [("100hz", "pec"), ("100hz", "umc"), ("paper-rates", "pec"),
+                   ("paper-rates", "umc")]
+    assert all(t.gaps == 0 and t.ticks > 0 for t in report.trials)
+    for label in report.studies:
+        assert (cfg.out / label / "performance.csv").stat().st_size > 0
