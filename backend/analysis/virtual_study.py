@@ -28,8 +28,9 @@ Protocol (paper, "User study set-up"), and the choices made here:
 - Rates: two studies with the same virtual participants (same seeds, same order):
   "paper rates" (UMC 10 Hz, PEC 100 Hz, E-UMC 100/10 Hz) and "100 Hz" (every
   controller at 100 Hz, `{"rate_hz": 100}` at trial start). Two studies rather than two
-  sessions keep each study's results endpoint to one rate setting. The model set and
-  utility set belong to the first study and are used by both.
+  sessions keep each study's results endpoint to one rate setting. A trial takes its
+  sets from its participant's study, so each study records the same demonstrations
+  (same seeds) and fits its own model and utility sets; the outputs name the first's.
 - A trial runs for one repetition of the script plus `margin_s` of device time: a
   timed trial (`duration_s`), which the worker ends by itself after that many samples,
   so neither a worker that falls behind the requested speed nor a server that is slow
