@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 from numba import njit
@@ -97,16 +97,7 @@ def maccepa_torque(
     pre = p.max_compression_mm * pct / 100.0
     a_lim = max_deflection(pct, p)
     a_c = np.clip(a, 0.0, a_lim)
-    B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
-    i = C * np.cos(a_c) - B
-    h = C * np.sin(a_c) - R
-    e = np.sqrt(i * i + h * h - R * R)
-    lam = np.pi / 2 - np.arctan(e / R) + np.arctan2(h, i)
-    kappa = lam - a_c
-    elong = e + R * lam - (C - B)
-    force = p.stiffness_n_per_mm * (pre + elong)  # N
-    torque = force * C * np.sin(kappa) / 1000.0  # N mm -> N m
-    torque = np.where(a > 0.0, torque, 0.0)
+    torque = np.where(a > 0.0, _clipped_torque(a_c, pre, p), 0.0)
     if scalar:
         return float(torque)
     return np.asarray(torque, dtype=np.float64)
@@ -124,6 +115,13 @@ def _scalar_torque(alpha: float, pct: float, p: MaccepaParams) -> float:
     a_lim = max_deflection(pct, p)
     a_c = np.float64(alpha if alpha < a_lim else a_lim)  # np.clip of a positive value
     pre = p.max_compression_mm * pct / 100.0
+    return float(_clipped_torque(a_c, pre, p))
+
+
+def _clipped_torque(a_c: Any, pre: float, p: MaccepaParams) -> Any:
+    """The mechanism's torque (Nm) at clipped deflections `a_c` (a NumPy scalar or an
+    array: the same ufuncs either way, so both paths give the same bits) with
+    precompression `pre` (mm)."""
     B, C, R = p.lever_arm_mm, p.roller_distance_mm, p.disk_radius_mm
     i = C * np.cos(a_c) - B
     h = C * np.sin(a_c) - R
@@ -132,7 +130,7 @@ def _scalar_torque(alpha: float, pct: float, p: MaccepaParams) -> float:
     kappa = lam - a_c
     elong = e + R * lam - (C - B)
     force = p.stiffness_n_per_mm * (pre + elong)  # N
-    return float(force * C * np.sin(kappa) / 1000.0)  # N mm -> N m
+    return force * C * np.sin(kappa) / 1000.0  # N mm -> N m
 
 
 def max_deflection(precompression_pct: float, params: MaccepaParams = PAPER_ACTUATOR) -> float:
