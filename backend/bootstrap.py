@@ -42,23 +42,24 @@ def ensure_utilities(path: Path, precompression_pct: float) -> UtilitySet:
     """Load the utility set at `path`, computing it from the reference dataset if missing
     or if it was computed from another version of the dataset or another `other` rule."""
     # The reference dataset's generator (the simulator's activities, SciPy) only when the
-    # utilities are checked, not whenever the server is imported.
-    from controller.sim.human_dataset import reference_dataset
+    # utilities are checked, not whenever the server is imported; the data themselves
+    # only when the utilities must be computed (every server start checks them).
+    from controller.sim.human_dataset import reference_dataset, reference_version
 
-    human = reference_dataset()
     if path.is_file():
         try:
             cached = UtilitySet.load(path)
         except (ValueError, KeyError) as exc:
             log.warning("rebuilding %s: %s", path, exc)
         else:
-            if (cached.human_version == human.version
+            if (cached.human_version == reference_version()
                     and cached.meta.get("other_rule") == DEFAULT_OTHER_RULE
                     and cached.precompression_pct == precompression_pct):
                 return cached
             log.info("rebuilding %s: computed from other data or rules", path)
     log.info("computing default utilities for %.1f %% precompression -> %s",
              precompression_pct, path)
+    human = reference_dataset()
     utilities = compute_utilities(human, precompression_pct)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")

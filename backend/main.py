@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import asyncio
+import functools
 import ipaddress
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import Depends, FastAPI
+from fastapi import APIRouter, Depends, FastAPI
 from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import Engine
+from starlette.routing import BaseRoute
 from sqlalchemy.orm import Session, sessionmaker
 
 from backend import console_pages
@@ -118,6 +120,38 @@ def create_demo(runtime: Runtime, settings: Settings, sessions: sessionmaker[Ses
             demo.ensure_demo(db, *runtime.defaults, settings.precompression_pct)
 
 
+#: Every router of the app, included without a prefix, in matching order.
+ROUTERS: tuple[APIRouter, ...] = (
+    health.router, worker.router, hardware.router, live.router, auth.router,
+    auth.users, studies.router, participants.router, sessions.router,
+    questionnaires.router, preferences.router, participant_forms.router,
+    participant_forms.pages, audit.router, recordings.router, model_sets.router,
+    personalisation.router, trials.router, trial_segments.router, lab.router,
+    emg.router, results.router, wearers.router, cohorts.router, replication.router,
+    vocabulary.router, device_grants.router, console_pages.router, guide.router,
+    viewer.router,
+)
+
+
+@functools.cache
+def included_routes() -> tuple[BaseRoute, ...]:
+    """`ROUTERS` included once per process, for every app it builds.
+
+    FastAPI (0.16x) builds an included route's context (its dependencies, request and
+    response models, validators) the first time a request or the schema walks it, and
+    keeps it in the inclusion: about 0.1 s of CPU per router, paid again by every new app
+    that includes the routers itself. A process builds many apps only in tests (one per
+    test, hundreds per run), but the built contexts hold nothing of an app: the access
+    check is the same function for all (`authorize`, as the app's own dependency), and
+    the request's app is reached through the request. One difference from
+    `app.include_router`: `app.dependency_overrides` does not reach these routes (their
+    inclusion belongs to no app); nothing here overrides dependencies."""
+    parent = APIRouter(dependencies=[Depends(authorize)])
+    for router in ROUTERS:
+        parent.include_router(router)
+    return tuple(parent.routes)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app. Migrations are applied at start-up, so a fresh clone just works."""
     settings = settings or get_settings()
@@ -200,22 +234,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(web_surface.SecurityHeaders)
     docs_assets.install(app, settings.frontend_dir)
     install_handlers(app)
-    routers = [
-        health.router, worker.router, hardware.router, live.router, auth.router,
-        auth.users, studies.router, participants.router, sessions.router,
-        questionnaires.router, preferences.router, participant_forms.router,
-        participant_forms.pages, audit.router, recordings.router, model_sets.router,
-        personalisation.router, trials.router, trial_segments.router, lab.router,
-        emg.router, results.router, wearers.router, cohorts.router, replication.router,
-        vocabulary.router, device_grants.router, console_pages.router, guide.router,
-        viewer.router,
-    ]
-    for router in routers:
-        app.include_router(router)
+    app.router.routes.extend(included_routes())
     document_framework_errors(app)
     document_access(app)
-    name_operations(app, routers)  # operationIds: the console client's names
-    upload_paths.extend(web_surface.file_routes(api_routes(app, routers)))
+    name_operations(app, ROUTERS)  # operationIds: the console client's names
+    upload_paths.extend(web_surface.file_routes(api_routes(app, ROUTERS)))
 
     static = settings.frontend_dir / "static"
     uplot = settings.frontend_dir / "node_modules" / "uplot" / "dist"

@@ -32,7 +32,21 @@ def test_version_changes_with_the_generator(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(human_dataset, "GENERATOR_VERSION", "changed")
     assert human_dataset.generator_version(seed=0) != before
     monkeypatch.setattr(human_dataset.inspect, "getsource", lambda obj: "changed")
-    assert human_dataset.generator_version(seed=0) != before
+    # The source is read once per process: a new source is a new process's.
+    human_dataset._generator_source.cache_clear()
+    try:
+        assert human_dataset.generator_version(seed=0) != before
+    finally:
+        human_dataset._generator_source.cache_clear()
+
+
+def test_the_version_is_known_without_the_data(data: HumanMotionData) -> None:
+    """A cache of derived data (the server's default utilities) is checked against
+    `reference_version`, which must name exactly the data `reference_dataset` gives."""
+    assert human_dataset.reference_version(0, 8, 3) == data.version
+    assert human_dataset.reference_version(0, 8, 3, 5.0) == reference_dataset(
+        seed=0, participants=8, repetitions=3, box_kg=5.0).version
+    assert human_dataset.reference_version() != data.version
 
 
 def test_lifts_look_like_the_papers_mean_trajectories(data: HumanMotionData) -> None:
