@@ -46,7 +46,6 @@ from controller.evaluation.tables import (
     onset_to_lock_table,
 )
 from controller.intent.motion_model import ModelSet
-from controller.tick_codec import FIELD_NAMES
 
 if TYPE_CHECKING:
     from controller.evaluation.rendering import RenderedFigure
@@ -157,22 +156,25 @@ class StudyResults:
 # --------------------------------------------------------------------------- one trial
 
 
-def trial_columns(engine: Engine, trial: Trial) -> TickData:
-    """The trial's stored ticks as checked columns (empty if it never ran)."""
-    if trial.run_id is None:
-        return TickData({})
-    run_id = trial.run_id
-    # Each column is read when an output first needs it: the tables read a handful of
-    # the 55, and reading one is a fraction of the cost of reading all. Up to the last
-    # tick stored now, so every column has the same ticks.
-    last = tick_queries.tick_id_range(engine, run_id)[1]
-    if last is None:
-        return TickData({})
-    t = tick_queries.columns(engine, run_id, last_id=last, fields=("t",))["t"]
-    return TickData.on_demand(
-        len(t), FIELD_NAMES,
-        lambda name: tick_queries.columns(engine, run_id, last_id=last, fields=(name,))[name],
-    ).with_columns({"t": t})
+#: The tick fields `ground_truth` reads. A caller of `trial_columns` names the fields
+#: it reads, to have them in one query (`tick_queries.run_ticks`); any other is read when
+#: first needed.
+GROUND_TRUTH_FIELDS = ("t", "truth_activity", "truth_lift")
+#: The tick fields a trial's evaluation reads (`ground_truth`, `evaluate_recording`).
+EVALUATION_FIELDS = (*GROUND_TRUTH_FIELDS, "controller_ran", "action", "lock_left",
+                     "lock_right", "torque_left", "torque_right", "post_squat",
+                     "post_stoop_left", "post_stoop_right")
+#: The tick fields the timeline figure reads (its ground truth and five panels).
+TIMELINE_FIELDS = (*GROUND_TRUTH_FIELDS, "q_left", "q_right", "action", "lock_left",
+                   "lock_right", "post_squat", "post_stoop_left", "post_stoop_right",
+                   "post_other", "s_curr_squat", "s_curr_stoop_left", "s_curr_stoop_right")
+
+
+def trial_columns(engine: Engine, trial: Trial, fields: Sequence[str] = ()) -> TickData:
+    """The trial's stored ticks as checked columns (empty if it never ran): `fields`
+    (what the caller reads) in one query, any other field when first needed (an output
+    reads a handful of the 55), up to the last tick stored now."""
+    return tick_queries.run_ticks(engine, trial.run_id, fields)
 
 
 def trial_segments(db: Session, trial_id: int) -> list[tuple[int, int, str]]:
@@ -192,7 +194,7 @@ def _participant_of(db: Session, trial: Trial) -> Participant:
 
 def evaluate_trial(engine: Engine, db: Session, trial: Trial) -> TrialResult:
     """Evaluate one stored trial against its ground truth."""
-    cols = trial_columns(engine, trial)
+    cols = trial_columns(engine, trial, EVALUATION_FIELDS)
     truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     part = _participant_of(db, trial)
     ev = evaluate_recording(cols, part.code, trial.controller, truth.lifts, truth.gait,
@@ -352,7 +354,7 @@ def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure
     # Matplotlib and SciPy only when a figure is drawn: importing them costs every start.
     from controller.evaluation.rendering import render_figure
     from controller.evaluation.timeline import controller_output_figure
-    cols = trial_columns(engine, trial)
+    cols = trial_columns(engine, trial, TIMELINE_FIELDS)
     if len(cols) == 0:
         raise ResultsError("status", f"trial {trial.id} has no stored ticks")
     truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))

@@ -159,11 +159,10 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
                 segment_ids = collect(d, cfg, study_id)
                 collection_s += time.monotonic() - t0
                 t0 = time.monotonic()
-                # No recording runs while the sets are fitted: the simulated wearer at
-                # real time, or its sped-up ticks (stored, never read) compete with the
-                # jobs for the cores (at 400x the phase took 5-14 s instead of 2-5 s).
-                # Each trial sets its own wearer and speed.
-                d.simulate(cfg.eval_seed(0), cfg.eval_script, 1.0)
+                # No recording runs while the sets are fitted: `collect` left the
+                # simulated wearer at real time, or its sped-up ticks (stored, never
+                # read) would compete with the jobs for the cores (at 400x the phase took
+                # 5-14 s instead of 2-5 s). Each trial sets its own wearer and speed.
                 ms = ok(client.post(f"/api/studies/{study_id}/model-sets", json={
                     "name": "virtual data collection", "segment_ids": segment_ids}), 202)
                 us = ok(client.post(f"/api/studies/{study_id}/utility-sets", json={
@@ -180,10 +179,8 @@ def run(cfg: VirtualStudyConfig, log: Callable[[str], None] = print) -> VirtualS
             evaluate(d, cfg, studies, sets, report, app.state.engine)
             report.phases["evaluation"] = time.monotonic() - t0
             t0 = time.monotonic()
-            # No trial runs any more: the simulated wearer back to real time, or the
-            # worker would go on producing (and the server storing) 100x ticks nobody
-            # reads while the outputs are computed (a third of their time, profiled).
-            d.simulate(cfg.eval_seed(0), cfg.eval_script, 1.0)
+            # `evaluate` left the simulated wearer at real time: no sped-up ticks nobody
+            # reads while the outputs are computed.
             write_outputs(d, cfg, studies, *sets[first], report)
             report.phases["tables and figures"] = time.monotonic() - t0
     finally:

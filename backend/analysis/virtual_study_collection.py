@@ -15,8 +15,15 @@ from controller.device.base import SAMPLE_PERIOD_S
 
 
 def collect(d: Driver, cfg: VirtualStudyConfig, study_id: int) -> list[int]:
-    """Record and segment every data-collection participant; the segment ids."""
-    segment_ids: list[int] = []
+    """Record every data-collection participant, then segment the recordings; the
+    segment ids.
+
+    The recordings are segmented once all are made and the simulated wearer is back at
+    real time (that of the evaluation's first participant, as the fitting of the sets
+    after this wants): segmenting between recordings left the sped-up simulation
+    running, its ticks stored and never read (a tenth of a small study's ticks). Same
+    recordings, segmented in the same order."""
+    recordings: list[int] = []
     for i in range(cfg.data_participants):
         seed = cfg.data_seed(i)
         p = ok(d.c.post(f"/api/studies/{study_id}/participants",
@@ -34,8 +41,13 @@ def collect(d: Driver, cfg: VirtualStudyConfig, study_id: int) -> list[int]:
             end_s = script_duration_s(seed, script) + 1.5
             d.wait_ticks(round(end_s / SAMPLE_PERIOD_S))
             ok(d.c.post(f"/api/recordings/{rec['id']}/stop"))
-            segs = ok(d.c.post(f"/api/recordings/{rec['id']}/segment"))
-            segment_ids += [s["id"] for s in segs
-                            if s["label"] in ("squat", "stoop_left", "stoop_right")]
-        d.log(f"data collection: D{i + 1:02d} recorded ({len(segment_ids)} segments so far)")
+            recordings.append(rec["id"])
+        d.log(f"data collection: D{i + 1:02d} recorded")
+    d.simulate(cfg.eval_seed(0), cfg.eval_script, 1.0)
+    segment_ids: list[int] = []
+    for rec_id in recordings:
+        segs = ok(d.c.post(f"/api/recordings/{rec_id}/segment"))
+        segment_ids += [s["id"] for s in segs
+                        if s["label"] in ("squat", "stoop_left", "stoop_right")]
+    d.log(f"data collection: {len(recordings)} recordings, {len(segment_ids)} segments")
     return segment_ids

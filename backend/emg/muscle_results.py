@@ -607,7 +607,7 @@ def _prepare(engine: Engine, db: Session, trial: Trial, participant: str,
     out = TrialEmg(trial.id, trial.session_id, participant, condition, trial.task, "none")
     start = _trial_start(db, trial.id)
     lifts: list[tuple[int, str, float, float, float, float]] = []
-    cols = results.trial_columns(engine, trial)
+    cols = results.trial_columns(engine, trial, (*results.GROUND_TRUTH_FIELDS, "t_host"))
     if start is not None and start.lsl_time is not None and len(cols):
         truth = results.ground_truth(cols, trial.task, results.trial_segments(db, trial.id))
         times = tick_times(cols, start.lsl_time)

@@ -19,15 +19,19 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
+from backend.analysis import results, tick_queries
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
 from controller.config import ControllerConfig
+from controller.evaluation.columns import TickData
 from controller.tick_record import Action, TickRecord
 
 N = 1400
@@ -163,6 +167,40 @@ def test_figures_are_png_and_svg(client: TestClient, settings: Settings) -> None
     assert tl.status_code == 200 and tl.headers["content-type"] == "image/png"
     assert len(tl.content) > 10_000
     assert client.get("/api/trials/999999/figures/timeline.svg").status_code == 404
+
+
+def test_a_trial_is_evaluated_and_drawn_from_one_read_with_the_same_results(
+        client: TestClient, settings: Settings, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The evaluation and the timeline read the fields they use in one query each, and
+    give what they give from every column read at once."""
+    ids = _setup(client, settings)
+    engine = make_engine(settings.database_url)
+    queries: list[tuple[str, ...]] = []
+    real = tick_queries.columns
+
+    def counted(*args: Any, **kwargs: Any) -> dict[str, np.ndarray]:
+        queries.append(tuple(kwargs.get("fields") or ("every field",)))
+        return real(*args, **kwargs)
+
+    def every_column(eng: Any, trial: Trial, fields: Any = ()) -> TickData:
+        return TickData(real(eng, trial.run_id) if trial.run_id is not None else {})
+
+    monkeypatch.setattr(tick_queries, "columns", counted)
+    with make_session_factory(engine)() as db:
+        umc = db.get(Trial, ids["umc"])
+        assert umc is not None
+        res = results.study_results(engine, db, ids["study"])
+        timeline = results.timeline_figure(engine, db, umc).svg
+        # Both trials (UMC with posteriors, PEC without truth), then the timeline: not
+        # one field read on its own.
+        assert queries == [results.EVALUATION_FIELDS] * 2 + [results.TIMELINE_FIELDS]
+        monkeypatch.setattr(results, "trial_columns", every_column)
+        ref = results.study_results(engine, db, ids["study"])
+        assert results.timeline_figure(engine, db, umc).svg == timeline
+    for name in results.TABLE_NAMES:
+        assert res.csv(name) == ref.csv(name), name
+    assert results.results_document(res) == results.results_document(ref)
+    engine.dispose()
 
 
 def test_what_if_returns_both_and_leaves_the_trial_alone(client: TestClient,

@@ -1,14 +1,21 @@
-"""Batched tick writing: runs, order, failures that keep the data."""
+"""Batched tick writing: runs, order, failures that keep the data, and SQLite's rows
+stored as the codec's."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sqlalchemy import select
 
 from backend.db import migrate
 from backend.db.engine import make_engine
-from backend.db.models import Run, ticks_table
-from backend.live.recorder import TickRecorder
+from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
+from backend.live.recorder import TickRecorder, sqlite_rows
 from backend.worker.messages import RunStarted, TickBatch
+from controller.tick_codec import FIELD_KINDS, FIELD_NAMES, db_rows, pack
 from controller.tick_record import TickRecord
 
 
@@ -73,4 +80,54 @@ def test_a_failed_write_keeps_the_ticks_for_the_next_flush(db_url: str) -> None:
     with engine.begin() as conn:
         conn.exec_driver_sql("ALTER TABLE ticks_away RENAME TO ticks")
     assert rec.flush() == 10
+    engine.dispose()
+
+
+_VALUES: dict[str, st.SearchStrategy[Any]] = {
+    "float": st.floats(width=64),  # NaN and infinities too
+    "int": st.integers(-(2**63), 2**63 - 1),
+    "bool": st.booleans(),
+    "str": st.sampled_from(["", "stand", "squat", "stoop_left", "walk"]),
+}
+_RECORDS = st.lists(st.builds(TickRecord, **{n: _VALUES[FIELD_KINDS[n]] for n in FIELD_NAMES}),
+                    min_size=1, max_size=6)
+
+
+def test_sqlite_stores_the_recorders_rows_as_the_codecs_rows(tmp_path: Path) -> None:
+    """The recorder binds booleans as 0/1 (cheaper for SQLite's driver): every stored
+    value and its SQLite type equal those of the codec's rows (`db_rows`) inserted as
+    they are."""
+    db_url = f"sqlite:///{tmp_path / 'exostudy.db'}"
+    migrate.upgrade(db_url)
+    engine = make_engine(db_url)
+    rec = TickRecorder(engine)
+    cols = ", ".join(f'"{c}"' for c in TICK_DATA_COLUMNS)
+    stored = cols + ", " + ", ".join(f'typeof("{c}")' for c in TICK_DATA_COLUMNS)
+    marks = ", ".join("?" for _ in TICK_DATA_COLUMNS)
+
+    def read(conn: Any, run_id: int) -> list[tuple[Any, ...]]:
+        return conn.exec_driver_sql(f"SELECT {stored} FROM ticks WHERE run_id = {run_id} "
+                                    "ORDER BY id").all()
+
+    @settings(max_examples=30, deadline=None)
+    @given(_RECORDS)
+    def check(records: list[TickRecord]) -> None:
+        block = pack(records)
+        for mine, codec in zip(sqlite_rows(block), db_rows(block, nan_as_null=False),
+                               strict=True):  # True == 1; NaN where NaN
+            assert all(a == b or (a != a and b != b) for a, b in zip(mine, codec, strict=True))
+        token = len(rec._runs) + 1
+        run_id = rec.run_started(RunStarted(token, "none", {}, "sim", 1), "sim")
+        rec.add(TickBatch(token, block))
+        assert rec.flush() == len(records)
+        with engine.begin() as conn:
+            ref = run_id + 100_000  # the codec's rows as they are, as a run of their own
+            conn.exec_driver_sql(f"INSERT INTO runs (id, started_at, device_kind, controller, "
+                                 f"config_json, tick_count) VALUES ({ref}, '2026-01-01', "
+                                 "'sim', 'none', '{}', 0)")
+            conn.exec_driver_sql(f"INSERT INTO ticks (run_id, {cols}) VALUES ({ref}, {marks})",
+                                 db_rows(block, nan_as_null=False))
+            assert read(conn, run_id) == read(conn, ref)
+
+    check()
     engine.dispose()
