@@ -14,7 +14,6 @@ from fastapi.responses import RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
-from starlette.routing import BaseRoute
 
 from backend import console_pages
 from backend.analysis import jobs
@@ -134,7 +133,7 @@ ROUTERS: tuple[APIRouter, ...] = (
 
 
 @functools.cache
-def included_routes() -> tuple[BaseRoute, ...]:
+def included_routers() -> APIRouter:
     """`ROUTERS` included once per process, for every app it builds.
 
     FastAPI (0.16x) builds an included route's context (its dependencies, request and
@@ -149,7 +148,7 @@ def included_routes() -> tuple[BaseRoute, ...]:
     parent = APIRouter(dependencies=[Depends(authorize)])
     for router in ROUTERS:
         parent.include_router(router)
-    return tuple(parent.routes)
+    return parent
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -234,7 +233,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(web_surface.SecurityHeaders)
     docs_assets.install(app, settings.frontend_dir)
     install_handlers(app)
-    app.router.routes.extend(included_routes())
+    app.router.routes.extend(included_routers().routes)
     document_framework_errors(app)
     document_access(app)
     name_operations(app, ROUTERS)  # operationIds: the console client's names
