@@ -36,6 +36,9 @@ CHALLENGE_BYTES = 16
 UNIQUE_ID_BYTES = 16
 FIRMWARE_BYTES = 16
 CHALLENGE_LIFETIME_MS = 1000  # what a CHALLENGE says, and what the device enforces
+#: A HELLO draws a new challenge when the current one is older than this (or spent): the
+#: earlier challenge is then dead, so the host must not answer a CHALLENGE it got before.
+CHALLENGE_REDRAW_MS = 500
 
 # Header: magic (2 bytes), version u8, type u8, payload length u16, flags u16.
 HEADER = struct.Struct("<2sBBHH")

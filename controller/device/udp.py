@@ -31,6 +31,7 @@ from controller.device.base import (
     Sample,
 )
 from controller.device.protocol import (
+    CHALLENGE_REDRAW_MS,
     DEFAULT_PORT,
     LOWEST_VERSION,
     MAX_PACKET,
@@ -51,6 +52,10 @@ from controller.device.protocol import (
 
 HELLO_INTERVAL_S = 0.1  # a HELLO this often while there is no working session
 HELLO_MEMORY_S = 1.0  # a CHALLENGE must answer a HELLO sent at most this long ago
+# A HELLO sent this long after the one before may make the device draw a new challenge
+# (it redraws after CHALLENGE_REDRAW_MS; 100 ms less allows for the path's jitter): the
+# CHALLENGEs to the HELLOs before it are then forgotten, not answered with a dead JOIN.
+HELLO_REDRAW_GAP_S = CHALLENGE_REDRAW_MS / 1000 - 0.1
 JOIN_WAIT_S = 0.3  # after a JOIN, a sample is expected within this long
 REJOIN_S = 0.25  # no valid sample for this long: join again (same host session)
 SILENT_HELLOS = 20  # this many HELLOs without a CHALLENGE: "no version 3 device answers"
@@ -344,6 +349,11 @@ class UdpDevice(Device):
     def _send_hello(self, now: float) -> None:
         seq = self._next_host_seq()
         self._last_hello = now  # the attempt counts: no HELLO storm on send errors
+        if self._hellos and now - self._hellos[-1][1] > HELLO_REDRAW_GAP_S:
+            # The host was busy (the worker warming its controller after open()): the
+            # device will likely redraw for this HELLO, and a JOIN to an earlier
+            # CHALLENGE would be dropped as a replay, the join a JOIN_WAIT_S late.
+            self._hellos.clear()
         while self._hellos and now - self._hellos[0][1] > HELLO_MEMORY_S:
             self._hellos.popleft()
         self._hellos.append((seq, now))

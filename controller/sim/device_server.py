@@ -43,6 +43,7 @@ from controller.device.base import LockCommand, Sample, Status
 from controller.device.protocol import (
     CHALLENGE_BYTES,
     CHALLENGE_LIFETIME_MS,
+    CHALLENGE_REDRAW_MS,
     DEFAULT_PORT,
     LOWEST_VERSION,
     MAX_PACKET,
@@ -68,7 +69,7 @@ LATE_S = 0.002  # a sample sent more than this after its due time counts as late
 RESYNC_S = 0.25  # further behind than this (process stalled): rebase the schedule, no burst
 SENT_RING = 16  # send times of the last samples, for freshness and round trips
 AUTH_BUDGET = 8  # datagrams from the host IP handled per sample period; the rest: flood
-CHALLENGE_REDRAW_S = 0.5  # a HELLO draws a new challenge when the current one is older
+CHALLENGE_REDRAW_S = CHALLENGE_REDRAW_MS / 1000
 CHALLENGE_LIFETIME_S = CHALLENGE_LIFETIME_MS / 1000
 VERSION_GAP_S = 1.0  # at most one VERSION reply per this long
 HEARTBEAT_HOLD_S = 0.030  # the drivers' monostable holds the enable this long per edge

@@ -418,6 +418,30 @@ def test_a_challenge_to_a_hello_that_crossed_the_join_makes_no_second_join() -> 
     fake.sock.close()
 
 
+def test_a_host_busy_after_its_hello_answers_only_the_challenge_drawn_since() -> None:
+    """The worker says HELLO at open() and then warms its controller for most of a
+    second. Its next HELLO comes after the device's redraw age, so the device answers it
+    with a new challenge: the JOIN carries that one, and the CHALLENGE to the first HELLO
+    (queued meanwhile, its challenge dead) is set aside as late, not answered."""
+    fake = FakeDevice()
+    with UdpDevice(device_port=fake.port, key=KEY) as dev:
+        first = fake.receive()
+        assert isinstance(first, HelloPacket)
+        fake.send_raw(fake.challenge_bytes(first.host_seq))  # queued: the host is busy
+        time.sleep(udp.HELLO_REDRAW_GAP_S + 0.05)
+        dev.read(0.0)  # says its second HELLO first, then reads the stale CHALLENGE
+        second = fake.receive()
+        assert isinstance(second, HelloPacket) and second.host_seq != first.host_seq
+        assert (dev.stats.joins, dev.stats.late_challenges, dev.stats.replayed) == (0, 1, 0)
+        fake.challenge = bytes(range(200, 216))  # the device redrew for the second HELLO
+        fake.send_raw(fake.challenge_bytes(second.host_seq))
+        dev.read(0.02)
+        join = fake.receive_not_hello()
+        assert isinstance(join, JoinPacket) and join.challenge == bytes(range(200, 216))
+        assert dev.stats.joins == 1
+    fake.sock.close()
+
+
 def test_samples_of_a_stale_session_are_replays(link: tuple[UdpDevice, FakeDevice]) -> None:
     dev, fake = link
     fake.send_sample(1)
