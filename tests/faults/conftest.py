@@ -7,6 +7,7 @@ from collections.abc import Iterator
 import pytest
 
 from tests import c_device
+from tests.faults import zygote
 from tests.faults.busy import Spinners
 
 
@@ -34,3 +35,12 @@ def device_implementation(request: pytest.FixtureRequest) -> str:
     if implementation == "c":
         c_device.build()
     return implementation
+
+
+@pytest.fixture(scope="module", autouse=True)
+def device_zygote() -> Iterator[None]:
+    """The module's device processes fork from one zygote (tests/faults/zygote.py),
+    started on first use and stopped, with whatever it still runs, when the module
+    ends: the CPU of its devices is counted in the module's."""
+    with zygote.per_module():
+        yield

@@ -22,28 +22,43 @@ from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.tick_record import TickRecord
 from tests import c_device
 from tests.backend.worker.unchecked import unchecked_spec
+from tests.faults import zygote
 from tests.polling import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
+#: A device process: a child of this process (the C device; the Python device outside
+#: tests/faults), or the Python device forked from the module's zygote
+#: (`tests/faults/zygote.py`).
+DeviceProcess = subprocess.Popen[str] | zygote.ZygoteProcess
+
+
 @contextmanager
 def device_process(port: int, key_file: Path, script: str, seed: int = 1,
                    extra: tuple[str, ...] = (), implementation: str = "python",
-                   ) -> Iterator[subprocess.Popen[str]]:
+                   ) -> Iterator[DeviceProcess]:
     """`exostudy device-sim` as a real process on `port`, the Python reference device
     or the C device (same arguments; its simulated wearer on this interpreter);
-    stopped (SIGTERM) on exit."""
+    stopped (SIGTERM) on exit. In tests/faults the Python device, and the C device's
+    simulated wearer (its `--python`), are forked from the module's zygote, which has
+    imported them already: the same entry point and arguments as `python -m ...`,
+    without an interpreter start (about 1.3 s of CPU) each."""
     args = ["--port", str(port), "--seed", str(seed), "--script", script,
             "--key-file", str(key_file), *extra]
-    command = ([str(c_device.device_binary()), *args, "--python", sys.executable]
-               if implementation == "c"
-               else [sys.executable, "-m", "controller.sim.device_server", *args])
-    proc = subprocess.Popen(
-        command,
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )
+    proc: DeviceProcess
+    if implementation != "c" and zygote.active():
+        proc = zygote.current().spawn("controller.sim.device_server", args, cwd=ROOT)
+    else:
+        python = str(zygote.current().launcher) if zygote.active() else sys.executable
+        command = ([str(c_device.device_binary()), *args, "--python", python]
+                   if implementation == "c"
+                   else [sys.executable, "-m", "controller.sim.device_server", *args])
+        proc = subprocess.Popen(
+            command,
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )
     try:
         yield proc
     finally:
@@ -57,9 +72,22 @@ def device_process(port: int, key_file: Path, script: str, seed: int = 1,
 
 @contextmanager
 def model_device_process(target: Callable[..., None], *args: Any
-                         ) -> Iterator[multiprocessing.process.BaseProcess]:
+                         ) -> Iterator[multiprocessing.process.BaseProcess | zygote.ZygoteProcess]:
     """A device process running `target(*args)` (a module-level function that calls
-    `controller.sim.device_server.serve` with a model of its own); killed on exit."""
+    `controller.sim.device_server.serve` with a model of its own); killed on exit.
+    Forked from the module's zygote in tests/faults, else a fresh (spawned) process."""
+    if zygote.active():
+        forked = zygote.current().call(target, *args)
+        try:
+            yield forked
+        finally:
+            forked.terminate()
+            try:
+                forked.wait(10)
+            except subprocess.TimeoutExpired:
+                forked.kill()
+                forked.wait(5)
+        return
     ctx = multiprocessing.get_context("spawn")
     proc = ctx.Process(target=target, args=args, daemon=True)
     proc.start()

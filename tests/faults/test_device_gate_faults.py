@@ -57,6 +57,12 @@ def _identity(worker: Worker) -> str | None:
     return None if st is None or st.identity is None else st.identity.unique_id
 
 
+def _device_alive(worker: Worker) -> bool:
+    """The worker's latest status says a sample came within the last 0.5 s."""
+    st = worker.sup.state.status
+    return st is not None and st.device.alive
+
+
 def _start(worker: Worker, spec: ControllerSpec, gate: DeviceGate) -> None:
     assert worker.sup._cmd is not None
     worker.sup._cmd.send(SetController(spec, request_id=7, device=gate))
@@ -103,7 +109,11 @@ def test_a_device_swapped_under_a_running_controller_gets_no_lock(
             # On its own device the bound controller runs and locks (the control case).
             wait_for(lambda: locked_ticks(worker.ticks()) > 20, 90, "the PEC to lock on A")
             session_a = _session(worker)
-        # Device A is gone (its process stopped); device B boots on the same address.
+        # Device A is gone (its process stopped); device B boots on the same address,
+        # once the worker has reported A silent: its status goes out after every tick
+        # it had queued, so A's last ticks (the PEC may have locked them) are all in
+        # and none of them is counted as B's.
+        wait_for(lambda: not _device_alive(worker), 10, "the worker to report A silent")
         ticks_at = len(worker.ticks())
         with device_process(port, key_file, "squat-sequence", seed=2,
                             extra=("--device-id", DEVICE_B),

@@ -28,8 +28,10 @@ pytestmark = pytest.mark.slow
 
 #: A cohort that runs for minutes: still running whenever the test signals the server.
 LONG = {"participants": 1000, "seed": 2, "controllers": ["umc", "eumc", "pec"]}
-#: No control worker: these faults are about the job lanes, and the cores are scarce.
-ENV = {"EXOSTUDY_START_WORKER": "false"}
+#: No control worker and no device simulator (with no worker to talk to it, a spawned
+#: one only costs its start, about 2 s of CPU per server): these faults are about the
+#: job lanes, and the cores are scarce.
+ENV = {"EXOSTUDY_START_WORKER": "false", "EXOSTUDY_DEVICE_SPAWN_SIMULATOR": "false"}
 
 
 def _row(db_url: str, model: Any, key: int) -> Any:

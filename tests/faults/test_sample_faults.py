@@ -5,70 +5,20 @@ locks, and a one-sample spike on both hips read as a 228 rad/s hip and locked.""
 
 from __future__ import annotations
 
-import random
 from collections import Counter
 from collections.abc import Iterator
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-from controller.device.auth import create_key, load_key
-from controller.device.base import ENCODER_COUNTS, LockCommand, Sample
-from controller.lowlevel.encoders import RAD_PER_COUNT
+from controller.device.auth import create_key
 from controller.lowlevel.plausibility import HIP_VELOCITY_MAX
 from controller.tick_record import Plausibility, TickFlag, TickRecord
 from tests.faults.device_rig import Worker, device_process, lock_onsets, model_device_process
+from tests.faults.glitchy_device import SPIKE_EVERY, serve_glitchy
 from tests.polling import free_udp_port, wait_for
 
 pytestmark = pytest.mark.slow
-
-GLITCH_RATE = 0.05
-SPIKE_EVERY = 97  # samples between two 228 rad/s spikes
-SPIKE_RAD = 2.28  # in one 10 ms sample: 228 rad/s
-
-
-class GlitchyEncoders:
-    """The simulated exoskeleton with faulty encoders: on 5 % of samples one encoder
-    (at random) reads a random count, and every 97th sample both hips read 2.28 rad
-    further on (both links of a side, so the spring deflection stays plausible)."""
-
-    def __init__(self, seed: int, script: str) -> None:
-        from controller.sim.exoskeleton import SimulatedExoskeleton
-
-        self.inner = SimulatedExoskeleton(seed=seed, script=script, loop=True)
-        self.dt = self.inner.dt
-        self.rng = random.Random(seed)
-        self.k = 0
-
-    @property
-    def finished(self) -> bool:
-        return self.inner.finished
-
-    def warm_up(self) -> None:
-        hook = getattr(self.inner, "warm_up", None)
-        if callable(hook):
-            hook()
-
-    def tick(self, command: LockCommand | None) -> Sample:
-        s = self.inner.tick(command)
-        self.k += 1
-        c = list(s.counts)
-        if self.k % SPIKE_EVERY == 0:
-            step = round(SPIKE_RAD / RAD_PER_COUNT)
-            c = [(c[0] + step) % ENCODER_COUNTS, (c[1] + step) % ENCODER_COUNTS,
-                 (c[2] - step) % ENCODER_COUNTS, (c[3] - step) % ENCODER_COUNTS]  # mirrored
-        elif self.rng.random() < GLITCH_RATE:
-            c[self.rng.randrange(4)] = self.rng.randrange(ENCODER_COUNTS)
-        return replace(s, counts=(c[0], c[1], c[2], c[3]))
-
-
-def serve_glitchy(port: int, key_file: str, seed: int, script: str) -> None:
-    """Device process target: the protocol's reference device with faulty encoders."""
-    from controller.sim.device_server import serve
-
-    serve(port, seed, script, model=GlitchyEncoders(seed, script),
-          key=load_key(Path(key_file)))
 
 
 @pytest.fixture
