@@ -6,26 +6,40 @@ request function)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
-from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.study import accounts
-from tests.live_server import running_server
+from tests.browser.conftest import SharedServer, shared_server
+from tests.databases import AccountTemplates
+
+
+@pytest.fixture(scope="module")
+def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[SharedServer]:
+    """The app without a worker, with a demo account whose password is published, one
+    for the module: only the accounts test changes the accounts (the others log in)."""
+    with shared_server(tmp_path_factory.mktemp("access"), default_sets,
+                       account_templates) as s:
+        engine = make_engine(s.settings.database_url)
+        with make_session_factory(engine)() as db:
+            accounts.create_user(db, "demo", "exostudy-demo", "member", published=True)
+            db.commit()
+        engine.dispose()
+        yield s
 
 
 @pytest.fixture
-def quiet_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
-    """The app without a worker, with a demo account whose password is published."""
-    engine = make_engine(settings.database_url)
-    with make_session_factory(engine)() as db:
-        accounts.create_user(db, "demo", "exostudy-demo", "member", published=True)
-        db.commit()
-    engine.dispose()
-    with running_server(settings) as url:
-        yield url
+def quiet_server(shared: SharedServer) -> str:
+    return shared.url
+
+
+@pytest.fixture
+def experimenter(shared: SharedServer) -> dict[str, str]:
+    return shared.login
 
 
 def _log_in(page: Any, server: str, experimenter: dict[str, str], next_path: str) -> None:

@@ -4,6 +4,7 @@ a PEC trial with the state strip) and the replay of a stored trial."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Iterator
@@ -16,18 +17,55 @@ import pytest
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.evidence_tables import ModelSetRecord, UtilitySetRecord
+from tests.browser.conftest import SharedServer, shared_server
 from tests.browser.login_page import log_in_through
-from tests.live_server import running_server
+from tests.databases import AccountTemplates
 from tests.polling import wait_for
+
+#: Numbers the studies that `_session` makes.
+_STUDIES = itertools.count(1)
+#: The simulated wearer's pace: five times real time (device time still steps 10 ms).
+SPEED = 5.0
+
+
+@pytest.fixture(scope="module")
+def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[SharedServer]:
+    """One real server and worker for the module: each test makes its own study and
+    session, and puts the simulated wearer back to squatting (`fast_server`)."""
+    with shared_server(tmp_path_factory.mktemp("console"), default_sets, account_templates,
+                       start_worker=True, device_speed=SPEED,
+                       device_script="squat-sequence") as s:
+        yield s
 
 
 @pytest.fixture
-def fast_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
-    """A real server and worker whose simulated wearer squats five times faster."""
-    fast = settings.model_copy(update={"start_worker": True, "device_speed": 5.0,
-                                       "device_script": "squat-sequence"})
-    with running_server(fast) as url:
-        yield url
+def settings(shared: SharedServer) -> Settings:
+    return shared.settings
+
+
+@pytest.fixture
+def db_url(shared: SharedServer) -> str:
+    return shared.settings.database_url
+
+
+@pytest.fixture
+def experimenter(shared: SharedServer) -> dict[str, str]:
+    return shared.login
+
+
+@pytest.fixture
+def fast_server(shared: SharedServer) -> str:
+    """The shared server, its simulated wearer squatting five times faster than real
+    time from the start of a new run, as on a server started for the test (409 if an
+    earlier test left a trial or recording running)."""
+    _wearer(_api(shared.url, shared.login), SPEED, shared.settings.device_seed)
+    return shared.url
+
+
+@pytest.fixture
+def server(fast_server: str) -> str:
+    return fast_server
 
 
 def _api(server: str, experimenter: dict[str, str]) -> httpx.Client:
@@ -43,7 +81,9 @@ def _ok(r: httpx.Response) -> Any:
 
 
 def _session(api: httpx.Client, kind: str, participants: int = 1) -> tuple[int, int]:
-    sid = _ok(api.post("/api/studies", json={"name": f"console {kind}"}))["id"]
+    """A study of its own (names are unique on the shared server), `participants`
+    participants and a session of `kind` for the first: (study id, session id)."""
+    sid = _ok(api.post("/api/studies", json={"name": f"console {kind} {next(_STUDIES)}"}))["id"]
     pid = 0
     for n in range(participants):
         pid = _ok(api.post(f"/api/studies/{sid}/participants", json={"code": f"P0{n + 1}"}))["id"]
@@ -62,9 +102,18 @@ def _wait_ticks(api: httpx.Client, ticks: int = 20, controller: str | None = Non
     wait_for(done, 60, f"{ticks} ticks of the worker's run", poll=0.2)
 
 
+def _wearer(api: httpx.Client, speed: float, seed: int = 1) -> None:
+    """Start the simulated wearer's squats again (a new run) at `speed` times real time
+    (409 while a trial or recording runs)."""
+    _ok(api.post("/api/worker/simulation", json={"seed": seed, "script": "squat-sequence",
+                                                 "speed": speed}))
+
+
 def _pec_trial(api: httpx.Client, session_id: int, ticks: int) -> int:
     """Plan the session's squat trials, run the PEC trial for `ticks` ticks of the
-    device (at 5x, five times as many as wall-clock hundredths), stop it; its id."""
+    device, stop it; its id. The wearer squats twenty times faster than real time for
+    it (the trial is counted in ticks: only the wait is shorter), then five times."""
+    _wearer(api, 4 * SPEED)
     trials = _ok(api.post(f"/api/sessions/{session_id}/trials/plan",
                           json={"tasks": ["squat-sequence"]}))
     pec = next(t for t in trials if t["controller"] == "pec")
@@ -72,6 +121,7 @@ def _pec_trial(api: httpx.Client, session_id: int, ticks: int) -> int:
     _ok(api.post(f"/api/trials/{pec['id']}/start", json={}))
     _wait_ticks(api, ticks, controller="pec")
     _ok(api.post(f"/api/trials/{pec['id']}/stop", json={"outcome": "completed"}))
+    _wearer(api, SPEED)  # five times real time again: every later tick is stored too
     return int(pec["id"])
 
 
@@ -122,6 +172,8 @@ def test_log_in_create_a_study_and_a_participant_with_a_session(
 
 
 def _record(page: Any, api: httpx.Client, script: str, seconds: float) -> None:
+    """Record `seconds` of device time of `script` from the page (waiting on the
+    worker's ticks, not the clock: as much data on a busy machine as on a quiet one)."""
     page.select_option("#sim-script", script)
     page.click("#sim-apply")
     page.wait_for_selector("#sim-msg.msg-ok")
@@ -129,7 +181,8 @@ def _record(page: Any, api: httpx.Client, script: str, seconds: float) -> None:
     page.fill("#rec-label", script)
     page.click("#rec-start")
     page.wait_for_selector("#rec-state[data-recording=true]")
-    page.wait_for_timeout(seconds * 1000)
+    started = api.get("/api/health").json()["worker"]["ticks"]
+    _wait_ticks(api, started + round(seconds * 100))
     before = page.evaluate("window.exostudySession.shownRecording")
     page.click("#rec-stop")
     page.wait_for_function(
@@ -138,16 +191,20 @@ def _record(page: Any, api: httpx.Client, script: str, seconds: float) -> None:
 
 
 def test_record_segment_drag_an_edge_and_fit_models(
-    fast_server: str, page: Any, experimenter: dict[str, str]
+    fast_server: str, page: Any, experimenter: dict[str, str], settings: Settings
 ) -> None:
     api = _api(fast_server, experimenter)
+    # A recording holds device time (`_record` waits on ticks): a wearer four times
+    # faster again records the same samples in a quarter of the time (the page's
+    # changes of the simulated wearer keep the speed).
+    _wearer(api, 4 * SPEED, settings.device_seed)
     _, session_id = _session(api, "data_collection")
     log_in_through(page, fast_server, f"/console/sessions/{session_id}", experimenter)
     page.wait_for_function("window.exostudySession.ready && window.exostudySession.samples > 0",
                            timeout=20000)
     page.wait_for_selector("#sim-form:not([hidden])")
 
-    _record(page, api, "squat-sequence", 7)
+    _record(page, api, "squat-sequence", 35)
     labels = page.evaluate("window.exostudySession.segments.map(s => s.label)")
     assert "squat" in labels
     assert page.locator("#segments tbody tr").count() == len(labels)
@@ -170,7 +227,7 @@ def test_record_segment_drag_an_edge_and_fit_models(
                          "/segments"))
     assert next(s for s in stored if s["id"] == seg["id"])["end"] == moved["end"]
 
-    _record(page, api, "stoop-sequence", 12)
+    _record(page, api, "stoop-sequence", 60)
     assert page.is_enabled("#fit-run"), page.inner_text("#fit-counts")
     page.click("#fit-run")
     page.wait_for_selector("#fit-progress[data-status=done]", timeout=30000)

@@ -2,7 +2,34 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
+
+import pytest
+
+from tests.browser.conftest import SharedServer, shared_server
+from tests.databases import AccountTemplates
+
+
+@pytest.fixture(scope="module")
+def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[SharedServer]:
+    """One real server and worker for the module's tests: each opens its own page; the
+    one that kills the worker leaves it restarted (and checks that it streams again)."""
+    with shared_server(tmp_path_factory.mktemp("live-page"), default_sets, account_templates,
+                       start_worker=True) as s:
+        yield s
+
+
+@pytest.fixture
+def server(shared: SharedServer) -> str:
+    return shared.url
+
+
+@pytest.fixture
+def experimenter(shared: SharedServer) -> dict[str, str]:
+    return shared.login
 
 
 def test_live_page_receives_and_draws_at_least_50_samples_per_second(

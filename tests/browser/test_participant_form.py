@@ -4,20 +4,34 @@ condition, the answers are scored, and the link closes."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 
-from backend.core.config import Settings
-from tests.live_server import running_server
+from tests.browser.conftest import SharedServer, shared_server
+from tests.databases import AccountTemplates
+
+
+@pytest.fixture(scope="module")
+def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, Path],
+           account_templates: AccountTemplates) -> Iterator[SharedServer]:
+    """The app without a worker (the form page needs none), one for the module: each
+    test makes its own study."""
+    with shared_server(tmp_path_factory.mktemp("forms"), default_sets,
+                       account_templates) as s:
+        yield s
 
 
 @pytest.fixture
-def quiet_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str]:
-    """The app without a worker: the form page needs none."""
-    with running_server(settings) as url:
-        yield url
+def quiet_server(shared: SharedServer) -> str:
+    return shared.url
+
+
+@pytest.fixture
+def experimenter(shared: SharedServer) -> dict[str, str]:
+    return shared.login
 
 
 def test_participant_fills_in_the_sus_through_the_link(quiet_server: str, page: Any,
@@ -177,7 +191,7 @@ def test_long_anchor_labels_and_long_scales_stay_inside_the_form(
     api = httpx.Client(base_url=quiet_server)
     token = api.post("/api/auth/token", json=experimenter).json()["access_token"]
     api.headers["Authorization"] = f"Bearer {token}"
-    sid = api.post("/api/studies", json={"name": "anchors"}).json()["id"]
+    sid = api.post("/api/studies", json={"name": f"anchors {hi}"}).json()["id"]
     r = api.post(f"/api/studies/{sid}/instruments", json={
         "key": "strain", "version": "1", "title": "Strain",
         "items": [{"id": "q1", "text": "How strenuous was it?"},
