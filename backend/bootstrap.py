@@ -9,6 +9,10 @@ provides them; the reference human dataset provides the utilities. Both are file
 from __future__ import annotations
 
 import logging
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from controller.decision.utility_function import DEFAULT_OTHER_RULE, UtilitySet, compute_utilities
@@ -26,10 +30,8 @@ def ensure_models(path: Path) -> ModelSet:
     # cost every process that imports the server.
     from controller.sim.demonstrations import simulated_model_set
     models = simulated_model_set()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    models.save(tmp)
-    tmp.replace(path)
+    with _replacing(path) as tmp:
+        models.save(tmp)
     return models
 
 
@@ -61,8 +63,24 @@ def ensure_utilities(path: Path, precompression_pct: float) -> UtilitySet:
              precompression_pct, path)
     human = reference_dataset()
     utilities = compute_utilities(human, precompression_pct)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    utilities.save(tmp)
-    tmp.replace(path)
+    with _replacing(path) as tmp:
+        utilities.save(tmp)
     return utilities
+
+
+@contextmanager
+def _replacing(path: Path) -> Iterator[Path]:
+    """A temporary file of its own beside `path`, renamed onto it when the block ends:
+    two servers (or two threads of one) that build the same default at once each write
+    their own file, and `path` is always whole (a shared ".tmp" name let one rename the
+    other's half-written file, or fail to find its own)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    tmp.chmod(0o644)  # as `write_text` would make it (mkstemp's file is the owner's only)
+    try:
+        yield tmp
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
