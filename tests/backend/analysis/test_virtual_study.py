@@ -2,13 +2,16 @@
 device as a live session, sped up; files are written and the tables have rows, and the
 replication's plain-SQL reader counts the study's database as the server did. With
 `emg`, a smaller study (two participants, lifts only) records the simulated wearer's EMG
-over LSL and reports its reduction by the springs."""
+over LSL and reports its reduction by the springs; it runs the command's default two rate
+settings, so it also shows that each rate setting's study fits its own sets."""
 
 from __future__ import annotations
 
 import csv
 import io
 import json
+import sqlite3
+from contextlib import closing
 from pathlib import Path
 
 import pytest
@@ -20,8 +23,8 @@ from backend.analysis.virtual_study import (
     run,
 )
 
-# Two virtual studies through the live server (the EMG one records over LSL): on a
-# loaded shared machine they can pass the suite's 300 s default.
+# Two virtual study runs through the live server (the EMG one records over LSL and has
+# two rate settings): on a loaded shared machine they can pass the suite's 300 s default.
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
 
 
@@ -40,10 +43,13 @@ def small_study(tmp_path_factory: pytest.TempPathFactory
 @pytest.fixture(scope="module")
 def emg_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, VirtualStudyReport]:
     """The EMG virtual study at its smallest: two participants, UMC, PEC and the two
-    baselines, each trial the lifts alone."""
+    baselines, each trial the lifts alone. Both rate settings, as the command's default:
+    EMG and baselines are the first's ("paper-rates"); the "100hz" study, UMC and PEC
+    alone, is what `test_both_rate_settings_run_each_on_its_own_studys_sets` reads (one
+    run serves both tests: a study run costs a server, a data collection and fits)."""
     out = tmp_path_factory.mktemp("virtual") / "vs-emg"
     cfg = VirtualStudyConfig(out=out, participants=2, data_participants=2, eumc=0, seed=7,
-                             speed=30.0, rates=("paper-rates",), margin_s=4.0,
+                             speed=30.0, rates=("paper-rates", "100hz"), margin_s=4.0,
                              eval_script="lift-evaluation", model_evaluation=False,
                              emg=True)
     return out, run(cfg, log=lambda _m: None)
@@ -107,9 +113,9 @@ def test_muscle_activity_is_recorded_from_lsl_and_reduced_by_the_springs(
     """The simulated amplifier's EMG went through LSL, the server's inlet and the store;
     every lift has its EMG, and the springs lower the back and hip extensors' activity
     against no exoskeleton, while the two baselines agree (the simulation models no
-    device mass)."""
+    device mass). EMG and baselines are the first rate setting's study's alone."""
     out, report = emg_study
-    assert sorted(t.controller for t in report.trials) == [
+    assert sorted(t.controller for t in report.trials if t.study == "paper-rates") == [
         "no_exoskeleton", "no_exoskeleton", "pec", "pec", "springs_free", "springs_free",
         "umc", "umc"]
     folder = out / "paper-rates"
@@ -143,6 +149,7 @@ def test_muscle_activity_is_recorded_from_lsl_and_reduced_by_the_springs(
         assert (folder / name).stat().st_size > 0, name
     readme = (out / "README.md").read_text()
     assert "### Muscle activity" in readme and "Reduction of the mean envelope" in readme
+    assert not (out / "100hz" / "muscle_results.json").exists()
 
 
 def test_the_replication_reader_counts_the_study_db_as_the_server_did(
@@ -179,20 +186,32 @@ def test_the_replication_reader_counts_the_study_db_as_the_server_did(
 
 
 def test_both_rate_settings_run_each_on_its_own_studys_sets(
-        tmp_path: Path) -> None:
+        emg_study: tuple[Path, VirtualStudyReport]) -> None:
     """The command's default, two rate settings as two studies: a trial must take its
     model and utility sets from its participant's study, so each study fits its own
-    (the default run once failed at its first 100 Hz trial with a 409). The smallest
-    such study: one participant, lifts only."""
-    cfg = VirtualStudyConfig(out=tmp_path / "vs", participants=1, data_participants=2,
-                             eumc=0, seed=7, speed=30.0, rates=("paper-rates", "100hz"),
-                             margin_s=4.0, eval_script="lift-evaluation",
-                             model_evaluation=False)
-    report = run(cfg, log=lambda _m: None)
+    (the default run once failed at its first 100 Hz trial with a 409). The EMG study's
+    run is such a study (lifts only); the "100hz" study has UMC and PEC alone."""
+    out, report = emg_study
     assert sorted(report.studies) == ["100hz", "paper-rates"]
-    got = sorted((t.study, t.controller) for t in report.trials)
-    assert got == [("100hz", "pec"), ("100hz", "umc"), ("paper-rates", "pec"),
-                   ("paper-rates", "umc")]
+    got = sorted((t.study, t.participant, t.controller) for t in report.trials
+                 if t.study == "100hz")
+    assert got == [("100hz", "P01", "pec"), ("100hz", "P01", "umc"),
+                   ("100hz", "P02", "pec"), ("100hz", "P02", "umc")]
+    assert {t.study for t in report.trials} == {"100hz", "paper-rates"}
     assert all(t.gaps == 0 and t.ticks > 0 for t in report.trials)
     for label in report.studies:
-        assert (cfg.out / label / "performance.csv").stat().st_size > 0
+        assert (out / label / "performance.csv").stat().st_size > 0
+    # Each study fitted its own sets, and each trial ran on its own study's.
+    with closing(sqlite3.connect(out / "study.db")) as db:
+        for table in ("model_sets", "utility_sets"):
+            assert sorted(db.execute(f"SELECT study_id FROM {table}")) == sorted(
+                (sid,) for sid in report.studies.values()), table
+        rows = {r[0]: r[1:] for r in db.execute(
+            "SELECT t.id, p.study_id, m.study_id, u.study_id FROM trials t"
+            " JOIN study_sessions s ON t.session_id = s.id"
+            " JOIN participants p ON s.participant_id = p.id"
+            " LEFT JOIN model_sets m ON t.model_set_id = m.id"
+            " LEFT JOIN utility_sets u ON t.utility_set_id = u.id")}
+    for t in report.trials:
+        if t.controller == "umc":
+            assert rows[t.trial_id] == (report.studies[t.study],) * 3, t
