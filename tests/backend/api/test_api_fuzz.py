@@ -39,6 +39,7 @@ from backend.main import create_app
 from backend.study import accounts
 from tests.databases import fresh_database
 from tests.login import create_experimenter, log_in
+from tests.openapi_document import documented
 
 
 @pytest.fixture(scope="module")
@@ -81,11 +82,10 @@ def _fuzz_target(url: str, default_sets: tuple[Path, Path]
 
 def _cases() -> list[tuple[str, str, GenerationMode]]:
     """(method, path, mode) for every documented operation, read from the app's own
-    schema (building the app has no side effects; only its lifespan touches anything).
+    schema (`tests/openapi_document.py`, built once per test process).
     Invalid input is generated only where an operation takes any input."""
-    app = create_app(Settings(_env_file=None, start_worker=False))  # type: ignore[call-arg]
     cases = []
-    for path, item in app.openapi()["paths"].items():
+    for path, item in documented()["paths"].items():
         for method, op in item.items():
             if (method.upper(), path) in EXCLUDED:
                 continue
@@ -260,9 +260,8 @@ def _json_body(case: Any) -> Any:
 
 def _operations() -> list[tuple[str, str, bool]]:
     """(method, path, takes JSON) of every documented operation."""
-    app = create_app(Settings(_env_file=None, start_worker=False))  # type: ignore[call-arg]
     return [(m.upper(), p, "application/json" in op.get("requestBody", {}).get("content", {}))
-            for p, item in app.openapi()["paths"].items() for m, op in item.items()]
+            for p, item in documented()["paths"].items() for m, op in item.items()]
 
 
 OPERATIONS = _operations()

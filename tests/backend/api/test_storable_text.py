@@ -22,10 +22,9 @@ from hypothesis import strategies as st
 from schemathesis import GenerationMode
 
 from backend.api import json_text
-from backend.core.config import Settings
-from backend.main import create_app
 from tests.backend.api.test_api_fuzz import EXCLUDED, _fuzz_target
 from tests.databases import fresh_database
+from tests.openapi_document import documented
 
 #: Strings replaced per operation (the first ones of the drawn body).
 PER_OPERATION = 6
@@ -34,9 +33,8 @@ BAD = ("\ud800", "\udfff", "a\x00b")
 
 def _json_operations() -> list[tuple[str, str]]:
     """(method, path) of every operation that takes a JSON body."""
-    app = create_app(Settings(_env_file=None, start_worker=False))  # type: ignore[call-arg]
     out = []
-    for path, item in app.openapi()["paths"].items():
+    for path, item in documented()["paths"].items():
         for method, op in item.items():
             body = op.get("requestBody", {}).get("content", {})
             if "application/json" in body and (method.upper(), path) not in EXCLUDED:
