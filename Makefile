@@ -24,9 +24,10 @@ run: install $(GUIDE_STAMP)
 	$(BIN)/exostudy db upgrade
 	$(BIN)/exostudy serve
 
-# pytest runs on one process more than the machine has cores (many tests wait on
-# servers, devices and Chromium in real time, which leaves a core idle a third of the
-# time with one process per core), a test module per process at a time (`--dist
+# pytest runs on two processes more than the machine has cores (many tests wait on
+# servers, devices and Chromium in real time: with one process per core a core sat idle
+# a third of the time, with one more about an eighth; docs/tests.md), a test module per
+# process at a time (`--dist
 # loadfile`: a module's shared fixtures are built once); the static checks and
 # firmware-check run beside it, their output printed after pytest's. Fails if either
 # part failed. The static checks run at a lower priority (nice 10): they fill the time
@@ -35,7 +36,7 @@ run: install $(GUIDE_STAMP)
 # 110 s). Before pytest, beside the static checks, one process compiles the numba
 # kernels into their cache (tests/warm_kernels.py), so that pytest's processes and the
 # servers they start load them instead of each compiling them at once. docs/tests.md.
-TEST_PROCESSES ?= $(shell echo $$(( $$(nproc) + 1 )))
+TEST_PROCESSES ?= $(shell echo $$(( $$(nproc) + 2 )))
 test: install system-chromium system-postgresql system-firmware
 	@log=$$(mktemp); out=$$(mktemp); rc=$$(mktemp); \
 	nice -n 10 $(MAKE) --no-print-directory static-checks >"$$log" 2>&1 & checks=$$!; \
