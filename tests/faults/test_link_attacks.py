@@ -387,9 +387,10 @@ def test_delayed_lock_is_dropped_as_stale(key_file: Path, device_implementation:
         # Hold the lock back, and drop every later command so none gets through.
         proxy.hold = lambda d: kind(d) == PacketType.COMMAND
         lock_once.set()
-        wait_for(lambda: proxy.held and lock_bits(proxy.held[0]) == 3, 5,
-                 "the lock command held back")
-        held = proxy.held[0]
+        # A release sent just before the lock may be held first (the host answers
+        # samples meanwhile): the lock is the held command with both bits.
+        held = wait_for(lambda: next((d for d in proxy.held if lock_bits(d) == 3), None), 5,
+                        "the lock command held back")
         # 5 s on the device's clock: 500 of its samples.
         start = len(proxy.to_host)
         wait_for(lambda: len(proxy.to_host) >= start + 500, 20, "5 s of samples")
