@@ -289,14 +289,16 @@ def test_mvc_buttons_time_the_repetitions_and_store_their_markers(
     page.select_option("#mvc-muscle", "gluteus_maximus")
     page.select_option("#mvc-side", "left")
     page.fill("#mvc-reps", "2")
-    page.fill("#mvc-contraction", "1")
+    # Contractions of 5 s: long enough that the early stop below lands inside the second
+    # one on a loaded machine (at 1 s, a click that took longer found the button gone).
+    page.fill("#mvc-contraction", "5")
     page.fill("#mvc-rest", "0")
     page.click("#mvc-add")
     page.click("#mvc-plan-save")
     page.locator("#mvc-msg", has_text="planned 1 MVC steps").wait_for(timeout=10_000)
     steps = _ok(api.get(f"/api/sessions/{sess}/mvc-steps"))
     assert [(s["muscle"], s["side"], s["repetitions"], s["contraction_s"], s["rest_s"])
-            for s in steps] == [("gluteus_maximus", "left", 2, 1.0, 0.0)]
+            for s in steps] == [("gluteus_maximus", "left", 2, 5.0, 0.0)]
     row = page.locator(f"#mvc-steps tr[data-step='{steps[0]['id']}']")
     assert row.locator(".mvc-done").inner_text() == "0 of 2 done"
 
@@ -306,7 +308,7 @@ def test_mvc_buttons_time_the_repetitions_and_store_their_markers(
     assert row.locator("button.mvc-start").is_disabled()  # one repetition at a time
     page.wait_for_selector("#mvc-timer[data-phase='contract']", timeout=10_000)
     assert "CONTRACT" in page.inner_text("#mvc-timer")
-    page.wait_for_selector("#mvc-timer[data-phase='idle']", timeout=10_000)
+    page.wait_for_selector("#mvc-timer[data-phase='idle']", timeout=20_000)
     page.locator(".mvc-done", has_text="1 of 2 done").wait_for(timeout=5_000)
     # The second: stopped early by the experimenter.
     row.locator("button.mvc-start").click()
