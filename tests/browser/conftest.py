@@ -103,6 +103,22 @@ def shared_server(folder: Path, default_sets: tuple[Path, Path],
             yield SharedServer(base, settings, login)
 
 
+def reading_shared(url_fixture: str = "server") -> tuple[Any, Any]:
+    """The fixtures a module whose tests share its `shared` server overrides with it:
+    its URL (named `url_fixture`) and `experimenter`, the login it holds. Assign them to
+    those names in the module: `server, experimenter = reading_shared()`."""
+
+    @pytest.fixture(name=url_fixture)
+    def url(shared: SharedServer) -> str:
+        return shared.url
+
+    @pytest.fixture(name="experimenter")
+    def login(shared: SharedServer) -> dict[str, str]:
+        return shared.login
+
+    return url, login
+
+
 @pytest.fixture
 def page(browser: Any, request: pytest.FixtureRequest) -> Iterator[Any]:
     # bypass_csp: the app's Content-Security-Policy forbids evaluating strings, which

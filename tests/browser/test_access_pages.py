@@ -13,7 +13,7 @@ import pytest
 
 from backend.db.engine import make_engine, make_session_factory
 from backend.study import accounts
-from tests.browser.conftest import SharedServer, shared_server
+from tests.browser.conftest import SharedServer, reading_shared, shared_server
 from tests.databases import AccountTemplates
 
 
@@ -32,14 +32,7 @@ def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, P
         yield s
 
 
-@pytest.fixture
-def quiet_server(shared: SharedServer) -> str:
-    return shared.url
-
-
-@pytest.fixture
-def experimenter(shared: SharedServer) -> dict[str, str]:
-    return shared.login
+quiet_server, experimenter = reading_shared("quiet_server")
 
 
 def _log_in(page: Any, server: str, experimenter: dict[str, str], next_path: str) -> None:

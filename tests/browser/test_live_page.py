@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from tests.browser.conftest import SharedServer, shared_server
+from tests.browser.conftest import SharedServer, reading_shared, shared_server
 from tests.databases import AccountTemplates
 
 
@@ -22,14 +22,7 @@ def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, P
         yield s
 
 
-@pytest.fixture
-def server(shared: SharedServer) -> str:
-    return shared.url
-
-
-@pytest.fixture
-def experimenter(shared: SharedServer) -> dict[str, str]:
-    return shared.login
+server, experimenter = reading_shared()
 
 
 def test_live_page_receives_and_draws_at_least_50_samples_per_second(

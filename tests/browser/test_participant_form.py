@@ -10,7 +10,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.conftest import SharedServer, shared_server
+from tests.browser.conftest import SharedServer, reading_shared, shared_server
 from tests.databases import AccountTemplates
 
 
@@ -24,14 +24,7 @@ def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, P
         yield s
 
 
-@pytest.fixture
-def quiet_server(shared: SharedServer) -> str:
-    return shared.url
-
-
-@pytest.fixture
-def experimenter(shared: SharedServer) -> dict[str, str]:
-    return shared.login
+quiet_server, experimenter = reading_shared("quiet_server")
 
 
 def test_participant_fills_in_the_sus_through_the_link(quiet_server: str, page: Any,

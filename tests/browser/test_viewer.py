@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from tests.browser.conftest import SharedServer, shared_server
+from tests.browser.conftest import SharedServer, reading_shared, shared_server
 from tests.databases import AccountTemplates
 from tests.polling import wait_for
 
@@ -23,14 +23,7 @@ def shared(tmp_path_factory: pytest.TempPathFactory, default_sets: tuple[Path, P
         yield s
 
 
-@pytest.fixture
-def server(shared: SharedServer) -> str:
-    return shared.url
-
-
-@pytest.fixture
-def experimenter(shared: SharedServer) -> dict[str, str]:
-    return shared.login
+server, experimenter = reading_shared()
 
 
 def test_viewer_shows_the_scene_and_follows_the_ticks(logged_in: str, page: Any) -> None:

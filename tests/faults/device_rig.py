@@ -62,12 +62,17 @@ def device_process(port: int, key_file: Path, script: str, seed: int = 1,
     try:
         yield proc
     finally:
-        proc.terminate()
-        try:
-            proc.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
+        _stop(proc)
+
+
+def _stop(proc: DeviceProcess) -> None:
+    """SIGTERM, and SIGKILL if it has not ended 15 s later (its pipes read meanwhile)."""
+    proc.terminate()
+    try:
+        proc.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
 
 
 @contextmanager
@@ -81,12 +86,7 @@ def model_device_process(target: Callable[..., None], *args: Any
         try:
             yield forked
         finally:
-            forked.terminate()
-            try:
-                forked.wait(10)
-            except subprocess.TimeoutExpired:
-                forked.kill()
-                forked.wait(5)
+            _stop(forked)
         return
     ctx = multiprocessing.get_context("spawn")
     proc = ctx.Process(target=target, args=args, daemon=True)
