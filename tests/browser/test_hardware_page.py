@@ -27,9 +27,12 @@ def udp_server(settings: Settings, experimenter: dict[str, str]) -> Iterator[str
 
 
 def _run(page: Any, step: str) -> str:
-    """Run one step from its row; returns its result cell's text once it has one."""
+    """Run one step from its row; returns its result cell's text once it has one and the
+    step's action has ended (its button enabled again): the action writes the shared
+    message line after the result, and a next click must not race that write."""
     page.click(f"#run-{step}")
     page.wait_for_selector(f"#step-table tr[data-step='{step}'][data-passed]", timeout=120_000)
+    page.wait_for_selector(f"#run-{step}:enabled", timeout=30_000)
     return page.text_content(f"#step-table tr[data-step='{step}'] .result") or ""
 
 
