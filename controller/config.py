@@ -12,15 +12,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controller.device.base import SAMPLE_RATE_HZ
+from controller.intent.calibration import OFFSET_MAX
 from controller.lowlevel.encoders import EncoderLayout
 from controller.lowlevel.plausibility import HIP_VELOCITY_MAX
 
 #: Largest hip velocity (rad/s) a velocity threshold may ask for: the plausibility bound
 #: (a threshold above it could never trigger).
 VELOCITY_THRESHOLD_MAX = HIP_VELOCITY_MAX
-#: A calibration offset maps a standing posture onto the models' start; beyond 60 deg
-#: either way the wearer was not standing (or the encoders are mounted wrongly).
-CALIBRATION_MAX_RAD = math.radians(60.0)
+#: The largest calibration offset a setting may carry: the bound `calibrate` enforces.
+CALIBRATION_MAX_RAD = OFFSET_MAX
 
 #: (field, lower, upper, lower bound excluded) for every scalar setting.
 _BOUNDS: tuple[tuple[str, float, float, bool], ...] = (

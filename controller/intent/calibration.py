@@ -7,7 +7,8 @@ offsets from the fit of the device on the waist and from donning and doffing.
 
 A calibration whose standard deviation (population, ddof = 0) exceeds a limit
 (default 1 degree) is rejected: the wearer was moving and the mean is not a rest
-posture.
+posture. One whose offset exceeds 60 degrees is rejected too: the wearer was still,
+but not standing (held at the bottom of a squat, say).
 """
 
 from __future__ import annotations
@@ -22,6 +23,10 @@ import numpy.typing as npt
 MAX_STD = math.radians(1.0)
 #: Default minimum length of the still period: 1 s at 100 Hz.
 MIN_SAMPLES = 100
+#: A calibration offset maps a standing posture onto the models' start; beyond 60 deg
+#: either way the wearer was not standing (a still moment at the bottom of a squat is
+#: about 90 deg) or the encoders are mounted wrongly.
+OFFSET_MAX = math.radians(60.0)
 
 
 class CalibrationError(ValueError):
@@ -60,7 +65,8 @@ def calibrate(
 
     Raises:
         CalibrationError: too few samples, NaN or inf, or a standard deviation above
-            `max_std` (the message gives both hips' values in degrees).
+            `max_std` (the message gives both hips' values in degrees), or an offset
+            beyond `OFFSET_MAX` (not a standing posture).
     """
     a = np.asarray(angles, dtype=np.float64)
     target = np.asarray(model_start_mean, dtype=np.float64)
@@ -85,6 +91,13 @@ def calibrate(
             f"(limit {math.degrees(max_std):.2f} deg)"
         )
     offset = a.mean(axis=0) - target
+    if np.any(np.abs(offset) > OFFSET_MAX):
+        raise CalibrationError(
+            "wearer was not standing: offsets left "
+            f"{math.degrees(offset[0]):.1f} deg, right {math.degrees(offset[1]):.1f} deg "
+            f"from the models' start posture (a standing posture is within "
+            f"+-{math.degrees(OFFSET_MAX):.0f} deg)"
+        )
     return Calibration(offset_left=float(offset[0]), offset_right=float(offset[1]))
 
 

@@ -53,6 +53,21 @@ def test_std_limit_is_on_either_hip() -> None:
     )
 
 
+@pytest.mark.parametrize(("left_deg", "right_deg"), [(88.5, 93.6), (2.0, -61.0), (-60.5, 0.0)])
+def test_still_but_not_standing_is_rejected(left_deg: float, right_deg: float) -> None:
+    # Held still at the bottom of a squat: the stillness test passes, the offset does not.
+    a = _still(std=math.radians(0.2)) - np.array([0.21, -0.04])
+    a += START + np.radians([left_deg, right_deg])
+    with pytest.raises(CalibrationError, match="not standing") as err:
+        calibrate(a, START)
+    assert f"{left_deg:.1f} deg" in str(err.value) and f"{right_deg:.1f} deg" in str(err.value)
+    # Just within the bound on both sides is a standing posture.
+    b = _still(std=math.radians(0.2)) - np.array([0.21, -0.04]) + START + np.radians([59.5, -59.5])
+    cal = calibrate(b, START)
+    assert (math.degrees(cal.offset_left), math.degrees(cal.offset_right)) == pytest.approx(
+        (59.5, -59.5), abs=0.1)
+
+
 @pytest.mark.parametrize(
     ("angles", "message"),
     [
