@@ -12,15 +12,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controller.device.base import SAMPLE_RATE_HZ
-from controller.intent.calibration import OFFSET_MAX
 from controller.lowlevel.encoders import EncoderLayout
 from controller.lowlevel.plausibility import HIP_VELOCITY_MAX
 
 #: Largest hip velocity (rad/s) a velocity threshold may ask for: the plausibility bound
 #: (a threshold above it could never trigger).
 VELOCITY_THRESHOLD_MAX = HIP_VELOCITY_MAX
-#: The largest calibration offset a setting may carry: the bound `calibrate` enforces.
-CALIBRATION_MAX_RAD = OFFSET_MAX
+#: A calibration offset maps a standing posture onto the models' start; beyond 60 deg
+#: either way the wearer was not standing (a still moment at the bottom of a squat is
+#: about 90 deg) or the encoders are mounted wrongly. `calibrate` refuses such offsets,
+#: and a setting cannot carry one.
+CALIBRATION_MAX_RAD = math.radians(60.0)
 
 #: (field, lower, upper, lower bound excluded) for every scalar setting.
 _BOUNDS: tuple[tuple[str, float, float, bool], ...] = (

@@ -19,14 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from controller.config import CALIBRATION_MAX_RAD
+
 #: Default limit on the standard deviation of a still period, rad (1 degree).
 MAX_STD = math.radians(1.0)
 #: Default minimum length of the still period: 1 s at 100 Hz.
 MIN_SAMPLES = 100
-#: A calibration offset maps a standing posture onto the models' start; beyond 60 deg
-#: either way the wearer was not standing (a still moment at the bottom of a squat is
-#: about 90 deg) or the encoders are mounted wrongly.
-OFFSET_MAX = math.radians(60.0)
+#: Largest offset, rad, that still maps a standing posture (`controller.config`).
+OFFSET_MAX = CALIBRATION_MAX_RAD
 
 
 class CalibrationError(ValueError):
