@@ -6,11 +6,10 @@ from backend.worker.messages import WorkerConfig
 from controller.device.base import Device
 
 
-def make_device(config: WorkerConfig) -> Device:
-    """The configured device; imports lazily so the worker only loads what it uses."""
+def make_device(config: WorkerConfig, server_pid: int) -> Device:
+    """The configured device; imports lazily so the worker only loads what it uses.
+    `server_pid` names the server whose EMG inlet subscribes to the simulator's stream."""
     if config.device_kind == "sim":
-        import os
-
         from controller.sim.simulated_device import SimulatedDevice
 
         source_id = None
@@ -19,8 +18,8 @@ def make_device(config: WorkerConfig) -> Device:
             # cost a worker without EMG more than a second of CPU at every start.
             from controller.sim.emg_amplifier import server_source_id
 
-            # The server (this worker's parent) subscribes its own simulator by this id.
-            source_id = server_source_id(os.getppid())
+            # The server subscribes its own simulator by this id.
+            source_id = server_source_id(server_pid)
         return SimulatedDevice(
             seed=config.device_seed,
             script=config.device_script,

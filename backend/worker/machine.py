@@ -37,6 +37,7 @@ import numpy as np
 
 from backend.schemas.live import DeviceReport, LoopReport
 from backend.worker import bringup
+from backend.worker.child_processes import ParentWatch
 from backend.worker.device_gate import DeviceGate
 from backend.worker.devices import make_device
 from backend.worker.messages import (
@@ -280,9 +281,9 @@ class Machine:
     """The worker's device, controller, run and state, and one handler per command."""
 
     def __init__(self, config: WorkerConfig, device: Device, outbox: Outbox,
-                 cmd_conn: Connection, parent_pid: int, stopping: SignalSafeFlag) -> None:
+                 cmd_conn: Connection, parent: ParentWatch, stopping: SignalSafeFlag) -> None:
         self.config, self.device, self.outbox = config, device, outbox
-        self.cmd_conn, self.parent_pid, self.stopping = cmd_conn, parent_pid, stopping
+        self.cmd_conn, self.parent, self.stopping = cmd_conn, parent, stopping
         self.pid = os.getpid()
         self.state = State.IDLE
         #: Every state entered, in order (the tests read the transitions from it).
@@ -440,7 +441,7 @@ class Machine:
         sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script,
                              device_speed=cmd.speed or config.device_speed)
         try:
-            new_device = make_device(sim_config)
+            new_device = make_device(sim_config, self.parent.server_pid)
             fresh = build(self.spec)
         except Exception as exc:
             self.refuse(cmd, f"simulation seed {cmd.seed}, script {cmd.script!r} "
@@ -545,7 +546,7 @@ class Machine:
         command_waiting = _poller(self.cmd_conn)
         loop_scheduling(paced(self.config))
         while not stopping.is_set():
-            if os.getppid() != self.parent_pid or outbox.broken.is_set():
+            if self.parent.gone() or outbox.broken.is_set():
                 self.exit_code = 4  # the server is gone: release and leave
                 break
             if command_waiting():

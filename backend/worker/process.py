@@ -1,6 +1,7 @@
 """The worker process: the 100 Hz control loop, isolated from the web server.
 
-It runs in its own process (multiprocessing, spawn) so that nothing the server or a
+It runs in its own process (forked from the server's fork server,
+`backend.worker.child_processes`) so that nothing the server or a
 browser does (garbage collection, a slow request, the GIL) can delay a lock decision.
 Safety rules:
 - any exit path releases the device (no solenoid stays energised);
@@ -17,6 +18,7 @@ import signal
 from multiprocessing.connection import Connection
 from types import FrameType
 
+from backend.worker.child_processes import ParentWatch
 from backend.worker.devices import make_device
 from backend.worker.machine import BACKLOG_HOLD, BACKLOG_RESUME, Machine, let_go
 from backend.worker.messages import WorkerConfig, WorkerError
@@ -33,6 +35,7 @@ def worker_main(
     """Entry point of the worker process: open the device, build the state machine
     (`backend.worker.machine`), run its loop; release on every way out."""
     stopping = SignalSafeFlag()  # set by the signal handler below: no lock
+    parent = ParentWatch(parent_pid)
 
     def _on_signal(signum: int, _frame: FrameType | None) -> None:
         stopping.set()
@@ -44,7 +47,7 @@ def worker_main(
     outbox.thread.start()
     raise_priority()
     try:
-        device = make_device(config)
+        device = make_device(config, parent_pid)
         device.open()
     except Exception as exc:
         outbox.put(WorkerError(f"device {config.device_kind!r} failed to open: {exc}", fatal=True))
@@ -55,7 +58,7 @@ def worker_main(
     exit_code = 0
     machine: Machine | None = None
     try:
-        machine = Machine(config, device, outbox, cmd_conn, parent_pid, stopping)
+        machine = Machine(config, device, outbox, cmd_conn, parent, stopping)
         machine.run()
         exit_code = machine.exit_code
     except Exception as exc:

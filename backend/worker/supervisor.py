@@ -8,7 +8,6 @@ had already sent are drained and stored.
 from __future__ import annotations
 
 import logging
-import multiprocessing as mp
 import os
 import threading
 import time
@@ -18,6 +17,7 @@ from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from typing import Any
 
+from backend.worker import child_processes
 from backend.worker.device_gate import DeviceGate
 from backend.worker.messages import (
     BringupCommand,
@@ -82,7 +82,6 @@ class WorkerSupervisor:
         self.config = config
         self.callbacks = callbacks
         self.state = WorkerState()
-        self._ctx = mp.get_context("spawn")
         self._proc: BaseProcess | None = None
         self._out: Connection | None = None
         self._cmd: Connection | None = None
@@ -111,15 +110,12 @@ class WorkerSupervisor:
                 # its identity to it yet.
                 self.config = replace(self.config, spec=ControllerSpec("none"))
                 self._bound = False
-            out_parent, out_child = self._ctx.Pipe(duplex=False)
-            cmd_child, cmd_parent = self._ctx.Pipe(duplex=False)
-            proc = self._ctx.Process(
-                target=worker_main,
-                args=(self.config, out_child, cmd_child, os.getpid()),
-                name="exostudy-worker",
-                daemon=True,
-            )
-            proc.start()
+            ctx = child_processes.context()
+            out_parent, out_child = ctx.Pipe(duplex=False)
+            cmd_child, cmd_parent = ctx.Pipe(duplex=False)
+            proc = child_processes.start(
+                worker_main, (self.config, out_child, cmd_child, os.getpid()),
+                "exostudy-worker")
             out_child.close()
             cmd_child.close()
             if self.state.started_at is not None:

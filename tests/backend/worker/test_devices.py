@@ -13,8 +13,9 @@ from controller.sim.simulated_device import SimulatedDevice
 
 
 def test_the_simulated_amplifier_carries_the_servers_source_id() -> None:
-    dev = make_device(WorkerConfig(device_kind="sim", device_emg_lsl=True))
+    server = os.getpid() + 7  # the worker's parent is the fork server, not the server
+    dev = make_device(WorkerConfig(device_kind="sim", device_emg_lsl=True), server)
     assert isinstance(dev, SimulatedDevice) and dev.emg is not None
-    assert dev.emg.source_id == server_source_id(os.getppid())
-    assert server_source_id(os.getppid()) != server_source_id(os.getppid() + 1)
-    assert make_device(WorkerConfig(device_kind="sim")).emg is None  # type: ignore[attr-defined]
+    assert dev.emg.source_id == server_source_id(server)
+    assert server_source_id(server) != server_source_id(server + 1)
+    assert make_device(WorkerConfig(device_kind="sim"), server).emg is None  # type: ignore[attr-defined]

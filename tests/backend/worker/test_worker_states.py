@@ -18,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from backend.worker.child_processes import ParentWatch
 from backend.worker.devices import make_device
 from backend.worker.machine import (
     EDGES,
@@ -119,13 +120,13 @@ class Harness:
     def __init__(self, **config: Any) -> None:
         self.config = WorkerConfig(device_kind="sim", device_speed=50,
                                    device_script="squat-sequence", **config)
-        device = make_device(self.config)
+        device = make_device(self.config, os.getppid())
         device.open()
         self.releases = 0
         self._conn_a, self._conn_b = mp.Pipe(duplex=False)
         self.outbox = Outbox(self._conn_b)  # its sender thread is never started
         self.stopping = SignalSafeFlag()
-        self.m = Machine(self.config, device, self.outbox, self._conn_a, os.getppid(),
+        self.m = Machine(self.config, device, self.outbox, self._conn_a, ParentWatch(os.getppid()),
                          self.stopping)
         self._spy(device)
 

@@ -1,0 +1,42 @@
+"""Targets the child-process tests run in a child of the fork server (importable by
+name, as every child target must be)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
+
+from backend.worker import child_processes
+from backend.worker.child_processes import ParentWatch
+
+
+def report(conn: Connection, server_pid: int, name: str) -> None:
+    """Send what the child sees: its parent, an environment variable, and whether its
+    server counts as gone."""
+    conn.send((os.getpid(), os.getppid(), os.environ.get(name),
+               ParentWatch(server_pid).gone()))
+
+
+def watch_until_gone(server_pid: int, out: str) -> None:
+    """Write `gone` to `out` once the server has gone (at most 60 s)."""
+    watch = ParentWatch(server_pid)
+    Path(out + ".ready").write_text(f"{os.getpid()} {os.getppid()}")
+    end = time.monotonic() + 60
+    while time.monotonic() < end:
+        if watch.gone():
+            Path(out).write_text("gone")
+            return
+        time.sleep(0.01)
+
+
+def serve_one_child(out: str) -> None:
+    """A stand-in server: start a watching child, then wait to be killed."""
+    child_processes.start(watch_until_gone, (os.getpid(), out), "watcher")
+    time.sleep(120)
+
+
+if __name__ == "__main__":
+    serve_one_child(sys.argv[1])
