@@ -31,14 +31,17 @@ def collect(d: Driver, cfg: VirtualStudyConfig, study_id: int) -> list[int]:
         sess = ok(d.c.post(f"/api/participants/{p['id']}/sessions",
                            json={"kind": "data_collection", "precompression_pct": 25}), 201)
         for script in cfg.data_scripts:
-            d.simulate(seed, script, cfg.collection_speed)
-            rec = ok(d.c.post(f"/api/sessions/{sess['id']}/recordings",
-                              json={"label": script}), 201)
-            # Until the end of the first repetition (the worker's tick count is the
-            # device's sample number since the simulation started) and 1.5 s into the
-            # next one's first stand: no lift is cut at the end. A lift that passed while
-            # the recording was being started is simply not in it.
+            # The first repetition and 1.5 s into the next one's first stand (no lift is
+            # cut at the end). The wearer starts with the recording, and the worker ends
+            # it after that much device time: the same samples at any speed, however
+            # late the stop below comes.
             end_s = script_duration_s(seed, script) + 1.5
+            d.speed = cfg.collection_speed
+            rec = ok(d.c.post(f"/api/sessions/{sess['id']}/recordings", json={
+                "label": script, "duration_s": end_s,
+                "simulation": {"seed": seed, "script": script,
+                               "speed": cfg.collection_speed}}), 201)
+            # The worker's tick count is the device's sample number since the swap.
             d.wait_ticks(round(end_s / SAMPLE_PERIOD_S))
             ok(d.c.post(f"/api/recordings/{rec['id']}/stop"))
             recordings.append(rec["id"])

@@ -12,7 +12,8 @@ from controller.device.base import MAX_SPEED
 #: machine delivers costs nothing and loses nothing; on a quiet 2-core machine 80x gave a
 #: median of 6,200 ticks/s. See README "Results and the virtual study".
 DEFAULT_SPEED: float = MAX_SPEED
-#: Speed-up while demonstrations are recorded: a recording starts a moment after the new
-#: wearer does, and at 80x that moment costs a lift or two per recording (103 instead
-#: of 126 segments in the default study); at 30x it costs none of the lifts measured.
-COLLECTION_SPEED: float = 30.0
+#: Speed-up while demonstrations are recorded: the simulator's maximum too. The wearer
+#: starts with the recording (`RecordingIn.simulation`), so no lift is lost at any speed;
+#: when a recording started by a second request, 80x cost a lift or two per recording
+#: (103 instead of 126 segments in the default study) and collection ran at 30x.
+COLLECTION_SPEED: float = MAX_SPEED

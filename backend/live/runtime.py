@@ -348,10 +348,14 @@ class Runtime:
 
         self.stream.call_soon(resolve)
 
-    async def set_simulation(self, seed: int, script: str, speed: float | None = None) -> None:
+    async def set_simulation(self, seed: int, script: str, speed: float | None = None,
+                             max_ticks: int | None = None) -> int | None:
         """Put another virtual participant (seed) or script on the simulated device: the
         worker swaps its in-process simulator (a new run, same process), or the device
-        process (UDP) restarts. The current controller is kept, with a fresh state."""
+        process (UDP) restarts. The current controller is kept, with a fresh state.
+        Returns the id of the run the swapped simulator starts with (its first sample is
+        the script's first; with `max_ticks` it holds that many samples, in-process
+        simulator only), None when the worker or the device process restarted."""
         from controller.sim.scripts import get_script
 
         try:
@@ -369,11 +373,12 @@ class Runtime:
                                      device_script=script, device_speed=speed)
         self.supervisor.config = self.worker_config
         runs_before = self._runs_started
+        run_id: int | None = None
         if self.settings.device_kind == "sim":
             # The running worker swaps its simulated device (no process start); a worker
             # that is down picks the new configuration up when it starts.
             fut = self._command_future()
-            rid = self.supervisor.set_simulation(seed, script, speed)
+            rid = self.supervisor.set_simulation(seed, script, speed, max_ticks)
             if rid is None:
                 await asyncio.to_thread(self.supervisor.restart)
             else:
@@ -381,6 +386,7 @@ class Runtime:
                                             COMMAND_TIMEOUT_S)
                 if not answer.ok:
                     raise RuntimeError(answer.message)
+                run_id = self._run_ids.get(answer.run_token)
         elif self.settings.device_spawn_simulator:
             if self.device_process is not None:
                 await asyncio.to_thread(device_process.stop, self.device_process,
@@ -406,7 +412,7 @@ class Runtime:
                                           or st.run_token == self._last_run_token)
             if restarted and current and st is not None and st.device.alive \
                     and self.supervisor.state.alive:
-                return
+                return run_id
             await asyncio.sleep(0.05)
         raise RuntimeError("the simulated device did not start streaming again")
 

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from backend.schemas.fields import MAX_ID, UtcDatetime
+from backend.schemas.live import SimulationChoice
 
 SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
 
@@ -17,6 +18,15 @@ class RecordingIn(BaseModel):
 
     label: str = Field(default="", max_length=200)
     notes: str = Field(default="", max_length=5000)
+    simulation: SimulationChoice | None = Field(default=None, description=(
+        "in-process simulated device only: put this virtual participant and script on it "
+        "as the recording starts, so that the recording holds the script from its first "
+        "sample (a simulation faster than real time runs ahead while a recording is "
+        "started by a second request)"))
+    duration_s: float | None = Field(default=None, gt=0, le=3600, description=(
+        "with `simulation` only: the recording holds exactly this much device time "
+        "(seconds) from the wearer's first sample; the worker ends it by itself, so a "
+        "simulation faster than real time does not run on into a stop that comes late"))
 
 
 class RecordingOut(BaseModel):

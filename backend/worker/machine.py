@@ -458,7 +458,8 @@ class Machine:
         # Fresh timing too: health counts ticks from the new wearer's start.
         self.loop = self._new_loop(fresh)
         self.next_status = 0.0  # report the new wearer at its first sample
-        self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind))
+        self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind,
+                                                        cmd.max_ticks))
 
     def on_calibrate(self, cmd: Calibrate) -> None:
         """Collect the next seconds of samples beside the running controller: a job,
@@ -509,9 +510,14 @@ class Machine:
         self.outbox.put_record(record)
         runs = self.runs
         runs.ticks += 1
-        if self.state is State.TRIAL and runs.limit is not None and runs.ticks >= runs.limit:
-            # A timed run is over: back to no controller (no locks), a new run.
-            self._fall_back()
+        if runs.limit is not None and runs.ticks >= runs.limit:
+            if self.state is State.TRIAL:
+                # A timed run is over: back to no controller (no locks), a new run.
+                self._fall_back()
+            else:
+                # A timed run of a new simulated wearer (a recording): the data ends,
+                # the controller goes on, in a run of its own.
+                runs.start(self.spec, self.device.kind)
         job = self.calibration
         if job is not None and job.add(record):
             self.finish_calibration(job)

@@ -148,6 +148,10 @@ class SetSimulation:
     speed: float | None = None
     #: Answered by a `CommandResult` with this id (0: nobody waits for the answer).
     request_id: int = 0
+    #: The new wearer's run ends after this many samples (the next run goes on with the
+    #: same controller): a recording of exactly that much of the script, however late
+    #: the server stops it. None: the run lasts until the next command.
+    max_ticks: int | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -186,10 +186,12 @@ class WorkerSupervisor:
                 return 0
             return rid
 
-    def set_simulation(self, seed: int, script: str, speed: float | None = None) -> int | None:
-        """Ask the running worker to switch its simulated wearer or script; returns the
-        request id its `CommandResult` will carry, None when no worker runs (the new
-        configuration then applies at the next start)."""
+    def set_simulation(self, seed: int, script: str, speed: float | None = None,
+                       max_ticks: int | None = None) -> int | None:
+        """Ask the running worker to switch its simulated wearer or script (its run ends
+        after `max_ticks` samples, if given); returns the request id its `CommandResult`
+        will carry, None when no worker runs (the new configuration then applies at the
+        next start)."""
         with self._lock:
             speed = self.config.device_speed if speed is None else speed
             self.config = replace(self.config, device_seed=seed, device_script=script,
@@ -198,7 +200,7 @@ class WorkerSupervisor:
                 return None
             rid = self._next_request_id()
             try:
-                self._cmd.send(SetSimulation(seed, script, speed, rid))
+                self._cmd.send(SetSimulation(seed, script, speed, rid, max_ticks))
             except (BrokenPipeError, OSError):
                 return None
             return rid

@@ -1,0 +1,86 @@
+"""A recording that starts its simulated wearer: the recording holds the script from its
+first sample at any simulator speed, and a request the server cannot honour is a 422
+that changes nothing."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from backend.core.config import Settings
+from backend.main import create_app
+from tests.login import log_in
+from tests.polling import wait_for
+
+
+def _ok(r: Any, code: int = 200) -> Any:
+    assert r.status_code == code, r.text
+    return r.json()
+
+
+def _session(client: TestClient) -> int:
+    study = _ok(client.post("/api/studies", json={"name": "demos"}), 201)
+    p = _ok(client.post(f"/api/studies/{study['id']}/participants",
+                        json={"code": "D01", "age": 30, "sex": "female", "height_m": 1.7,
+                              "mass_kg": 65, "consent_date": "2026-11-20"}), 201)
+    return int(_ok(client.post(f"/api/participants/{p['id']}/sessions",
+                               json={"kind": "data_collection",
+                                     "precompression_pct": 25}), 201)["id"])
+
+
+def test_the_recording_holds_the_wearer_from_the_scripts_first_sample(
+        settings: Settings, experimenter: dict[str, str]) -> None:
+    settings = settings.model_copy(update={"start_worker": True, "device_speed": 1.0,
+                                           "device_script": "walking"})
+    with TestClient(create_app(settings)) as client:
+        log_in(client, experimenter)
+        sid = _session(client)
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 10, 60,
+                 "the worker's ticks")
+        # Refused before anything changes: an unknown script names its field.
+        bad = client.post(f"/api/sessions/{sid}/recordings", json={
+            "label": "x", "simulation": {"seed": 3, "script": "cartwheels", "speed": 50}})
+        assert bad.status_code == 422, bad.text
+        assert bad.json()["detail"][0]["loc"] == ["body", "simulation", "script"]
+        assert _ok(client.get(f"/api/sessions/{sid}/recordings")) == []
+        assert client.get("/api/health").json()["worker"]["controller"] == "none"
+        # A live wearer's recording is not timed.
+        timed = client.post(f"/api/sessions/{sid}/recordings", json={"duration_s": 10})
+        assert timed.status_code == 422, timed.text
+        assert timed.json()["detail"][0]["loc"] == ["body", "duration_s"]
+        assert _ok(client.get(f"/api/sessions/{sid}/recordings")) == []
+
+        # At 100x the script runs ahead by seconds of device time while a second request
+        # starts a recording; started together, the recording begins at its first sample.
+        # Timed: the worker ends it after 30 s of device time, though the stop comes late.
+        rec = _ok(client.post(f"/api/sessions/{sid}/recordings", json={
+            "label": "squats", "duration_s": 30.0,
+            "simulation": {"seed": 3, "script": "squat-sequence", "speed": 100}}), 201)
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] >= 4000, 120,
+                 "40 s of the squat sequence", poll=0.1)
+        rec = _ok(client.post(f"/api/recordings/{rec['id']}/stop"))
+        assert rec["last_tick_id"] - rec["first_tick_id"] + 1 == 3000
+        angles = _ok(client.get(f"/api/recordings/{rec['id']}/angles"))
+        assert angles["t"][0] == 0.0  # the device's first sample of the new wearer
+        assert len(angles["t"]) == 3000 and angles["t"][-1] == pytest.approx(29.99)
+        assert angles["t"][1] == pytest.approx(0.01)  # 100 Hz device time
+        found = _ok(client.post(f"/api/recordings/{rec['id']}/segment"))
+        assert len([s for s in found if s["label"] == "squat"]) >= 4
+        # The first squat starts after the script's opening stand, not cut at sample 0.
+        assert min(s["start"] for s in found) > 0
+
+
+def test_only_the_in_process_simulator_starts_a_wearer_with_a_recording(
+        settings: Settings, experimenter: dict[str, str]) -> None:
+    settings = settings.model_copy(update={"device_kind": "udp"})
+    with TestClient(create_app(settings)) as client:
+        log_in(client, experimenter)
+        sid = _session(client)
+        r = client.post(f"/api/sessions/{sid}/recordings", json={
+            "simulation": {"seed": 3, "script": "squat-sequence"}})
+        assert r.status_code == 422, r.text
+        detail = r.json()["detail"][0]
+        assert detail["loc"] == ["body", "simulation"] and "'udp'" in detail["msg"]
+        assert _ok(client.get(f"/api/sessions/{sid}/recordings")) == []
