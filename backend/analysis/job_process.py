@@ -4,21 +4,24 @@ and cancelling it is immediate (the child is terminated) instead of waiting for 
 next progress report. A child also dies with the server, even one killed by SIGKILL.
 
 The target must be a module-level function `target(*args, progress) -> result`, with
-picklable arguments and result (the child is spawned: a fresh interpreter).
+picklable arguments and result. The child is forked from the server's fork server, as
+the worker is (`backend.worker.child_processes`): a fresh interpreter's imports cost each
+job a second and a half of CPU.
 """
 
 from __future__ import annotations
 
-import ctypes
-import multiprocessing as mp
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
 from backend.analysis.jobs import JobCancelledError, Progress
+from backend.worker import child_processes
+from backend.worker.child_processes import ParentWatch
 
 T = TypeVar("T")
 
@@ -26,8 +29,8 @@ T = TypeVar("T")
 POLL_S = 0.1
 #: How long a terminated child gets to exit before SIGKILL.
 TERMINATE_WAIT_S = 2.0
-#: linux/prctl.h
-_PR_SET_PDEATHSIG = 1
+#: How often a child looks whether its server is still there.
+WATCH_S = 0.2
 
 
 class JobProcessError(RuntimeError):
@@ -35,16 +38,19 @@ class JobProcessError(RuntimeError):
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    """Ask the kernel for SIGTERM when the server dies (Linux); exit now if it already
-    has. The server's job thread that started this child outlives it, so the signal
-    comes only with the server's end."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
-    except (OSError, AttributeError):
-        pass  # elsewhere: a child whose pipe breaks still ends at its next report
-    if os.getppid() != parent_pid:
+    """End this child (SIGTERM to itself) once the server has gone; exit now if it
+    already has. A thread watches, since the child's parent is the fork server, which
+    outlives the server while children live (no parent-death signal can tell)."""
+    parent = ParentWatch(parent_pid)
+    if parent.gone():
         raise SystemExit(4)
+
+    def watch() -> None:
+        while not parent.gone():
+            time.sleep(WATCH_S)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="server-watch", daemon=True).start()
 
 
 def _child(target: Callable[..., Any], args: tuple[Any, ...], conn: Connection,
@@ -64,14 +70,11 @@ def _child(target: Callable[..., Any], args: tuple[Any, ...], conn: Connection,
 
 def run_in_child(target: Callable[..., T], args: tuple[Any, ...], progress: Progress,
                  cancelled: threading.Event) -> T:
-    """`target(*args, progress)` in a spawned child; its progress reports are passed to
+    """`target(*args, progress)` in a child process; its progress reports are passed to
     `progress` (which may raise `JobCancelledError`). Raises `JobCancelledError` once `cancelled`
     is set (the child is terminated), `JobProcessError` if the child fails or dies."""
-    ctx = mp.get_context("spawn")
-    receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(target, args, send, os.getpid()),
-                       name="exostudy-job", daemon=True)
-    proc.start()
+    receive, send = child_processes.context().Pipe(duplex=False)
+    proc = child_processes.start(_child, (target, args, send, os.getpid()), "exostudy-job")
     send.close()
     try:
         while True:

@@ -1,5 +1,6 @@
-"""How the server starts its worker process: forked from a process that has already
-imported what the worker needs ("forkserver"), not a fresh interpreter ("spawn").
+"""How the server starts its Python children (the worker, analysis jobs): forked from a
+process that has already imported what the worker needs ("forkserver"), not each a
+fresh interpreter ("spawn").
 
 A fresh interpreter spent about 1.5 s of CPU importing NumPy, SciPy, numba, pydantic
 and the controller before the worker's first tick, at every start and restart of the
@@ -9,8 +10,8 @@ after the first when forked (process accounting). The fork
 server is itself a fresh interpreter, started once per server (at its first child), that
 only imports `PRELOAD`: it holds no threads, devices, database connections or sockets,
 so a child forked from it starts from what "spawn" would have built, minus the waiting.
-(Analysis jobs still start fresh, `backend.analysis.job_process`: they are rare, and the
-kernel ends them with the server, which a child of the fork server could not ask for.)
+A job (`backend.analysis.job_process`) imports what it needs beyond the worker's after
+the fork: preloading it would delay the worker's first start.
 
 Two things "spawn" gave for free are kept by hand:
 - the environment: the fork server's is the server's at the fork server's start, so
@@ -38,7 +39,7 @@ _context: ForkServerContext | None = None
 
 
 def context() -> ForkServerContext:
-    """The worker's start method (its pipes come from it too)."""
+    """The start method of the server's Python children (their pipes come from it too)."""
     global _context
     if _context is None:
         ctx = mp.get_context("forkserver")

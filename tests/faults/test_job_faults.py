@@ -44,15 +44,29 @@ def _row(db_url: str, model: Any, key: int) -> Any:
     return row
 
 
-def children(pid: int) -> set[int]:
-    """Children of `pid` started by any of its threads (a job lane's child is the lane
-    thread's, which `/proc/PID/task/PID/children` does not list)."""
+def _children(pid: int) -> set[int]:
+    """Children of `pid` started by any of its threads (`/proc/PID/task/PID/children`
+    lists only the main thread's)."""
     found: set[int] = set()
     for task in Path(f"/proc/{pid}/task").glob("*"):
         try:
             found |= {int(x) for x in (task / "children").read_text().split()}
         except (FileNotFoundError, ProcessLookupError):
             continue
+    return found
+
+
+def children(pid: int) -> set[int]:
+    """The server's Python children: those of its fork server (the worker, the jobs),
+    which is the server's own child."""
+    found: set[int] = set()
+    for child in _children(pid):
+        try:
+            forks = b"multiprocessing.forkserver" in Path(f"/proc/{child}/cmdline").read_bytes()
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if forks:
+            found |= _children(child)
     return found
 
 
@@ -65,8 +79,7 @@ def _cohort_computing(s: Served, before: set[int]) -> tuple[dict[str, Any], int]
     wait_for(lambda: (j := s.client.get(f"/api/jobs/{cohort['job_id']}").json())
              ["status"] == "running" and j["progress"] > 0, 120,
              "the cohort's child process to report progress", poll=0.2)
-    new = [pid for pid in children(s.proc.pid) - before
-           if b"multiprocessing.spawn" in Path(f"/proc/{pid}/cmdline").read_bytes()]
+    new = sorted(children(s.proc.pid) - before)
     assert len(new) == 1, f"expected one job process, got {new}"
     return cohort, new[0]
 
