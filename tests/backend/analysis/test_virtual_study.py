@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from backend.analysis.virtual_study import (
+    DEFAULT_SPEED,
     QUESTIONNAIRE_NOTE,
     VirtualStudyConfig,
     VirtualStudyReport,
@@ -36,7 +37,7 @@ def small_study(tmp_path_factory: pytest.TempPathFactory
     reads it."""
     out = tmp_path_factory.mktemp("virtual") / "vs"
     cfg = VirtualStudyConfig(out=out, participants=2, data_participants=2, eumc=1, seed=7,
-                             speed=30.0, rates=("paper-rates",), margin_s=4.0)
+                             speed=DEFAULT_SPEED, rates=("paper-rates",), margin_s=4.0)
     return out, run(cfg, log=lambda _m: None)
 
 
@@ -49,7 +50,7 @@ def emg_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, VirtualSt
     run serves both tests: a study run costs a server, a data collection and fits)."""
     out = tmp_path_factory.mktemp("virtual") / "vs-emg"
     cfg = VirtualStudyConfig(out=out, participants=2, data_participants=2, eumc=0, seed=7,
-                             speed=30.0, rates=("paper-rates", "100hz"), margin_s=4.0,
+                             speed=DEFAULT_SPEED, rates=("paper-rates", "100hz"), margin_s=4.0,
                              eval_script="lift-evaluation", model_evaluation=False,
                              emg=True)
     return out, run(cfg, log=lambda _m: None)

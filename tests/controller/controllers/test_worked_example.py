@@ -110,11 +110,11 @@ def test_a_study_plans_it_and_refuses_to_start_it_uncalibrated(
 @pytest.mark.slow
 def test_it_runs_in_a_virtual_study_on_a_real_worker(constant: ModuleType,
                                                     tmp_path: Path) -> None:
-    from backend.analysis.virtual_study import VirtualStudyConfig, run
+    from backend.analysis.virtual_study import DEFAULT_SPEED, VirtualStudyConfig, run
 
     out = tmp_path / "vs"
     cfg = VirtualStudyConfig(out=out, participants=1, data_participants=2, eumc=0, seed=7,
-                             speed=30.0, rates=("paper-rates",), margin_s=4.0,
+                             speed=DEFAULT_SPEED, rates=("paper-rates",), margin_s=4.0,
                              model_evaluation=False)
     report = run(cfg, log=lambda _m: None)
     assert [t.controller for t in report.trials] == ["umc", "pec", "constant"]
