@@ -23,10 +23,11 @@ class RecordingIn(BaseModel):
         "as the recording starts, so that the recording holds the script from its first "
         "sample (a simulation faster than real time runs ahead while a recording is "
         "started by a second request)"))
-    duration_s: float | None = Field(default=None, gt=0, le=3600, description=(
-        "with `simulation` only: the recording holds exactly this much device time "
-        "(seconds) from the wearer's first sample; the worker ends it by itself, so a "
-        "simulation faster than real time does not run on into a stop that comes late"))
+    duration_s: float | None = Field(default=None, ge=0.01, le=3600, description=(
+        "with `simulation` only: the recording holds this much device time (seconds, "
+        "rounded to whole 10 ms samples as a timed trial's, at least one) from the "
+        "wearer's first sample; the worker ends it by itself, so a simulation faster "
+        "than real time does not run on into a stop that comes late"))
 
 
 class RecordingOut(BaseModel):

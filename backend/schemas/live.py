@@ -190,7 +190,8 @@ class ControllerChoice(BaseModel):
 class CalibrationRequest(BaseModel):
     """Stand still for `seconds`; the wearer moving more than `max_std_deg` fails it."""
 
-    seconds: float = Field(default=3.0, ge=0.5, le=30.0)
+    #: At least 1 s: a calibration needs 100 samples (`calibration.MIN_SAMPLES`).
+    seconds: float = Field(default=3.0, ge=1.0, le=30.0)
     max_std_deg: float = Field(default=1.0, gt=0.0, le=10.0)
 
 

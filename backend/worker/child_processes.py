@@ -16,7 +16,9 @@ the fork: preloading it would delay the worker's first start.
 Two things "spawn" gave for free are kept by hand:
 - the environment: the fork server's is the server's at the fork server's start, so
   every child takes the server's environment as it is when the child starts (`start`
-  passes it, `_enter` applies it before the child runs anything);
+  passes it, `_enter` applies it before the child runs anything). What a module reads
+  from the environment when it is imported (numba's settings, the time zone) is still
+  the fork server's: nothing in `backend` or `controller` does so;
 - the parent: a child's parent is the fork server, not the server, and the fork server
   lives on while any child does, so a child watches the server itself (`ParentWatch`).
 """
@@ -75,14 +77,21 @@ def _alive(pid: int) -> bool:
 
 
 class ParentWatch:
-    """Whether the server that started this child is gone.
+    """Whether the server that started this child is gone, or can no longer supervise it.
 
     A child of the fork server cannot watch its parent alone: the fork server outlives
     the server while any of its children lives (each holds the pipe it waits on). So a
     child whose parent is not the server holds a handle on the server itself (a pidfd on
     Linux, which a reused pid cannot fool; elsewhere its pid), taken at its start, when
     the server has just started it. A child of the server itself watches its parent, as
-    before."""
+    before.
+
+    The fork server's own end counts as gone too (its pid is the parent): the server
+    learns a child's exit only through the fork server, so a child that lived on after
+    it could drive the device unsupervised, and a restarted worker beside it would be a
+    second one. Such a child releases and leaves; the server sees its worker gone (exit
+    code 255: the status went with the fork server) and a restart starts a new fork
+    server (`tests/backend/worker/test_child_processes.py`)."""
 
     def __init__(self, server_pid: int) -> None:
         self.server_pid = server_pid

@@ -68,6 +68,10 @@ def calibrate(
             `max_std` (the message gives both hips' values in degrees), or an offset
             beyond `OFFSET_MAX` (not a standing posture).
     """
+    if not (math.isfinite(max_std) and max_std > 0):
+        raise CalibrationError(f"max_std must be a positive number, got {max_std!r}")
+    if min_samples < 2:
+        raise CalibrationError(f"min_samples must be at least 2, got {min_samples!r}")
     a = np.asarray(angles, dtype=np.float64)
     target = np.asarray(model_start_mean, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != 2:

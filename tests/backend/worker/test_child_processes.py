@@ -55,6 +55,34 @@ def test_a_server_gone_before_the_child_looked_counts_as_gone() -> None:
     assert not ParentWatch(os.getppid()).gone()  # the parent itself, still there
 
 
+def test_a_child_leaves_when_its_fork_server_dies_though_the_server_lives(
+        tmp_path: Path) -> None:
+    """Its exit status would go with the fork server: unsupervised, it releases and
+    leaves rather than drive the device beside the worker a restart would start."""
+    out = tmp_path / "watch"
+    root = Path(__file__).resolve().parents[3]
+    server = subprocess.Popen([sys.executable, "-m", "tests.backend.worker.child_targets",
+                               str(out)], cwd=root)
+    try:
+        end = time.monotonic() + 60
+        while not (tmp_path / "watch.ready").exists():
+            assert server.poll() is None and time.monotonic() < end, "no child started"
+            time.sleep(0.05)
+        child, fork_server = map(int, (tmp_path / "watch.ready").read_text().split())
+        os.kill(fork_server, signal.SIGKILL)
+        end = time.monotonic() + 30
+        while not out.exists():
+            assert time.monotonic() < end, "the child outlived its fork server"
+            time.sleep(0.05)
+        assert out.read_text() == "gone" and server.poll() is None  # the server lives on
+        while _alive(child):
+            assert time.monotonic() < end + 30, "the child did not exit"
+            time.sleep(0.05)
+    finally:
+        server.kill()
+        server.wait(10)
+
+
 def test_a_child_notices_its_server_killed(tmp_path: Path) -> None:
     out = tmp_path / "watch"
     root = Path(__file__).resolve().parents[3]

@@ -84,6 +84,20 @@ def test_bad_periods_rejected(angles: np.ndarray, message: str) -> None:
         calibrate(angles, START)
 
 
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"max_std": math.nan}, "max_std must be a positive number"),
+    ({"max_std": 0.0}, "max_std must be a positive number"),
+    ({"min_samples": 0}, "min_samples must be at least 2"),
+])
+def test_limits_that_would_switch_a_check_off_are_refused(kwargs: dict[str, float],
+                                                          message: str) -> None:
+    # NaN compares false, so a NaN limit would have accepted any movement.
+    sweep = np.linspace([0.0, 0.0], [1.5, 1.5], 300)
+    with pytest.raises(CalibrationError, match=message):
+        calibrate(sweep if "max_std" in kwargs else np.empty((0, 2)), START,
+                  **kwargs)  # type: ignore[arg-type]
+
+
 def test_monitor_reports_live_std_over_window() -> None:
     mon = StillnessMonitor(window=100)
     assert all(math.isnan(s) for s in mon.std())
