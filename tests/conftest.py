@@ -282,7 +282,8 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     def now() -> tuple[float, float, float]:
         own = resource.getrusage(resource.RUSAGE_SELF)
         kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-        return (time.monotonic(), own.ru_utime + own.ru_stime, kids.ru_utime + kids.ru_stime)
+        return (time.monotonic(), own.ru_utime + own.ru_stime,
+                kids.ru_utime + kids.ru_stime + _fork_server_cpu())
 
     before = now()
     yield
@@ -290,6 +291,31 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     row = _CPU.setdefault(item.nodeid.split("::", 1)[0], [0.0, 0.0, 0.0])
     for i in range(3):
         row[i] += after[i] - before[i]
+
+
+def _fork_server_cpu() -> float:
+    """CPU seconds of this process's live fork servers and of the children they have
+    reaped (the workers and jobs the servers under test start are the fork server's
+    children, so `RUSAGE_CHILDREN` sees them only when the fork server ends)."""
+    total = 0.0
+    tick = os.sysconf("SC_CLK_TCK")
+    for task in Path("/proc/self/task").glob("*"):
+        try:
+            kids = (task / "children").read_text().split()
+        except OSError:
+            continue
+        for pid in kids:
+            try:
+                if b"multiprocessing.forkserver" not in Path(
+                        f"/proc/{pid}/cmdline").read_bytes():
+                    continue
+                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            # utime, stime, cutime, cstime: fields 14-17 of stat(5), counted from the
+            # state (field 3) here.
+            total += sum(int(v) for v in fields[11:15]) / tick
+    return total
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
