@@ -61,6 +61,10 @@ class _Step:
         #: Device time of the sample the last command answered (UdpDevice echoes the
         #: latest sample it read): the device's watchdog counts from it.
         self.last_echo_t = math.nan
+        #: The device's count of commands it dropped as stale, as last reported when the
+        #: last command was sent: a larger count later means that command may not have
+        #: counted, so the device's watchdog ran from an earlier one.
+        self.stale_at_last_command = 0
         self._seq = 0
         self.energised_s = 0.0  # commanded-on time of closed intervals
         self._on_since: float | None = None
@@ -81,6 +85,7 @@ class _Step:
         # Stamped before the send: a pause between the two can only make the measured
         # watchdog delay longer (pessimistic), never shorter.
         now = self.last_command_s = self.now()
+        self.stale_at_last_command = self.device.link_counters().get("device_stale", 0)
         if self.samples:
             self.last_echo_t = self.samples[-1][2]
         if (left or right) and self._on_since is None:
@@ -273,6 +278,16 @@ def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
             continue
         st = Status(sample.status)
         if st & Status.WATCHDOG_RELEASED and not st & SOLENOIDS:
+            if step.device.link_counters().get("device_stale", 0) > \
+                    step.stale_at_last_command:
+                # The device dropped a command as stale (it answered a sample more than
+                # 100 ms old: the worker read late), so its watchdog counted from an
+                # earlier one than the sample timed here: the delay is not measured.
+                return step.result(cmd.request_id, False, "not measured: the device "
+                                   "dropped the last command as stale (the worker "
+                                   "answered a sample more than 100 ms old), so its "
+                                   "watchdog counted from an earlier command; run the "
+                                   "step again", solenoid_seen=True, released_seen=True)
             release_s = step.samples[-1][0] - last
             # The watchdog counts from the sample the last command answered (protocol
             # version 3, safety rule 1), both times on the device's own clock.

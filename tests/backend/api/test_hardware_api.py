@@ -96,11 +96,19 @@ def test_every_step_then_a_complete_profile_recorded_on_new_sessions(
         def cooled() -> bool:
             return not any(client.get("/api/hardware").json()["cooldown_s"].values())
 
-        wait_for(cooled, 10, "the solenoids to cool down")
-        w = client.post("/api/hardware/watchdog", json={"side": "left", "nobody_wearing": True})
-        assert w.status_code == 200, w.text
-        res = w.json()["result"]
-        assert res["values"]["solenoid_seen"] and res["values"]["released_seen"]
+        # A worker the machine's load makes late answers samples over 100 ms old; the
+        # device drops such a command as stale and the step says it measured nothing
+        # (run it again) rather than time the release from the wrong command.
+        for _attempt in range(5):
+            wait_for(cooled, 10, "the solenoids to cool down")
+            w = client.post("/api/hardware/watchdog",
+                            json={"side": "left", "nobody_wearing": True})
+            assert w.status_code == 200, w.text
+            res = w.json()["result"]
+            assert res["values"]["solenoid_seen"] and res["values"]["released_seen"]
+            if not res["message"].startswith("not measured"):
+                break
+            assert res["values"]["device_release_ms"] is None and not res["passed"]
         # The device's watchdog counts from the sample the last command answered: on its
         # own clock it cannot release before 100 ms of it; whether it passed is the 110 ms
         # rule there.

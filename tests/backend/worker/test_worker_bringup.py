@@ -3,12 +3,14 @@ and the UDP device simulator as its own process: what each answers, with values.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from backend.worker import bringup
 from backend.worker.messages import (
     BringupCapture,
     BringupCommand,
@@ -22,7 +24,7 @@ from backend.worker.messages import (
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.controllers.spec import ControllerSpec
 from controller.device.auth import key_id, load_or_create_key, simulated_unique_id
-from controller.device.base import Status
+from controller.device.base import SAMPLE_PERIOD_S, Device, LockCommand, Sample, Status
 from controller.lowlevel import bringup as calc
 from controller.lowlevel.encoders import DEFAULT_LAYOUT
 from tests.faults.device_rig import device_process
@@ -154,3 +156,67 @@ def test_hardware_release_times_the_monitor_on_the_device_clock(
     assert r.identity.firmware == "exostudy-sim 3"
     status = worker.sup.state.status
     assert status is not None and status.identity == r.identity
+
+
+class _StaleLink(Device):
+    """A UDP-like device whose link drops the commands after the first as stale (each
+    answered a sample too old when it arrived): its watchdog counts from the first."""
+
+    kind = "udp"
+
+    def __init__(self, drop_stale: bool) -> None:
+        self.drop_stale = drop_stale
+        self.t = -SAMPLE_PERIOD_S
+        self.read_t = math.nan  # the latest sample handed out (a command answers it)
+        self.answered: float | None = None  # the accepted command's sample
+        self.first: float | None = None  # the sample the energising command answered
+        self.commands = 0
+        self.stale = 0
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def release(self) -> None:
+        self.answered = self.first = None
+
+    def read(self, timeout: float) -> Sample | None:
+        self.t += SAMPLE_PERIOD_S
+        self.read_t = self.t
+        locked = self.answered is not None and self.t - self.answered < 0.1 - 1e-9
+        # The coil reports on two samples after the command that energised it.
+        on = locked and self.t - (self.first or 0.0) >= 2 * SAMPLE_PERIOD_S - 1e-9
+        status = Status.SOLENOID_LEFT if on else Status.WATCHDOG_RELEASED
+        return Sample(round(self.t / SAMPLE_PERIOD_S), self.t, (0, 0, 0, 0), status)
+
+    def send(self, cmd: LockCommand) -> None:
+        if not cmd.lock_left:
+            return
+        self.commands += 1
+        if self.commands > 1 and self.drop_stale:
+            self.stale += 1
+            return
+        self.answered = self.read_t
+        if self.first is None:
+            self.first = self.read_t
+
+    def link_counters(self) -> dict[str, int]:
+        return {"device_stale": self.stale}
+
+
+@pytest.mark.parametrize("drop_stale", [False, True])
+def test_the_watchdog_is_not_timed_from_a_command_the_device_dropped(drop_stale: bool
+                                                                      ) -> None:
+    """Timed from the last command's sample, a release that followed an earlier one
+    looks too early (80 ms here): the step says it measured nothing instead."""
+    dev = _StaleLink(drop_stale)
+    cmd = BringupWatchdog("left", (0, 0, 0, 0), (1, 1, 1, 1), 2.0, request_id=7)
+    res = bringup.watchdog(cmd, bringup._Step(dev))
+    assert res.solenoid_seen and res.released_seen
+    if drop_stale:
+        assert not res.ok and res.message.startswith("not measured")
+        assert math.isnan(res.release_device_s) and dev.stale >= 1
+    else:
+        assert res.ok and 1000 * res.release_device_s == pytest.approx(100.0, abs=0.01)
