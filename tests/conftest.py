@@ -11,6 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from backend.core.config import Settings
+from tests.processes import fork_servers
 
 if TYPE_CHECKING:
     from tests.databases import AccountTemplates
@@ -299,22 +300,14 @@ def _fork_server_cpu() -> float:
     children, so `RUSAGE_CHILDREN` sees them only when the fork server ends)."""
     total = 0.0
     tick = os.sysconf("SC_CLK_TCK")
-    for task in Path("/proc/self/task").glob("*"):
+    for pid in fork_servers("self"):
         try:
-            kids = (task / "children").read_text().split()
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue
-        for pid in kids:
-            try:
-                if b"multiprocessing.forkserver" not in Path(
-                        f"/proc/{pid}/cmdline").read_bytes():
-                    continue
-                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            # utime, stime, cutime, cstime: fields 14-17 of stat(5), counted from the
-            # state (field 3) here.
-            total += sum(int(v) for v in fields[11:15]) / tick
+        # utime, stime, cutime, cstime: fields 14-17 of stat(5), counted from the state
+        # (field 3) here.
+        total += sum(int(v) for v in fields[11:15]) / tick
     return total
 
 

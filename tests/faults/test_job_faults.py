@@ -23,6 +23,7 @@ from tests.faults.busy import Spinners
 from tests.faults.served import Served, alive, make_trials, serve
 from tests.login import USERNAME
 from tests.polling import free_udp_port, wait_for
+from tests.processes import fork_servers, thread_children
 
 pytestmark = pytest.mark.slow
 
@@ -44,30 +45,10 @@ def _row(db_url: str, model: Any, key: int) -> Any:
     return row
 
 
-def _children(pid: int) -> set[int]:
-    """Children of `pid` started by any of its threads (`/proc/PID/task/PID/children`
-    lists only the main thread's)."""
-    found: set[int] = set()
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        try:
-            found |= {int(x) for x in (task / "children").read_text().split()}
-        except (FileNotFoundError, ProcessLookupError):
-            continue
-    return found
-
-
 def children(pid: int) -> set[int]:
     """The server's Python children: those of its fork server (the worker, the jobs),
     which is the server's own child."""
-    found: set[int] = set()
-    for child in _children(pid):
-        try:
-            forks = b"multiprocessing.forkserver" in Path(f"/proc/{child}/cmdline").read_bytes()
-        except (FileNotFoundError, ProcessLookupError):
-            continue
-        if forks:
-            found |= _children(child)
-    return found
+    return {kid for server in fork_servers(pid) for kid in thread_children(server)}
 
 
 def _cohort_computing(s: Served, before: set[int]) -> tuple[dict[str, Any], int]:

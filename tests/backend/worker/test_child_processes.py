@@ -8,24 +8,34 @@ import os
 import signal
 import subprocess
 import sys
-import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from backend.worker import child_processes
 from backend.worker.child_processes import ParentWatch
 from tests.backend.worker import child_targets
+from tests.faults.served import alive
+from tests.polling import wait_for
 
 
-def _alive(pid: int) -> bool:
+@contextmanager
+def _stand_in_server(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], int, int]]:
+    """A stand-in server whose child, forked by its fork server, writes `watch` once it
+    counts the server gone: the server, the child's pid and the fork server's."""
+    ready = tmp_path / "watch.ready"
+    root = Path(__file__).resolve().parents[3]
+    server = subprocess.Popen([sys.executable, "-m", "tests.backend.worker.child_targets",
+                               str(tmp_path / "watch")], cwd=root)
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:
-        with open(f"/proc/{pid}/stat") as f:  # a zombie (exited, not reaped) is gone too
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
+        wait_for(lambda: ready.exists() or server.poll() is not None, 60, "the child's start")
+        assert server.poll() is None, "no child started"
+        child, fork_server = map(int, ready.read_text().split())
+        yield server, child, fork_server
+    finally:
+        if server.poll() is None:
+            server.kill()
+        server.wait(10)
 
 
 def test_a_child_sees_the_environment_of_its_start_and_its_server_alive() -> None:
@@ -60,55 +70,22 @@ def test_a_child_leaves_when_its_fork_server_dies_though_the_server_lives(
     """Its exit status would go with the fork server: unsupervised, it releases and
     leaves rather than drive the device beside the worker a restart would start."""
     out = tmp_path / "watch"
-    root = Path(__file__).resolve().parents[3]
-    server = subprocess.Popen([sys.executable, "-m", "tests.backend.worker.child_targets",
-                               str(out)], cwd=root)
-    try:
-        end = time.monotonic() + 60
-        while not (tmp_path / "watch.ready").exists():
-            assert server.poll() is None and time.monotonic() < end, "no child started"
-            time.sleep(0.05)
-        child, fork_server = map(int, (tmp_path / "watch.ready").read_text().split())
+    with _stand_in_server(tmp_path) as (server, child, fork_server):
         os.kill(fork_server, signal.SIGKILL)
-        end = time.monotonic() + 30
-        while not out.exists():
-            assert time.monotonic() < end, "the child outlived its fork server"
-            time.sleep(0.05)
+        wait_for(out.exists, 30, "the child to leave after its fork server")
         assert out.read_text() == "gone" and server.poll() is None  # the server lives on
-        while _alive(child):
-            assert time.monotonic() < end + 30, "the child did not exit"
-            time.sleep(0.05)
-    finally:
-        server.kill()
-        server.wait(10)
+        wait_for(lambda: not alive(child), 30, "the child to exit")
 
 
 def test_a_child_notices_its_server_killed(tmp_path: Path) -> None:
     out = tmp_path / "watch"
-    root = Path(__file__).resolve().parents[3]
-    server = subprocess.Popen([sys.executable, "-m", "tests.backend.worker.child_targets",
-                               str(out)], cwd=root)
-    try:
-        end = time.monotonic() + 60
-        while not (tmp_path / "watch.ready").exists():
-            assert server.poll() is None and time.monotonic() < end, "no child started"
-            time.sleep(0.05)
+    with _stand_in_server(tmp_path) as (server, child, fork_server):
         assert not out.exists()  # the server lives: not gone
-        child, fork_server = map(int, (tmp_path / "watch.ready").read_text().split())
         assert fork_server != server.pid
         os.kill(server.pid, signal.SIGKILL)  # no clean-up: the fork server's pipe closes
         server.wait(10)
-        end = time.monotonic() + 30
-        while not out.exists():
-            assert time.monotonic() < end, "the child never noticed its server had gone"
-            time.sleep(0.05)
+        wait_for(out.exists, 30, "the child to notice its server had gone")
         assert out.read_text() == "gone"
         # The child leaves, and with the last of its children the fork server: no orphan.
-        end = time.monotonic() + 30
-        while _alive(child) or _alive(fork_server):
-            assert time.monotonic() < end, "an orphan outlived the server"
-            time.sleep(0.05)
-    finally:
-        if server.poll() is None:
-            server.kill()
-            server.wait(10)
+        wait_for(lambda: not (alive(child) or alive(fork_server)), 30,
+                 "the orphans to exit")
