@@ -26,6 +26,7 @@ from backend.worker.messages import (
     RawSample,
 )
 from controller.device.base import SAMPLE_PERIOD_S, Device, LockCommand, Sample, Status
+from controller.device.protocol import WATCHDOG_S
 from controller.lowlevel.encoders import EncoderLayout
 
 #: Longest solenoid pulse: the low-level controller's lock hold, 0.3 s, long enough for
@@ -61,10 +62,9 @@ class _Step:
         #: Device time of the sample the last command answered (UdpDevice echoes the
         #: latest sample it read): the device's watchdog counts from it.
         self.last_echo_t = math.nan
-        #: The device's count of commands it dropped as stale, as last reported when the
-        #: last command was sent: a larger count later means that command may not have
-        #: counted, so the device's watchdog ran from an earlier one.
-        self.stale_at_last_command = 0
+        #: The device's link counters as last reported when the last command was sent:
+        #: more stale drops or a restart since mean that command may not have counted.
+        self.counters_at_last_command: dict[str, int] = {}
         self._seq = 0
         self.energised_s = 0.0  # commanded-on time of closed intervals
         self._on_since: float | None = None
@@ -82,10 +82,11 @@ class _Step:
 
     def send(self, left: bool, right: bool, stop_heartbeat: bool = False) -> None:
         self._seq += 1
-        # Stamped before the send: a pause between the two can only make the measured
-        # watchdog delay longer (pessimistic), never shorter.
+        # Stamped before the send. A pause between the two makes the worker-clock delay
+        # longer; a long one can make the command stale on arrival, which `watchdog`
+        # detects (a release sooner than the watchdog allows, or the counters).
         now = self.last_command_s = self.now()
-        self.stale_at_last_command = self.device.link_counters().get("device_stale", 0)
+        self.counters_at_last_command = self.device.link_counters()
         if self.samples:
             self.last_echo_t = self.samples[-1][2]
         if (left or right) and self._on_since is None:
@@ -244,6 +245,25 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
                        released_seen=released)
 
 
+def _untaken(step: _Step, device_s: float) -> str:
+    """Why the last command was not the one the device's watchdog counted from, or "".
+    A release sooner than the watchdog allows proves it: the device dropped the command
+    (stale on arrival: a worker on a busy machine answered a sample over 100 ms old) or
+    never got it, and the drop itself is reported only in frames after the release. A
+    restart of the device, or a stale drop reported by now, says so too."""
+    now = step.device.link_counters()
+    before = step.counters_at_last_command
+    if now.get("device_restarts", 0) != before.get("device_restarts", 0):
+        return "the device restarted during the silence"
+    if device_s < WATCHDOG_S - 1e-6:
+        return (f"the device released {1000 * device_s:.1f} ms after the sample the last "
+                f"command answered, sooner than its {1000 * WATCHDOG_S:.0f} ms watchdog "
+                "allows: it did not take that command")
+    if now.get("device_stale", 0) > before.get("device_stale", 0):
+        return "the device dropped a command as stale after the last one was sent"
+    return ""
+
+
 def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
     """Energise one solenoid until the device reports it, then send nothing and time the
     first sample with WATCHDOG_RELEASED and the solenoids off."""
@@ -278,22 +298,18 @@ def watchdog(cmd: BringupWatchdog, step: _Step) -> BringupResult:
             continue
         st = Status(sample.status)
         if st & Status.WATCHDOG_RELEASED and not st & SOLENOIDS:
-            if step.device.link_counters().get("device_stale", 0) > \
-                    step.stale_at_last_command:
-                # The device dropped a command as stale (it answered a sample more than
-                # 100 ms old: the worker read late), so its watchdog counted from an
-                # earlier one than the sample timed here: the delay is not measured.
-                return step.result(cmd.request_id, False, "not measured: the device "
-                                   "dropped the last command as stale (the worker "
-                                   "answered a sample more than 100 ms old), so its "
-                                   "watchdog counted from an earlier command; run the "
-                                   "step again", solenoid_seen=True, released_seen=True)
             release_s = step.samples[-1][0] - last
             # The watchdog counts from the sample the last command answered (protocol
             # version 3, safety rule 1), both times on the device's own clock.
             echoed = step.last_echo_t
             device_s = sample.t - (echoed if not math.isnan(echoed)
                                    else step.device_time(last))
+            untaken = _untaken(step, device_s)
+            if untaken:
+                return step.result(cmd.request_id, False, f"not measured: {untaken}, so its "
+                                   "watchdog ran from another command than the one timed; "
+                                   "run the step again", solenoid_seen=True,
+                                   released_seen=True)
             return step.result(cmd.request_id, True, f"released {1000 * device_s:.1f} ms "
                                f"after the sample the last command answered (device "
                                f"clock; {1000 * release_s:.1f} ms after the last command "

@@ -39,6 +39,9 @@ CHALLENGE_LIFETIME_MS = 1000  # what a CHALLENGE says, and what the device enfor
 #: A HELLO draws a new challenge when the current one is older than this (or spent): the
 #: earlier challenge is then dead, so the host must not answer a CHALLENGE it got before.
 CHALLENGE_REDRAW_MS = 500
+#: The device's command watchdog: the solenoids go off this long after the sample the
+#: last command it took answered (on the device's clock). No release can come sooner.
+WATCHDOG_S = 0.100
 
 # Header: magic (2 bytes), version u8, type u8, payload length u16, flags u16.
 HEADER = struct.Struct("<2sBBHH")

@@ -49,6 +49,7 @@ from controller.device.protocol import (
     MAX_PACKET,
     SEQ_MODULUS,
     VERSION,
+    WATCHDOG_S,
     ChallengePacket,
     CommandPacket,
     HelloPacket,
@@ -63,7 +64,6 @@ from controller.device.protocol import (
 )
 from controller.stop_flag import SignalSafeFlag
 
-WATCHDOG_S = 0.100  # this long after the echoed sample's time: solenoids off, WATCHDOG_RELEASED
 FRESH_S = 0.100  # a command must answer a sample sent at most this long ago
 LATE_S = 0.002  # a sample sent more than this after its due time counts as late
 RESYNC_S = 0.25  # further behind than this (process stalled): rebase the schedule, no burst
