@@ -13,6 +13,14 @@ from backend.worker import child_processes
 from backend.worker.child_processes import ParentWatch
 
 
+def _write_whole(path: str, text: str) -> None:
+    """Write, then rename: the tests poll for the name, and must never read a file that
+    exists but is still empty (a failure CI saw)."""
+    partial = Path(path + ".partial")
+    partial.write_text(text)
+    partial.rename(path)
+
+
 def report(conn: Connection, server_pid: int, name: str) -> None:
     """Send what the child sees: its parent, an environment variable, and whether its
     server counts as gone."""
@@ -23,11 +31,11 @@ def report(conn: Connection, server_pid: int, name: str) -> None:
 def watch_until_gone(server_pid: int, out: str) -> None:
     """Write `gone` to `out` once the server has gone (at most 60 s)."""
     watch = ParentWatch(server_pid)
-    Path(out + ".ready").write_text(f"{os.getpid()} {os.getppid()}")
+    _write_whole(out + ".ready", f"{os.getpid()} {os.getppid()}")
     end = time.monotonic() + 60
     while time.monotonic() < end:
         if watch.gone():
-            Path(out).write_text("gone")
+            _write_whole(out, "gone")
             return
         time.sleep(0.01)
 
