@@ -66,28 +66,31 @@ def evaluate(d: Driver, cfg: VirtualStudyConfig, studies: dict[str, int],
                 sessions[label] = sess["id"]
             plan = ok(d.c.post(f"/api/sessions/{sess['id']}/trials/plan", json=body), 201)
             plans.append((label, plan))
-        d.simulate(seed, cfg.eval_script, cfg.speed)
         # One calibration per participant, as per donning: the runtime keeps it for
         # every later E-UMC trial of this participant.
         calibrating = any(registry.needs_calibration(t["controller"])
                           for _, plan in plans for t in plan)
-        attempts = d.calibrate() if calibrating else 0
-        script = cfg.eval_script
+        attempts = 0
+        if calibrating:
+            d.simulate(seed, cfg.eval_script, cfg.speed)
+            attempts = d.calibrate()
         for label, plan in plans:
             rate = RATE_SETTINGS[label]
             sub = subscribe_emg(d, sessions[label]) if label in sessions else None
             for trial in plan:
-                if trial["task"] != script or sub is not None or d.speed != cfg.speed:
-                    # A baseline's lifts or back to the protocol; with EMG every trial
-                    # from the script's start at full speed, the pause after it slow.
-                    script = trial["task"]
-                    d.simulate(seed, script, cfg.speed)
+                # Every trial puts its wearer on the simulator as it starts: one
+                # repetition of its script from the first sample (the same data however
+                # long the requests took), sped up; the worker ends it after `trial_s`
+                # of device time and the wearer goes on at real time until the next.
+                script = trial["task"]
                 trial_s = script_duration_s(seed, script) + cfg.margin_s
                 t0 = time.monotonic()
-                body = {"duration_s": trial_s}
+                start: dict[str, Any] = {"duration_s": trial_s, "simulation": {
+                    "seed": seed, "script": script, "speed": cfg.speed}}
                 if rate is not None:
-                    body["rate_hz"] = rate
-                started = ok(d.c.post(f"/api/trials/{trial['id']}/start", json=body))
+                    start["rate_hz"] = rate
+                started = ok(d.c.post(f"/api/trials/{trial['id']}/start", json=start))
+                d.speed = cfg.speed
                 d.wait_run_over(started["run_id"], trial_s)
                 ended = lsl_now() if sub is not None else 0.0
                 stopped = ok(d.c.post(f"/api/trials/{trial['id']}/stop",

@@ -42,6 +42,7 @@ from backend.worker.messages import (
     CommandResult,
     RunStarted,
     TickBatch,
+    Wearer,
     WorkerConfig,
 )
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
@@ -283,18 +284,26 @@ class Runtime:
 
     async def switch_controller(
         self, spec: ControllerSpec, timeout: float = COMMAND_TIMEOUT_S,
-        max_ticks: int | None = None,
+        max_ticks: int | None = None, wearer: Wearer | None = None,
     ) -> int:
         """Switch to the validated `spec` and wait until the worker runs it; returns the
         new run's id. With `max_ticks` the worker ends the run by itself after that many
-        samples. Raises RuntimeError if the worker is down or refuses (with the worker's
-        reason)."""
+        samples; with `wearer` (the in-process simulator only, its script checked by the
+        caller) the run starts with that simulated wearer's first sample. Raises
+        RuntimeError if the worker is down or refuses (with the worker's reason)."""
         name = spec.name
         if not self.supervisor.state.alive:
             raise RuntimeError("the worker is not running: restart it first")
         gate = self.device_gate(spec)
         fut = self._command_future()
-        rid = self.supervisor.set_controller(spec, max_ticks, gate)
+        if wearer is not None:
+            speed = self.supervisor.config.device_speed if wearer.speed is None \
+                else wearer.speed
+            self.settings = self.settings.model_copy(update={
+                "device_seed": wearer.seed, "device_script": wearer.script,
+                "device_speed": speed})
+        rid = self.supervisor.set_controller(spec, max_ticks, gate, wearer)
+        self.worker_config = self.supervisor.config
         answer = await self._answer(rid, fut, f"start {name}", timeout)
         if not answer.ok:
             raise RuntimeError(answer.message)

@@ -27,7 +27,8 @@ class RecordingIn(BaseModel):
         "with `simulation` only: the recording holds this much device time (seconds, "
         "rounded to whole 10 ms samples as a timed trial's, at least one) from the "
         "wearer's first sample; the worker ends it by itself, so a simulation faster "
-        "than real time does not run on into a stop that comes late"))
+        "than real time does not run on into a stop that comes late, and the simulated "
+        "wearer goes on at real time from then"))
 
 
 class RecordingOut(BaseModel):
@@ -256,7 +257,12 @@ class TrialStartIn(BaseModel):
                                   description="every controller at this rate; paper's if unset")
     duration_s: float | None = Field(default=None, gt=0.0, le=24 * 3600.0, description=(
         "a timed trial: the worker ends the controller after this much device time "
-        "(100 samples a second), so the trial holds exactly that; stop it as usual"))
+        "(100 samples a second), so the trial holds exactly that; stop it as usual. A "
+        "simulated wearer faster than real time goes on at real time from then"))
+    simulation: SimulationChoice | None = Field(default=None, description=(
+        "in-process simulated device only: put this virtual participant and script on it "
+        "as the trial starts, so that the trial holds the script from its first sample "
+        "(the same data at any speed, however long the request took)"))
 
 
 class TrialStopIn(BaseModel):

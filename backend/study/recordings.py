@@ -45,7 +45,7 @@ async def _start(db: Session, user: User, runtime: Runtime, session_id: int,
         raise ConflictError("device", f"no recording: {verdict}")
     sim = body.simulation
     if sim is not None:
-        _check_simulation(runtime, sim)
+        check_simulation(runtime, sim)
     elif body.duration_s is not None:
         raise InvalidError.at(["body", "duration_s"], "a recording is timed only with "
                               "`simulation`: a live wearer's recording ends when stopped")
@@ -71,13 +71,14 @@ async def _start(db: Session, user: User, runtime: Runtime, session_id: int,
     return rec
 
 
-def _check_simulation(runtime: Runtime, sim: SimulationChoice) -> None:
+def check_simulation(runtime: Runtime, sim: SimulationChoice, what: str = "recording"
+                     ) -> None:
     """A 422 naming the field before anything changes: the in-process simulator only,
-    and a script it knows."""
+    and a script it knows (for a recording's or a trial's `simulation`)."""
     if runtime.settings.device_kind != "sim":
         raise InvalidError.at(["body", "simulation"], (
-            "only the in-process simulator (device_kind 'sim') can start a wearer with the "
-            f"recording; this server's device is {runtime.settings.device_kind!r}"))
+            f"only the in-process simulator (device_kind 'sim') can start a wearer with the "
+            f"{what}; this server's device is {runtime.settings.device_kind!r}"))
     # Here, not at the top: the scripts import SciPy's interpolation, a third of a
     # second of the server's start for a request only the simulator's users make.
     from controller.sim.scripts import get_script

@@ -25,6 +25,8 @@ from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
 from backend.study import activity, conditions, hardware_profiles
 from backend.study.counterbalance import blinded_labels, condition_order, controller_order
+from backend.study.recordings import check_simulation
+from backend.worker.messages import Wearer
 from controller.config import SettingError
 from controller.controllers import registry
 from controller.controllers.factory import needs_models
@@ -373,14 +375,20 @@ async def _start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: 
                             "to repeat it")
     activity.ensure_idle(db)
     sess: StudySession = _get(db, StudySession, trial.session_id, "session")
+    sim = body.simulation
+    if sim is not None:
+        check_simulation(runtime, sim, "trial")
     spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz)
     if body.duration_s is not None:
         snapshot["duration_s"] = body.duration_s
+    if sim is not None:
+        snapshot["simulation"] = sim.model_dump()
     snapshot["exostudy_version"] = version()
     try:
         run_id = await runtime.switch_controller(
             spec, max_ticks=None if body.duration_s is None
-            else round(body.duration_s / SAMPLE_PERIOD_S))
+            else round(body.duration_s / SAMPLE_PERIOD_S),
+            wearer=None if sim is None else Wearer(sim.seed, sim.script, sim.speed))
     except RuntimeError as exc:
         # No trial without its controller, and no controller without its trial: a
         # switch that may still take effect later is countermanded.

@@ -50,6 +50,7 @@ from backend.worker.messages import (
     SetController,
     SetSimulation,
     StopWorker,
+    Wearer,
     WorkerCommand,
     WorkerConfig,
     WorkerError,
@@ -76,6 +77,9 @@ from controller.tick_record import TickRecord
 #: of an 80x simulation; a real-time device never waits (it cannot).
 BACKLOG_HOLD = 1000
 BACKLOG_RESUME = 250
+#: How often the loop asks whether the server is still there: once a sample period.
+#: Asking at every tick of a sped-up simulation cost a twentieth of the worker's CPU.
+PARENT_CHECK_S = SAMPLE_PERIOD_S
 
 
 def _resting() -> str:
@@ -145,8 +149,8 @@ def _needs_none(m: Machine, _cmd: BringupCommand) -> str:
 
 
 def _only_release(_m: Machine, cmd: SetController) -> str:
-    """A trial's run is replaced by nothing but `none` (its stop)."""
-    if _is_resting(cmd.spec.name) and cmd.max_ticks is None:
+    """A trial's run is replaced by nothing but `none` (its stop), on the same wearer."""
+    if _is_resting(cmd.spec.name) and cmd.max_ticks is None and cmd.wearer is None:
         return ""
     return f"{_TRIAL_RUNS}: only {_resting()!r} may replace its controller (stop it first)"
 
@@ -162,15 +166,20 @@ def _simulated(m: Machine, _cmd: WorkerCommand) -> str:
     return "the device is not the in-process simulator: there is no simulation to change"
 
 
+def _wearer_needs_simulator(m: Machine, cmd: SetController) -> str:
+    """A controller with a new simulated wearer: only on the in-process simulator."""
+    return "" if cmd.wearer is None else _simulated(m, cmd)
+
+
 #: Which kinds of command each state takes (see `Rule`). States not listed take no
 #: command (RELEASING, BRINGUP and STOPPING are passed through inside one handler).
 RULES: dict[State, dict[Kind, Rule]] = {
     State.IDLE: {
-        SetController: None, SetSimulation: _simulated, Calibrate: None,
+        SetController: _wearer_needs_simulator, SetSimulation: _simulated, Calibrate: None,
         BringupCommand: None, StopWorker: None,
     },
     State.CONTROLLING: {
-        SetController: None, SetSimulation: _simulated, Calibrate: None,
+        SetController: _wearer_needs_simulator, SetSimulation: _simulated, Calibrate: None,
         BringupCommand: _needs_none, StopWorker: None,
     },
     State.TRIAL: {
@@ -293,6 +302,9 @@ class Machine:
         self.calibration: CalibrationJob | None = None
         self.runs = Runs(outbox, self.pid)
         self.next_status = time.monotonic()
+        #: The loop's scheduling is to follow the configuration again (set where the
+        #: speed changes outside a command; the loop thread applies it).
+        self.reschedule = False
         #: The device the running controller's encoder layout belongs to (None: no
         #: hardware profile, any device); see `backend.worker.device_gate`.
         self.gate: DeviceGate | None = None
@@ -429,32 +441,56 @@ class Machine:
             else:
                 self.answer(cmd.request_id, refused, self._fall_back())
             return
+        if cmd.wearer is not None:
+            try:
+                device, config = self._new_device(cmd.wearer)
+            except Exception as exc:
+                refused = (f"simulation seed {cmd.wearer.seed}, script "
+                           f"{cmd.wearer.script!r} rejected: {exc}; running {_resting()!r}")
+                self.outbox.put(WorkerError(refused))
+                if self.state is State.IDLE:
+                    self.answer(cmd.request_id, refused)
+                else:
+                    self.answer(cmd.request_id, refused, self._fall_back())
+                return
+            self._put_on(device, config)
+            self.loop = self._new_loop(new)  # fresh timing: the wearer's first sample
+            self.next_status = 0.0
         token = self._run(new, cmd.spec, self._target(cmd.spec, cmd.max_ticks),
                           cmd.max_ticks, cmd.device)
         self.answer(cmd.request_id, "", token)
+
+    def _new_device(self, wearer: Wearer) -> tuple[Device, WorkerConfig]:
+        """The in-process simulator of `wearer`, not yet open, and the configuration it
+        makes the worker's. Raises whatever makes it fail (an unknown script)."""
+        config = replace(self.config, device_seed=wearer.seed, device_script=wearer.script,
+                         device_speed=wearer.speed or self.config.device_speed)
+        return make_device(config, self.parent.server_pid), config
+
+    def _put_on(self, device: Device, config: WorkerConfig) -> None:
+        """The old device lets go before the new one opens (a failure to open ends the
+        worker, released); a calibration being collected is abandoned."""
+        self.abandon("the simulated wearer changed")
+        back = self.state
+        self.go(State.RELEASING)
+        self.device.close()
+        self.device = device
+        self.device.open()
+        self.config = config
+        self.go(back)
 
     def on_set_simulation(self, cmd: SetSimulation) -> None:
         """Another simulated wearer: the old device lets go before the new one opens (a
         failure to open ends the worker, released), with a fresh controller of the same
         specification, as a new run."""
-        config = self.config
-        sim_config = replace(config, device_seed=cmd.seed, device_script=cmd.script,
-                             device_speed=cmd.speed or config.device_speed)
         try:
-            new_device = make_device(sim_config, self.parent.server_pid)
+            new_device, sim_config = self._new_device(Wearer(cmd.seed, cmd.script, cmd.speed))
             fresh = build(self.spec)
         except Exception as exc:
             self.refuse(cmd, f"simulation seed {cmd.seed}, script {cmd.script!r} "
                              f"rejected: {exc}")
             return
-        self.abandon("the simulated wearer changed")
-        back = self.state
-        self.go(State.RELEASING)
-        self.device.close()
-        self.device = new_device
-        self.device.open()
-        self.config = sim_config
-        self.go(back)
+        self._put_on(new_device, sim_config)
         # Fresh timing too: health counts ticks from the new wearer's start.
         self.loop = self._new_loop(fresh)
         self.next_status = 0.0  # report the new wearer at its first sample
@@ -518,9 +554,22 @@ class Machine:
                 # A timed run of a new simulated wearer (a recording): the data ends,
                 # the controller goes on, in a run of its own.
                 runs.start(self.spec, self.device.kind)
+            self._back_to_real_time()
         job = self.calibration
         if job is not None and job.add(record):
             self.finish_calibration(job)
+
+    def _back_to_real_time(self) -> None:
+        """A timed run is over: a sped-up simulated wearer goes on at real time. What it
+        did faster than real time after the run was stored and never read (a third of
+        a virtual study's ticks, and of its time); the next wearer a command puts on
+        the simulator runs at the speed that command (or the server) sets."""
+        set_speed = getattr(self.device, "set_speed", None)  # the in-process simulator
+        if set_speed is None or float(getattr(self.device, "speed", 1.0)) <= 1.0:
+            return
+        set_speed(1.0)
+        self.config = replace(self.config, device_speed=1.0)
+        self.reschedule = True  # the loop (`run`) follows the device's clock from now
 
     def finish_calibration(self, job: CalibrationJob) -> None:
         """Answer the calibration; a running E-UMC takes its offsets at once, as a new
@@ -551,8 +600,16 @@ class Machine:
         outbox, stopping = self.outbox, self.stopping
         command_waiting = _poller(self.cmd_conn)
         loop_scheduling(paced(self.config))
+        now = next_watch = time.monotonic()
         while not stopping.is_set():
-            if self.parent.gone() or outbox.broken.is_set():
+            if now >= next_watch:
+                # At most once a sample period: a real-time loop looks at every tick as
+                # before, a sped-up simulation does not spend a system call per tick.
+                next_watch = now + PARENT_CHECK_S
+                gone = self.parent.gone()
+            else:
+                gone = False
+            if gone or outbox.broken.is_set():
                 self.exit_code = 4  # the server is gone: release and leave
                 break
             if command_waiting():
@@ -572,6 +629,9 @@ class Machine:
                 self.after_tick(record)
                 if self.gate is not None:
                     self.check_device()
+                if self.reschedule:
+                    self.reschedule = False
+                    loop_scheduling(paced(self.config))
             now = time.monotonic()
             if now >= self.next_status:
                 self.next_status = now + self.config.status_interval

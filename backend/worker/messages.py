@@ -113,6 +113,16 @@ class WorkerError:
 
 
 @dataclass(frozen=True, slots=True)
+class Wearer:
+    """A simulated wearer for the in-process simulator: who (seed), what they do
+    (script), how fast (None: the worker's current speed)."""
+
+    seed: int
+    script: str
+    speed: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class SetController:
     """Switch controller; the worker starts a new run when it takes effect. With
     `max_ticks`, the worker itself returns to "none" (another run) after that many
@@ -127,6 +137,10 @@ class SetController:
     #: the worker runs the controller only on that device (`device_gate`). None: no
     #: profile, the default layout, any device.
     device: DeviceGate | None = None
+    #: Put this simulated wearer on the in-process simulator first, at the same sample:
+    #: the run starts with the wearer's first sample (a trial of exactly one script
+    #: from its start). None: the wearer on the device goes on.
+    wearer: Wearer | None = None
 
     @property
     def name(self) -> str:

@@ -30,6 +30,7 @@ from backend.worker.messages import (
     SetSimulation,
     StopWorker,
     TickBatch,
+    Wearer,
     WorkerConfig,
     WorkerError,
     WorkerStatus,
@@ -167,21 +168,28 @@ class WorkerSupervisor:
         return self._request_id
 
     def set_controller(self, spec: ControllerSpec, max_ticks: int | None = None,
-                       device: DeviceGate | None = None) -> int:
+                       device: DeviceGate | None = None, wearer: Wearer | None = None) -> int:
         """Switch controller in the running worker; it takes effect at the next tick (and
         ends after `max_ticks` samples, if given); with `device`, only on that device
         (`backend.worker.device_gate`). Returns the request id the worker's
         `CommandResult` will carry, 0 when no worker runs (the specification then
         applies at the next start, unless it is bound to a device: a worker starts
-        before its device has proved anything, so then it starts with `none`)."""
+        before its device has proved anything, so then it starts with `none`). With
+        `wearer`, the in-process simulator takes that wearer first, at the same sample
+        (the configuration keeps it for a restart, as `set_simulation` does)."""
         with self._lock:
             self.config = replace(self.config, spec=spec)
+            if wearer is not None:
+                self.config = replace(
+                    self.config, device_seed=wearer.seed, device_script=wearer.script,
+                    device_speed=self.config.device_speed if wearer.speed is None
+                    else wearer.speed)
             self._bound = device is not None
             if self._cmd is None or not self.state.alive:
                 return 0
             rid = self._next_request_id()
             try:
-                self._cmd.send(SetController(spec, max_ticks, rid, device))
+                self._cmd.send(SetController(spec, max_ticks, rid, device, wearer))
             except (BrokenPipeError, OSError):
                 return 0
             return rid

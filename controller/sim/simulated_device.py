@@ -113,6 +113,15 @@ class SimulatedDevice(Device):
         if self._start is not None:
             self._start = time.monotonic() - self.exo.seq * self.exo.dt / self.speed
 
+    def set_speed(self, speed: float) -> None:
+        """Samples `speed` times faster than real time from the next one on (no burst:
+        the clock restarts there). Raises ValueError outside 0.1..MAX_SPEED."""
+        if not 0.1 <= speed <= MAX_SPEED:
+            raise ValueError(
+                f"speed must be within 0.1..{MAX_SPEED:g} times real time, got {speed}")
+        self.speed = speed
+        self.resync()
+
     def send(self, command: LockCommand) -> None:
         """Store the command for the next tick."""
         self._command = command

@@ -18,6 +18,7 @@ from backend.core.config import Settings
 from backend.main import create_app
 from tests.login import log_in
 from tests.polling import wait_for
+from tests.simulation_speed import past_run, ticks_per_second
 
 pytestmark = pytest.mark.slow
 
@@ -141,6 +142,28 @@ def test_a_study_from_participant_to_exported_ticks(
         eumc = next(t for t in plans[0] if t["controller"] == "eumc")
         r = client.post(f"/api/trials/{eumc['id']}/start", json={})
         assert r.status_code == 409 and "calibration" in r.text
+
+        # A timed trial that puts its simulated wearer on as it starts: exactly its
+        # 20 s of the script from the first sample, at 100x; then the wearer goes on at
+        # real time. A script the simulator does not know is a 422 that starts nothing.
+        umc = next(t for t in plans[0] if t["controller"] == "umc")
+        bad = client.post(f"/api/trials/{umc['id']}/start", json={
+            "duration_s": 20.0, "simulation": {"seed": 23, "script": "cartwheels"}})
+        assert bad.status_code == 422, bad.text
+        assert bad.json()["detail"][0]["loc"] == ["body", "simulation", "script"]
+        assert _ok(client.get(f"/api/trials/{umc['id']}"))["status"] == "planned"
+        timed = _ok(client.post(f"/api/trials/{umc['id']}/start", json={
+            "duration_s": 20.0,
+            "simulation": {"seed": 23, "script": "squat-sequence", "speed": 100}}))
+        assert timed["config_snapshot"]["simulation"] == {
+            "seed": 23, "script": "squat-sequence", "speed": 100.0}
+        wait_for(lambda: past_run(client, timed["run_id"], 2000), 120,
+                 "the end of the trial's 20 s", poll=0.1)
+        assert ticks_per_second(client) < 500  # at 100x: 10,000 a second
+        timed = _ok(client.post(f"/api/trials/{umc['id']}/stop", json={}))
+        assert timed["tick_count"] == 2000
+        t = _ok(client.get(f"/api/trials/{umc['id']}/ticks.json"))["columns"]["t"]
+        assert t[0] == 0.0 and t[-1] == pytest.approx(19.99) and len(t) == 2000
 
         # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
         text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text

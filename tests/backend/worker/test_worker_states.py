@@ -46,6 +46,7 @@ from backend.worker.messages import (
     SetController,
     SetSimulation,
     StopWorker,
+    Wearer,
     WorkerCommand,
     WorkerConfig,
     WorkerError,
@@ -103,8 +104,9 @@ def test_every_state_that_takes_commands_has_a_rule_for_each_and_always_takes_st
     for state, rules in RULES.items():
         assert set(rules) == set(KINDS), state
         assert rules[StopWorker] is None, state
-    # Idle takes everything (the simulation change checks the device kind).
-    assert [t for t, r in RULES[ID].items() if r is not None] == [SetSimulation]
+    # Idle takes everything (a new simulated wearer, alone or with a controller, checks
+    # the device kind).
+    assert [t for t, r in RULES[ID].items() if r is not None] == [SetController, SetSimulation]
     # A trial refuses every change but its stop, outright.
     assert all(isinstance(RULES[T][t], str) for t in (SetSimulation, Calibrate, BringupCommand))
     # A calibration refuses a second one and a timed trial, nothing else of its own.
@@ -229,6 +231,50 @@ def test_a_timed_trial_ends_by_itself_through_releasing_to_none(h: Harness) -> N
     assert _runs(h.messages()) == ["none"]
     assert h.trace_since(mark) == [T, R, ID] and h.releases == 1
     assert h.m.loop.controller.name == "none"
+    # The sped-up wearer goes on at real time: no ticks faster than anyone asked for.
+    assert h.m.device.speed == 1.0 and h.m.config.device_speed == 1.0  # type: ignore[attr-defined]
+
+
+def test_a_timed_recording_of_a_new_wearer_ends_the_speed_up_too(h: Harness) -> None:
+    msgs = h.send(SetSimulation(seed=5, script="walking", speed=50, request_id=16,
+                                max_ticks=20))
+    assert _answer(msgs, CommandResult).ok
+    h.ticks(19)
+    assert h.m.device.speed == 50  # type: ignore[attr-defined]
+    h.ticks(1)
+    assert _runs(h.messages()) == ["none"] and h.m.state is ID
+    assert h.m.device.speed == 1.0 and h.m.config.device_speed == 1.0  # type: ignore[attr-defined]
+
+
+def test_a_trial_with_its_wearer_starts_at_the_wearers_first_sample(h: Harness) -> None:
+    _into(h, C)
+    h.ticks(30)  # the old wearer is 0.3 s into its script
+    mark = len(h.m.trace)
+    msgs = h.send(SetController(PEC, max_ticks=40, request_id=17,
+                                wearer=Wearer(7, "walking", 40.0)))
+    assert _answer(msgs, CommandResult).ok and _runs(msgs) == ["pec"]
+    # Released and closed (which releases once more) before the new wearer opens.
+    assert h.trace_since(mark) == [R, C, T] and h.releases == 2
+    assert (h.m.config.device_seed, h.m.config.device_script) == (7, "walking")
+    assert h.m.device.speed == 40.0  # type: ignore[attr-defined]
+    record = h.m.loop.tick(timeout=2.0)
+    assert record is not None and record.t == 0.0 and record.seq == 0
+    h.m.after_tick(record)
+    h.ticks(39)
+    assert _runs(h.messages()) == ["none"] and h.m.state is ID
+    assert h.m.device.speed == 1.0  # type: ignore[attr-defined]
+
+
+def test_a_trial_whose_wearer_cannot_be_made_stops_the_controller_it_replaces(
+        h: Harness) -> None:
+    _into(h, C)
+    mark = len(h.m.trace)
+    msgs = h.send(SetController(PEC, max_ticks=40, request_id=18,
+                                wearer=Wearer(7, "cartwheels", 40.0)))
+    answer = _answer(msgs, CommandResult)
+    assert not answer.ok and "cartwheels" in answer.message
+    assert _runs(msgs) == ["none"] and h.trace_since(mark) == [R, ID]
+    assert h.m.config.device_script == "squat-sequence"  # the wearer on the device stays
 
 
 def test_a_trial_is_stopped_only_by_none(h: Harness) -> None:
@@ -343,6 +389,7 @@ REFUSED: list[tuple[Where, Any, str]] = [
     (T, SetController(PEC, request_id=23), "timed trial"),
     (T, SetController(NONE, max_ticks=5, request_id=24), "timed trial"),
     (T, SetSimulation(seed=2, script="walking", request_id=25), "simulated wearer"),
+    (T, SetController(NONE, request_id=35, wearer=Wearer(2, "walking")), "timed trial"),
     (T, Calibrate(request_id=26), "timed trial"),
     (T, BringupCapture(seconds=0.1, request_id=27), "timed trial"),
     (T, BringupPulse("left", 0.1, LAY.offsets, LAY.directions, 2.0, request_id=28),
@@ -384,9 +431,13 @@ def test_each_refused_command_is_answered_with_its_reason(h: Harness, state: Whe
     assert h.m.runs.token == token and h.releases == releases and _runs(msgs) == []
 
 
-def test_a_simulation_change_is_refused_without_the_simulator(h: Harness) -> None:
+@pytest.mark.parametrize("cmd", [
+    SetSimulation(seed=2, script="walking", request_id=40),
+    SetController(PEC, max_ticks=40, request_id=41, wearer=Wearer(2, "walking"))],
+    ids=["simulation", "controller-with-wearer"])
+def test_a_simulation_change_is_refused_without_the_simulator(h: Harness, cmd: Any) -> None:
     h.m.config = replace(h.m.config, device_kind="udp")  # what the rule looks at
-    msgs = h.send(SetSimulation(seed=2, script="walking", request_id=40))
+    msgs = h.send(cmd)
     answer = _answer(msgs, CommandResult)
     assert not answer.ok and "not the in-process simulator" in answer.message
     assert h.m.state is ID and _runs(msgs) == []
