@@ -227,6 +227,13 @@ class Runtime:
                                                self.settings.precompression_pct)
         return models, utilities
 
+    def new_wearer(self, seed: int) -> None:
+        """Another virtual participant goes on the simulator: the E-UMC calibration was
+        made on the one before (a calibration is per donning; standing hip angles differ
+        by up to about 12 deg between virtual participants), so it no longer applies."""
+        if seed != self.settings.device_seed:
+            self.calibration = None
+
     def controller_spec(
         self, name: str, overrides: dict[str, Any] | None = None
     ) -> ControllerSpec:
@@ -296,14 +303,7 @@ class Runtime:
             raise RuntimeError("the worker is not running: restart it first")
         gate = self.device_gate(spec)
         fut = self._command_future()
-        if wearer is not None:
-            speed = self.supervisor.config.device_speed if wearer.speed is None \
-                else wearer.speed
-            self.settings = self.settings.model_copy(update={
-                "device_seed": wearer.seed, "device_script": wearer.script,
-                "device_speed": speed})
         rid = self.supervisor.set_controller(spec, max_ticks, gate, wearer)
-        self.worker_config = self.supervisor.config
         answer = await self._answer(rid, fut, f"start {name}", timeout)
         if not answer.ok:
             raise RuntimeError(answer.message)
@@ -375,6 +375,7 @@ class Runtime:
             raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
                              "faster than real time")
         speed = self.supervisor.config.device_speed if speed is None else speed
+        self.new_wearer(seed)
         self.settings = self.settings.model_copy(update={"device_seed": seed,
                                                          "device_script": script,
                                                          "device_speed": speed})
@@ -601,6 +602,13 @@ class Runtime:
             time.sleep(0.01)
 
     def _on_run_started(self, msg: RunStarted) -> None:
+        w = msg.wearer
+        if w is not None and w.speed is not None:
+            # The simulation as the worker runs it (the supervisor's configuration
+            # follows it too): what a restart or a request without a speed takes.
+            self.settings = self.settings.model_copy(update={
+                "device_seed": w.seed, "device_script": w.script, "device_speed": w.speed})
+            self.worker_config = self.supervisor.config
         run_id = self.recorder.run_started(msg, msg.device_kind)
         for listener in self.listeners:
             listener.on_run_started(msg.run_token, run_id)

@@ -255,9 +255,10 @@ class TrialStartIn(BaseModel):
 
     rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
                                   description="every controller at this rate; paper's if unset")
-    duration_s: float | None = Field(default=None, gt=0.0, le=24 * 3600.0, description=(
+    duration_s: float | None = Field(default=None, ge=0.01, le=24 * 3600.0, description=(
         "a timed trial: the worker ends the controller after this much device time "
-        "(100 samples a second), so the trial holds exactly that; stop it as usual. A "
+        "(rounded to whole 10 ms samples, at least one), so the trial holds exactly "
+        "that; stop it as usual. A "
         "simulated wearer faster than real time goes on at real time from then"))
     simulation: SimulationChoice | None = Field(default=None, description=(
         "in-process simulated device only: put this virtual participant and script on it "

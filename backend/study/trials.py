@@ -378,11 +378,15 @@ async def _start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: 
     sim = body.simulation
     if sim is not None:
         check_simulation(runtime, sim, "trial")
+        runtime.new_wearer(sim.seed)  # another participant's calibration does not apply
     spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz)
     if body.duration_s is not None:
         snapshot["duration_s"] = body.duration_s
     if sim is not None:
-        snapshot["simulation"] = sim.model_dump()
+        speed = runtime.settings.device_speed if sim.speed is None else sim.speed
+        snapshot["device"] = {"kind": runtime.settings.device_kind, "seed": sim.seed,
+                              "script": sim.script}
+        snapshot["simulation"] = {"seed": sim.seed, "script": sim.script, "speed": speed}
     snapshot["exostudy_version"] = version()
     try:
         run_id = await runtime.switch_controller(

@@ -267,8 +267,9 @@ class Runs:
     configuration starts one, announced by `RunStarted` before any of its ticks (the
     outbox sends the ticks queued before it under the old token first)."""
 
-    def __init__(self, outbox: Outbox, pid: int) -> None:
-        self.outbox, self.pid = outbox, pid
+    def __init__(self, outbox: Outbox, pid: int,
+                 wearer: Callable[[], Wearer | None] = lambda: None) -> None:
+        self.outbox, self.pid, self.wearer = outbox, pid, wearer
         self.token = 0
         self.ticks = 0  # samples of the current run
         self.limit: int | None = None  # a timed run ends by itself after this many
@@ -281,7 +282,7 @@ class Runs:
         if count_again:
             self.ticks, self.limit = 0, limit
         self.outbox.put(RunStarted(self.token, spec.name, spec.to_config(), device_kind,
-                                   self.pid))
+                                   self.pid, self.wearer()))
         self.outbox.run_token = self.token
         return self.token
 
@@ -300,7 +301,7 @@ class Machine:
         self.exit_code = 0
         #: The calibration being collected beside the running controller, if any.
         self.calibration: CalibrationJob | None = None
-        self.runs = Runs(outbox, self.pid)
+        self.runs = Runs(outbox, self.pid, self._wearer)
         self.next_status = time.monotonic()
         #: The loop's scheduling is to follow the configuration again (set where the
         #: speed changes outside a command; the loop thread applies it).
@@ -460,6 +461,14 @@ class Machine:
                           cmd.max_ticks, cmd.device)
         self.answer(cmd.request_id, "", token)
 
+    def _wearer(self) -> Wearer | None:
+        """The in-process simulator's wearer now (None for any other device)."""
+        c = self.config
+        if c.device_kind != "sim":
+            return None
+        return Wearer(c.device_seed, c.device_script,
+                      float(getattr(self.device, "speed", c.device_speed)))
+
     def _new_device(self, wearer: Wearer) -> tuple[Device, WorkerConfig]:
         """The in-process simulator of `wearer`, not yet open, and the configuration it
         makes the worker's. Raises whatever makes it fail (an unknown script)."""
@@ -547,6 +556,7 @@ class Machine:
         runs = self.runs
         runs.ticks += 1
         if runs.limit is not None and runs.ticks >= runs.limit:
+            self._back_to_real_time()  # first: the next run is announced at real time
             if self.state is State.TRIAL:
                 # A timed run is over: back to no controller (no locks), a new run.
                 self._fall_back()
@@ -554,7 +564,6 @@ class Machine:
                 # A timed run of a new simulated wearer (a recording): the data ends,
                 # the controller goes on, in a run of its own.
                 runs.start(self.spec, self.device.kind)
-            self._back_to_real_time()
         job = self.calibration
         if job is not None and job.add(record):
             self.finish_calibration(job)

@@ -94,6 +94,16 @@ class WorkerStatus:
 
 
 @dataclass(frozen=True, slots=True)
+class Wearer:
+    """A simulated wearer for the in-process simulator: who (seed), what they do
+    (script), how fast (None: the worker's current speed)."""
+
+    seed: int
+    script: str
+    speed: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class RunStarted:
     """A new run began (at start-up or after a controller change)."""
 
@@ -102,6 +112,11 @@ class RunStarted:
     controller_config: dict[str, Any]
     device_kind: str
     pid: int
+    #: The in-process simulator's wearer as the run starts (its speed included: a timed
+    #: run's end puts a sped-up one back to real time); None for any other device. The
+    #: server takes its own record of the simulation from here, so that it never holds
+    #: a wearer or speed the worker does not run.
+    wearer: Wearer | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,16 +125,6 @@ class WorkerError:
 
     message: str
     fatal: bool = False
-
-
-@dataclass(frozen=True, slots=True)
-class Wearer:
-    """A simulated wearer for the in-process simulator: who (seed), what they do
-    (script), how fast (None: the worker's current speed)."""
-
-    seed: int
-    script: str
-    speed: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

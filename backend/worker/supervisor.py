@@ -175,15 +175,14 @@ class WorkerSupervisor:
         `CommandResult` will carry, 0 when no worker runs (the specification then
         applies at the next start, unless it is bound to a device: a worker starts
         before its device has proved anything, so then it starts with `none`). With
-        `wearer`, the in-process simulator takes that wearer first, at the same sample
-        (the configuration keeps it for a restart, as `set_simulation` does)."""
+        `wearer`, the in-process simulator takes that wearer first, at the same sample;
+        the configuration records it once the worker's new run reports it (`_follow`),
+        so a refused or countermanded start leaves no wearer the worker does not run."""
         with self._lock:
             self.config = replace(self.config, spec=spec)
-            if wearer is not None:
-                self.config = replace(
-                    self.config, device_seed=wearer.seed, device_script=wearer.script,
-                    device_speed=self.config.device_speed if wearer.speed is None
-                    else wearer.speed)
+            if wearer is not None and wearer.speed is None:
+                # No speed: the one the worker runs now, as for `set_simulation`.
+                wearer = replace(wearer, speed=self.config.device_speed)
             self._bound = device is not None
             if self._cmd is None or not self.state.alive:
                 return 0
@@ -212,6 +211,16 @@ class WorkerSupervisor:
             except (BrokenPipeError, OSError):
                 return None
             return rid
+
+    def _follow(self, msg: RunStarted) -> None:
+        """The simulated wearer the worker runs, as its new run reports it: a restart
+        brings back that one, and a request that gives no speed takes its speed."""
+        w = msg.wearer
+        if w is None or w.speed is None:
+            return
+        with self._lock:
+            self.config = replace(self.config, device_seed=w.seed, device_script=w.script,
+                                  device_speed=w.speed)
 
     def request_calibration(self, seconds: float, max_std_deg: float) -> int:
         """Ask the worker to calibrate over the next `seconds`; returns the request id.
@@ -266,6 +275,7 @@ class WorkerSupervisor:
                 self.state.status = msg
                 self.state.status_at = time.time()
             elif isinstance(msg, RunStarted):
+                self._follow(msg)
                 self.callbacks.on_run_started(msg)
             elif isinstance(msg, CalibrationResult):
                 self.callbacks.on_calibration(msg)

@@ -147,16 +147,21 @@ def test_a_study_from_participant_to_exported_ticks(
         # 20 s of the script from the first sample, at 100x; then the wearer goes on at
         # real time. A script the simulator does not know is a 422 that starts nothing.
         umc = next(t for t in plans[0] if t["controller"] == "umc")
-        bad = client.post(f"/api/trials/{umc['id']}/start", json={
-            "duration_s": 20.0, "simulation": {"seed": 23, "script": "cartwheels"}})
-        assert bad.status_code == 422, bad.text
-        assert bad.json()["detail"][0]["loc"] == ["body", "simulation", "script"]
+        for body, field in (
+                ({"duration_s": 20.0, "simulation": {"seed": 23, "script": "cartwheels"}},
+                 ["body", "simulation", "script"]),
+                ({"duration_s": 0.004}, ["body", "duration_s"])):  # under one sample
+            bad = client.post(f"/api/trials/{umc['id']}/start", json=body)
+            assert bad.status_code == 422, bad.text
+            assert bad.json()["detail"][0]["loc"] == field
         assert _ok(client.get(f"/api/trials/{umc['id']}"))["status"] == "planned"
         timed = _ok(client.post(f"/api/trials/{umc['id']}/start", json={
             "duration_s": 20.0,
             "simulation": {"seed": 23, "script": "squat-sequence", "speed": 100}}))
         assert timed["config_snapshot"]["simulation"] == {
             "seed": 23, "script": "squat-sequence", "speed": 100.0}
+        assert timed["config_snapshot"]["device"] == {
+            "kind": "sim", "seed": 23, "script": "squat-sequence"}
         wait_for(lambda: past_run(client, timed["run_id"], 2000), 120,
                  "the end of the trial's 20 s", poll=0.1)
         assert ticks_per_second(client) < 500  # at 100x: 10,000 a second
@@ -164,6 +169,16 @@ def test_a_study_from_participant_to_exported_ticks(
         assert timed["tick_count"] == 2000
         t = _ok(client.get(f"/api/trials/{umc['id']}/ticks.json"))["columns"]["t"]
         assert t[0] == 0.0 and t[-1] == pytest.approx(19.99) and len(t) == 2000
+
+        # A calibration is per wearer: made on a standing wearer, it serves an E-UMC
+        # trial on that wearer, not one that puts another virtual participant on.
+        _ok(client.post("/api/worker/simulation", json={"seed": 24, "script": "standing"}))
+        _wait_ticks(client)
+        assert _ok(client.post("/api/worker/calibrate", json={"seconds": 1.0}))["ok"]
+        other = client.post(f"/api/trials/{eumc['id']}/start", json={
+            "duration_s": 5.0, "simulation": {"seed": 25, "script": "squat-sequence"}})
+        assert other.status_code == 409 and "calibration" in other.text
+        assert _ok(client.get(f"/api/trials/{eumc['id']}"))["status"] == "planned"
 
         # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
         text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text
