@@ -8,19 +8,22 @@ PostgreSQL: the files never go into PostgreSQL), mode 0600 in a 0700 folder; the
 holds one row per recording (`backend.db.emg.EmgRecording`) with its sha256.
 
 Format (ExoStudy's own; numpy and zlib only, no new dependency): the magic line
-`EXOEMG1\\n`, a header (4-byte little-endian length, JSON: channel count, nominal rate,
-labels), then chunks, each a 4-byte length and a JSON chunk header (rows, byte lengths)
-followed by the timestamps (float64) and samples (float32, row-major), each
-byte-shuffled (byte k of every value together, so the slowly changing high bytes
-compress) and zlib-compressed. A chunk is written when the writer's buffer holds
-`CHUNK_ROWS` rows (5 s at 2 kHz), so the writer keeps at most one chunk in memory and a
-reader one chunk at a time. A chunk header also holds the chunk's time range
-(`t_min`, `t_max` over its finite timestamps, null when it has none): the chunk index, so
-`read_window` decompresses only the chunks overlapping its window (files written before
-it have no range: their timestamps are decompressed, never their samples). The file is
-written as `<name>.part` and renamed when closed, so a recording cut short by a crash is
-never mistaken for a finished one; every chunk is handed to the operating system when
-written, so a killed server leaves whole chunks in the `.part` for
+`EXOEMG2\\n`, a header (4-byte little-endian length, JSON: channel count, nominal rate,
+labels), then chunks, each a 4-byte length and a JSON chunk header (rows, byte lengths,
+byte-plane layout) followed by the timestamps (float64) and samples (float32,
+row-major), each byte-shuffled (byte k of every value together, so the slowly changing
+high bytes compress): each byte plane zlib-compressed, or stored as it is when its first
+4 kB do not compress (`RAW_ABOVE`; `t_planes` and `x_planes` give each plane's stored
+length and whether it is compressed). Files of the first version (`EXOEMG1\\n`) held all
+planes of an array in one zlib stream; they are still read. A chunk is written when the
+writer's buffer holds `CHUNK_ROWS` rows (5 s at 2 kHz), so the writer keeps at most one
+chunk in memory and a reader one chunk at a time. A chunk header also holds the chunk's
+time range (`t_min`, `t_max` over its finite timestamps, null when it has none): the
+chunk index, so `read_window` decompresses only the chunks overlapping its window (files
+written before it have no range: their timestamps are decompressed, never their
+samples). The file is written as `<name>.part` and renamed when closed, so a recording
+cut short by a crash is never mistaken for a finished one; every chunk is handed to the
+operating system when written, so a killed server leaves whole chunks in the `.part` for
 `backend.emg.recovery` to finalise.
 
 Samples keep NaN and infinities as they came (flagged, never altered); timestamps are
@@ -49,7 +52,16 @@ from backend.core.config import Settings, get_settings
 from backend.core.data_folder import sqlite_file
 from controller.private_files import make_private_dir
 
-MAGIC = b"EXOEMG1\n"
+MAGIC = b"EXOEMG2\n"
+#: Files written before byte planes could be stored as they are: read, never written.
+MAGIC_V1 = b"EXOEMG1\n"
+#: A byte plane whose first `_PROBE` bytes compress to more than this fraction of their
+#: size is stored as it is. The low three bytes of a float32 EMG sample are noise:
+#: measured on the simulated amplifier's recordings, they compress to 1.00 of their size
+#: and the sign-and-exponent byte to 0.46, and zlib spent about 30 MB/s of CPU on each
+#: for nothing (a third of a sped-up virtual study's EMG inlet, by profile).
+RAW_ABOVE = 0.9
+_PROBE = 4096
 #: Rows per chunk: 10,000 rows of 16 channels is 640 kB of float32 before compression.
 CHUNK_ROWS = 10_000
 #: zlib level: 1 is several times faster than 6 for a few percent more bytes, so an
@@ -65,15 +77,44 @@ class EmgStoreError(ValueError):
     """A recording file is damaged or does not match what was asked of it."""
 
 
-def _shuffle(arr: NDArray[Any]) -> bytes:
+def _shuffle(arr: NDArray[Any]) -> tuple[bytes, list[list[int]]]:
+    """The array's byte planes, each compressed unless a probe shows it does not
+    compress; the bytes and each plane's [stored length, 1 if compressed else 0]."""
     a = np.ascontiguousarray(arr)
-    width = a.dtype.itemsize
-    return zlib.compress(a.view(np.uint8).reshape(-1, width).T.tobytes(), ZLIB_LEVEL)
+    parts: list[bytes] = []
+    layout: list[list[int]] = []
+    for plane in a.view(np.uint8).reshape(-1, a.dtype.itemsize).T:
+        raw = plane.tobytes()
+        probe = raw[:_PROBE]
+        if probe and len(zlib.compress(probe, ZLIB_LEVEL)) > RAW_ABOVE * len(probe):
+            parts.append(raw)
+            layout.append([len(raw), 0])
+        else:
+            packed = zlib.compress(raw, ZLIB_LEVEL)
+            parts.append(packed)
+            layout.append([len(packed), 1])
+    return b"".join(parts), layout
 
 
-def _unshuffle(data: bytes, dtype: Any, n: int) -> NDArray[Any]:
+def _unshuffle(data: bytes, dtype: Any, n: int, planes: Any = None) -> NDArray[Any]:
+    """`n` values of `dtype` from a chunk's bytes: planes as `_shuffle` laid them out, or
+    (`planes` None, the first format) one zlib stream of all planes."""
     dt = np.dtype(dtype)
-    raw = zlib.decompress(data)
+    if planes is None:
+        raw = zlib.decompress(data)
+    else:
+        if (not isinstance(planes, list) or len(planes) != dt.itemsize
+                or not all(isinstance(p, list) and len(p) == 2 and type(p[0]) is int
+                           and p[0] >= 0 and p[1] in (0, 1) for p in planes)
+                or sum(p[0] for p in planes) != len(data)):
+            raise EmgStoreError("chunk's byte-plane layout does not match its bytes: the "
+                                "file is damaged")
+        pieces, at = [], 0
+        for length, packed in planes:
+            piece = data[at:at + length]
+            at += length
+            pieces.append(zlib.decompress(piece) if packed else piece)
+        raw = b"".join(pieces)
     if len(raw) != n * dt.itemsize:
         raise EmgStoreError(f"chunk holds {len(raw)} bytes, expected {n * dt.itemsize}")
     return np.frombuffer(raw, np.uint8).reshape(dt.itemsize, n).T.copy().view(dt).ravel()
@@ -159,10 +200,11 @@ class EmgWriter:
         head_t, head_x = t[:rows], x[:rows]
         self._t, self._x = ([t[rows:]], [x[rows:]]) if rows < t.shape[0] else ([], [])
         self._buffered = t.shape[0] - rows
-        tb, xb = _shuffle(head_t), _shuffle(head_x)
+        (tb, t_planes), (xb, x_planes) = _shuffle(head_t), _shuffle(head_x)
         fin = head_t[np.isfinite(head_t)]
         t_min, t_max = (float(fin.min()), float(fin.max())) if fin.size else (None, None)
         self._record({"rows": int(rows), "t_bytes": len(tb), "x_bytes": len(xb),
+                      "t_planes": t_planes, "x_planes": x_planes,
                       "t_min": t_min, "t_max": t_max}, tb, xb)
         self._f.flush()  # a killed process keeps every whole chunk (recovery reads them)
         self.rows += rows
@@ -237,7 +279,7 @@ def read_header(path: Path) -> Header:
 
 
 def _header(f: BinaryIO) -> Header:
-    if f.read(len(MAGIC)) != MAGIC:
+    if f.read(len(MAGIC)) not in (MAGIC, MAGIC_V1):
         raise EmgStoreError("not an ExoStudy EMG recording file")
     doc = _read_json(f)
     if doc is None:
@@ -251,9 +293,11 @@ def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.fl
         head = _header(f)
         while (doc := _read_json(f)) is not None:
             rows = int(doc["rows"])
-            t = _unshuffle(_read_exact(f, int(doc["t_bytes"])), np.float64, rows)
+            t = _unshuffle(_read_exact(f, int(doc["t_bytes"])), np.float64, rows,
+                           doc.get("t_planes"))
             x = _unshuffle(_read_exact(f, int(doc["x_bytes"])), np.float32,
-                           rows * head.n_channels).reshape(rows, head.n_channels)
+                           rows * head.n_channels, doc.get("x_planes")
+                           ).reshape(rows, head.n_channels)
             yield t, x
 
 
@@ -294,13 +338,13 @@ def read_window(path: Path, start: float = -np.inf, stop: float = np.inf
                                    or doc["t_min"] >= stop):
                 f.seek(t_bytes + x_bytes, os.SEEK_CUR)
                 continue
-            t = _unshuffle(_read_exact(f, t_bytes), np.float64, rows)
+            t = _unshuffle(_read_exact(f, t_bytes), np.float64, rows, doc.get("t_planes"))
             keep = (t >= start) & (t < stop)
             if not keep.any():
                 f.seek(x_bytes, os.SEEK_CUR)
                 continue
-            x = _unshuffle(_read_exact(f, x_bytes), np.float32,
-                           rows * head.n_channels).reshape(rows, head.n_channels)
+            x = _unshuffle(_read_exact(f, x_bytes), np.float32, rows * head.n_channels,
+                           doc.get("x_planes")).reshape(rows, head.n_channels)
             ts.append(t[keep])
             xs.append(x[keep])
     if not ts:

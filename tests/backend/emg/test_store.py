@@ -118,3 +118,81 @@ def test_span_is_the_finite_stamps_extremes_whatever_the_blocks(
             last = hi if last is None else max(last, hi)
     w.abort()
     assert (w.first_t, w.last_t) == (first, last)
+
+
+def _chunk_headers(path: Path) -> list[dict[str, object]]:
+    """The JSON header of every chunk, read with the file's own framing."""
+    heads = []
+    with open(path, "rb") as f:
+        store._header(f)
+        while (doc := store._read_json(f)) is not None:
+            heads.append(doc)
+            f.seek(int(doc["t_bytes"]) + int(doc["x_bytes"]), 1)
+    return heads
+
+
+def test_noise_bytes_are_stored_as_they_are_and_the_rest_compressed(tmp_path: Path) -> None:
+    """The low three bytes of a noisy float32 sample do not compress: stored as they are
+    (no CPU spent on them); its exponent byte, and every byte of a flat channel, are
+    compressed. What goes in comes out either way."""
+    rng = np.random.default_rng(3)
+    t = 10.0 + np.arange(12_000) / 2000.0
+    for x, expected in ((rng.normal(0, 1e-4, (12_000, 3)), [0, 0, 0, 1]),
+                        (np.zeros((12_000, 3)), [1, 1, 1, 1])):
+        path = tmp_path / f"{expected[0]}.emgc"
+        _write(path, [(t, x)], ["a", "b", "c"])
+        assert path.read_bytes().startswith(b"EXOEMG2\n")
+        heads = _chunk_headers(path)
+        assert len(heads) == 2  # 10,000 rows, then the 2,000 the close wrote
+        assert [flag for _n, flag in heads[0]["x_planes"]] == expected  # type: ignore[attr-defined]
+        got_t, got_x = store.read_window(path)
+        np.testing.assert_array_equal(got_t, t)
+        np.testing.assert_array_equal(got_x, x.astype(np.float32).astype(np.float64))
+
+
+def _first_format(path: Path, t: np.ndarray, x: np.ndarray) -> None:
+    """A file as the first version wrote it: every plane of an array in one zlib stream,
+    no plane layout in the chunk header (written here independently of the writer)."""
+    import json
+    import struct
+    import zlib
+
+    def packed(a: np.ndarray) -> bytes:
+        return zlib.compress(a.view(np.uint8).reshape(-1, a.dtype.itemsize).T.tobytes())
+
+    def framed(doc: dict[str, object]) -> bytes:
+        head = json.dumps(doc).encode()
+        return struct.pack("<I", len(head)) + head
+
+    tb, xb = packed(np.ascontiguousarray(t)), packed(np.ascontiguousarray(x))
+    path.write_bytes(b"EXOEMG1\n" + framed({"n_channels": x.shape[1], "fs": 2000.0,
+                                            "labels": ["a", "b"]})
+                     + framed({"rows": len(t), "t_bytes": len(tb), "x_bytes": len(xb),
+                               "t_min": float(t[0]), "t_max": float(t[-1])}) + tb + xb)
+
+
+def test_a_file_of_the_first_format_is_still_read(tmp_path: Path) -> None:
+    path = tmp_path / "old.emgc"
+    t = 5.0 + np.arange(300) / 2000.0
+    x = np.random.default_rng(4).normal(0, 1e-4, (300, 2)).astype(np.float32)
+    _first_format(path, t, x)
+    got_t, got_x = store.read_window(path)
+    np.testing.assert_array_equal(got_t, t)
+    np.testing.assert_array_equal(got_x, x.astype(np.float64))
+    ((chunk_t, chunk_x),) = list(store.iter_chunks(path))
+    np.testing.assert_array_equal(chunk_t, t)
+    np.testing.assert_array_equal(chunk_x, x)
+
+
+def test_a_plane_layout_that_does_not_match_its_bytes_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "1.emgc"
+    _write(path, [(np.arange(100) / 2000.0, np.ones((100, 2)))], ["a", "b"])
+    data = path.read_bytes()
+    # One more byte claimed by the samples' first plane than the chunk holds.
+    (head,) = _chunk_headers(path)
+    n = head["x_planes"][0][0]  # type: ignore[index]
+    bad = data.replace(f'"x_planes":[[{n},'.encode(), f'"x_planes":[[{n + 1},'.encode())
+    assert bad != data
+    path.write_bytes(bad)
+    with pytest.raises(store.EmgStoreError, match="byte-plane layout"):
+        store.read_window(path)

@@ -28,9 +28,9 @@ def test_a_window_decompresses_only_its_chunks(tmp_path: Path,
     calls: list[int] = []
     real = store._unshuffle
 
-    def counting(data: bytes, dtype: Any, n: int) -> Any:
+    def counting(data: bytes, dtype: Any, n: int, planes: Any = None) -> Any:
         calls.append(n)
-        return real(data, dtype, n)
+        return real(data, dtype, n, planes)
 
     monkeypatch.setattr(store, "_unshuffle", counting)
     got_t, got_x = store.read_window(path, 3.2, 3.5)
