@@ -45,6 +45,7 @@ from backend.worker.messages import (
     Wearer,
     WorkerConfig,
 )
+from backend.worker.supervisor import WorkerBusyError as WorkerBusyError  # the routes' 409
 from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
 from controller.config import ControllerConfig
 from controller.controllers import registry
@@ -81,6 +82,8 @@ class Runtime:
         self.settings = settings
         host, port = settings.device_host_port
         self.calibration: CalibrationResult | None = None
+        #: The simulated wearer (seed) the calibration was made on (`calibration_for`).
+        self.calibration_seed: int | None = None
         self._calibration_waiters: dict[int, asyncio.Future[CalibrationResult]] = {}
         self._command_waiters: dict[int, asyncio.Future[CommandResult]] = {}
         self._bringup_waiters: dict[int, asyncio.Future[BringupResult]] = {}
@@ -227,20 +230,29 @@ class Runtime:
                                                self.settings.precompression_pct)
         return models, utilities
 
-    def new_wearer(self, seed: int) -> None:
-        """Another virtual participant goes on the simulator: the E-UMC calibration was
-        made on the one before (a calibration is per donning; standing hip angles differ
-        by up to about 12 deg between virtual participants), so it no longer applies."""
-        if seed != self.settings.device_seed:
-            self.calibration = None
+    def calibration_for(self, seed: int | None = None) -> CalibrationResult | None:
+        """The E-UMC calibration, if it applies to the wearer on the device, or to the
+        simulated wearer `seed` a trial is about to put on. A calibration is per donning:
+        on a simulator it belongs to the virtual participant it was made on (standing hip
+        angles differ by up to about 12 deg between them), and another has none."""
+        cal = self.calibration
+        if cal is None or not cal.ok:
+            return None
+        if self.hardware_is_simulated:
+            wearer = self.settings.device_seed if seed is None else seed
+            if wearer != self.calibration_seed:
+                return None
+        return cal
 
     def controller_spec(
-        self, name: str, overrides: dict[str, Any] | None = None
+        self, name: str, overrides: dict[str, Any] | None = None,
+        wearer_seed: int | None = None,
     ) -> ControllerSpec:
         """The one place the server builds a controller's configuration: defaults, the
         server's settings, the E-UMC calibration if one was made, then `overrides`
-        (settings fields), with the default model and utility files. Raises SettingError
-        naming the field (refused here, not in the worker)."""
+        (settings fields), with the default model and utility files; `wearer_seed`: the
+        simulated wearer the controller will run on, if not the present one. Raises
+        SettingError naming the field (refused here, not in the worker)."""
         cfg = ControllerConfig(precompression_pct=self.settings.precompression_pct)
         if self.settings.controller_rate_hz is not None:
             cfg = cfg.at_rate(self.settings.controller_rate_hz)
@@ -248,10 +260,9 @@ class Runtime:
         if self.encoder_layout is not None:
             settings["encoder_offsets"] = list(self.encoder_layout.offsets)
             settings["encoder_directions"] = list(self.encoder_layout.directions)
-        if (registry.needs_calibration(name) and self.calibration is not None
-                and self.calibration.ok):
-            settings["calibration"] = [self.calibration.offset_left,
-                                       self.calibration.offset_right]
+        cal = self.calibration_for(wearer_seed)
+        if registry.needs_calibration(name) and cal is not None:
+            settings["calibration"] = [cal.offset_left, cal.offset_right]
         settings.update(overrides or {})
         return ControllerSpec(
             name, ControllerConfig.from_json(settings),
@@ -375,7 +386,6 @@ class Runtime:
             raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
                              "faster than real time")
         speed = self.supervisor.config.device_speed if speed is None else speed
-        self.new_wearer(seed)
         self.settings = self.settings.model_copy(update={"device_seed": seed,
                                                          "device_script": script,
                                                          "device_speed": speed})
@@ -468,6 +478,7 @@ class Runtime:
             listener.on_calibration(result.ok, result.message)
         if result.ok:
             self.calibration = result
+            self.calibration_seed = self.settings.device_seed
 
         def resolve() -> None:
             fut = self._calibration_waiters.get(result.request_id)

@@ -282,7 +282,8 @@ def _check_sets_belong(db: Session, trial: Trial, sess: StudySession, ms: ModelS
 
 
 def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
-               rate_hz: float | None) -> tuple[ControllerSpec, dict[str, Any]]:
+               rate_hz: float | None, wearer_seed: int | None = None
+               ) -> tuple[ControllerSpec, dict[str, Any]]:
     """The trial's controller configuration and the snapshot stored with the trial:
     the server's defaults at the session's precompression, `rate_hz` for every
     controller if given, and the trial's own model and utility sets inline (so the
@@ -292,7 +293,7 @@ def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
         overrides.update(umc_rate_hz=rate_hz, eumc_triggered_rate_hz=rate_hz,
                          pec_rate_hz=rate_hz)
     try:
-        spec = runtime.controller_spec(trial.controller, overrides)
+        spec = runtime.controller_spec(trial.controller, overrides, wearer_seed)
     except SettingError as exc:
         raise InvalidError.at(["body", "rate_hz" if exc.field.endswith("rate_hz")
                                else exc.field], exc.problem) from exc
@@ -378,8 +379,9 @@ async def _start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: 
     sim = body.simulation
     if sim is not None:
         check_simulation(runtime, sim, "trial")
-        runtime.new_wearer(sim.seed)  # another participant's calibration does not apply
-    spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz)
+    # On its own wearer: another virtual participant's calibration does not apply.
+    spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz,
+                                None if sim is None else sim.seed)
     if body.duration_s is not None:
         snapshot["duration_s"] = body.duration_s
     if sim is not None:

@@ -492,14 +492,26 @@ class Machine:
         """Another simulated wearer: the old device lets go before the new one opens (a
         failure to open ends the worker, released), with a fresh controller of the same
         specification, as a new run."""
+        spec = self.spec
+        recalibrate = (cmd.seed != self.config.device_seed
+                       and spec.settings.calibration is not None)
+        if recalibrate:
+            # A calibration is per donning: another virtual participant's standing
+            # angles are not the ones it measured. Uncalibrated, the E-UMC never locks.
+            spec = replace(spec, settings=replace(spec.settings, calibration=None))
         try:
             new_device, sim_config = self._new_device(Wearer(cmd.seed, cmd.script, cmd.speed))
-            fresh = build(self.spec)
+            fresh = build(spec)
         except Exception as exc:
             self.refuse(cmd, f"simulation seed {cmd.seed}, script {cmd.script!r} "
                              f"rejected: {exc}")
             return
         self._put_on(new_device, sim_config)
+        self.spec = spec
+        if recalibrate:
+            self.outbox.put(WorkerError(
+                f"controller {spec.name!r}: its calibration was made on another wearer; "
+                "it runs uncalibrated (no locks) until calibrated again"))
         # Fresh timing too: health counts ticks from the new wearer's start.
         self.loop = self._new_loop(fresh)
         self.next_status = 0.0  # report the new wearer at its first sample

@@ -74,6 +74,12 @@ class WorkerState:
 
 #: How long the reader waits for the process to end once its pipe has closed.
 EXIT_WAIT_S = 5.0
+#: How long a (re)start waits for the last worker's reader to store what it sent.
+READER_WAIT_S = 30.0
+
+
+class WorkerBusyError(RuntimeError):
+    """The worker cannot start yet: the last one's data is still being stored."""
 
 
 class WorkerSupervisor:
@@ -98,12 +104,24 @@ class WorkerSupervisor:
         return self._proc
 
     def start(self) -> None:
-        """Start a worker unless one is running."""
+        """Start a worker unless one is running. Raises WorkerBusyError while the last
+        worker's reader still stores what it sent (its last ticks, its run's end, the
+        trial it interrupted): a new worker started beside it would have its runs
+        mixed with the old one's."""
         with self._lock:
             if self._proc is not None and self._proc.is_alive():
                 return
-            if self._reader is not None:
-                self._reader.join(2.0)
+            reader = self._reader
+        if reader is not None and reader is not threading.current_thread():
+            # Outside the lock: the reader takes it to record the old worker's exit.
+            reader.join(READER_WAIT_S)
+            if reader.is_alive():
+                raise WorkerBusyError(
+                    "the last worker's data is still being stored (the database is slow "
+                    f"or locked for more than {READER_WAIT_S:g} s): start it again later")
+        with self._lock:
+            if self._proc is not None and self._proc.is_alive():
+                return
             if self.state.started_at is not None or self._bound:
                 # A restarted worker never resumes the controller of a trial that has
                 # ended with its predecessor: it begins unlocked, with "none". Nor does

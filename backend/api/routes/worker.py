@@ -9,7 +9,7 @@ from fastapi import APIRouter, Depends, HTTPException
 from backend.api.deps import RuntimeDep, SessionDep, access, current_user
 from backend.api.errors import AUTH_RESPONSES, BODY, CONFLICT, MALFORMED, conflict, invalid
 from backend.live.device_process import DeviceStartError
-from backend.live.runtime import WrongDeviceError
+from backend.live.runtime import WorkerBusyError, WrongDeviceError
 from backend.schemas.live import (
     CalibrationOutcome,
     CalibrationRequest,
@@ -27,10 +27,14 @@ router = APIRouter(prefix="/api/worker", tags=["worker"],
                    dependencies=[Depends(current_user)], responses=AUTH_RESPONSES)
 
 
-@router.post("/restart", response_model=Health, openapi_extra=access("worker"))
+@router.post("/restart", response_model=Health, responses=CONFLICT,
+             openapi_extra=access("worker"))
 async def restart(runtime: RuntimeDep) -> Health:
     """Start the worker again (stopping it first if it still runs)."""
-    await asyncio.to_thread(runtime.supervisor.restart)
+    try:
+        await asyncio.to_thread(runtime.supervisor.restart)
+    except WorkerBusyError as exc:
+        conflict("worker", str(exc))
     return runtime.health()
 
 

@@ -178,7 +178,16 @@ def test_a_study_from_participant_to_exported_ticks(
         other = client.post(f"/api/trials/{eumc['id']}/start", json={
             "duration_s": 5.0, "simulation": {"seed": 25, "script": "squat-sequence"}})
         assert other.status_code == 409 and "calibration" in other.text
+        bad = client.post(f"/api/trials/{eumc['id']}/start", json={  # refused: no change
+            "rate_hz": 500, "simulation": {"seed": 25, "script": "squat-sequence"}})
+        assert bad.status_code == 422, bad.text
         assert _ok(client.get(f"/api/trials/{eumc['id']}"))["status"] == "planned"
+        mine = _ok(client.post(f"/api/trials/{eumc['id']}/start", json={
+            "duration_s": 2.0, "simulation": {"seed": 24, "script": "standing", "speed": 50}}))
+        assert mine["config_snapshot"]["settings"]["calibration"] is not None
+        wait_for(lambda: past_run(client, mine["run_id"], 200), 120, "the E-UMC trial's 2 s",
+                 poll=0.1)
+        assert _ok(client.post(f"/api/trials/{eumc['id']}/stop", json={}))["tick_count"] == 200
 
         # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
         text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text

@@ -75,13 +75,25 @@ def test_pec_then_eumc_with_calibration(settings: Settings, experimenter: dict[s
         # Squats with the calibrated E-UMC, until one is recognised and locked.
         wait_for(lambda: _squat_locked(settings.database_url), 120,
                  "a squat recognised and locked by the calibrated E-UMC", poll=0.5)
+        # Another virtual participant: the calibration was not made on them, so the
+        # running E-UMC goes on uncalibrated (it never locks) rather than with offsets
+        # measured on someone else.
+        swapped = client.post("/api/worker/simulation",
+                              json={"seed": 77, "script": "squat-sequence"})
+        assert swapped.status_code == 200, swapped.text
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 800, 120,
+                 "8 s of the new wearer's squats", poll=0.5)
 
     engine = make_engine(settings.database_url)
     with engine.connect() as conn:
         runs = conn.execute(select(Run).order_by(Run.id)).all()
         controllers = [r.controller for r in runs]
-        assert controllers[:2] == ["pec", "eumc"] and controllers[-1] == "eumc"
-        calibrated = runs[-1]
+        assert controllers[:2] == ["pec", "eumc"] and controllers[-2:] == ["eumc", "eumc"]
+        calibrated, other_wearer = runs[-2], runs[-1]
+        assert json.loads(other_wearer.config_json)["settings"]["calibration"] is None
+        other_ticks = conn.execute(
+            select(ticks_table.c.flags, ticks_table.c.lock_left, ticks_table.c.lock_right)
+            .where(ticks_table.c.run_id == other_wearer.id)).all()
         assert json.loads(calibrated.config_json)["settings"]["calibration"] is not None
         uncalibrated_flags = conn.execute(
             select(ticks_table.c.flags, ticks_table.c.lock_left)
@@ -92,6 +104,9 @@ def test_pec_then_eumc_with_calibration(settings: Settings, experimenter: dict[s
         ).mappings().all()
     engine.dispose()
     assert all(f & TickFlag.NOT_CALIBRATED and not lock for f, lock in uncalibrated_flags)
+    assert len(other_ticks) >= 800
+    assert all(f & TickFlag.NOT_CALIBRATED and not (left or right)
+               for f, left, right in other_ticks)
     ran = [t for t in ticks if t["controller_ran"] and t["post_squat"] is not None]
     assert ran, "the calibrated E-UMC never evaluated the UMC"
     assert max(t["post_squat"] for t in ran) > 0.5

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from backend.worker import supervisor as supervisor_module
 from backend.worker.messages import RunStarted, TickBatch, WorkerConfig
-from backend.worker.supervisor import WorkerCallbacks, WorkerSupervisor
+from backend.worker.supervisor import WorkerBusyError, WorkerCallbacks, WorkerSupervisor
 from controller.controllers.spec import ControllerSpec
 from tests.faults.served import alive
 from tests.polling import wait_for
@@ -103,6 +104,52 @@ if __name__ == "__main__":
     print(sup.state.pid, flush=True)
     time.sleep(600)  # a server that stays up until the test kills it
 """
+
+
+def test_a_restart_waits_for_the_last_workers_data_to_be_stored(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A database that blocks the storing of ticks (a slow disk, a lock held elsewhere)
+    holds the old worker's reader: a restart meanwhile is refused (it would start a
+    new worker whose runs mix with the old one's, and skip the old one's exit), and
+    goes through once the old data is stored, the old worker's exit recorded first."""
+    monkeypatch.setattr(supervisor_module, "READER_WAIT_S", 1.0)
+    got = Collected()
+    stalled, resume = threading.Event(), threading.Event()
+    base = got.callbacks()
+    order: list[str] = []
+
+    def storing(b: TickBatch) -> None:
+        base.on_ticks(b)
+        if got.got_ticks.is_set() and not resume.is_set():
+            stalled.set()
+            resume.wait(60)  # the database does not answer
+
+    def exited(code: int | None, reason: str) -> None:
+        order.append("exit")
+        base.on_exit(code, reason)
+
+    def run_started(msg: RunStarted) -> None:
+        order.append("run")
+        got.runs.append(msg)
+
+    sup = WorkerSupervisor(WorkerConfig(device_kind="sim"),
+                           WorkerCallbacks(on_ticks=storing, on_run_started=run_started,
+                                           on_exit=exited))
+    sup.start()
+    try:
+        assert stalled.wait(60), "the storing never stalled"
+        old_pid = sup.state.pid
+        with pytest.raises(WorkerBusyError, match="still being stored"):
+            sup.restart()
+        assert order == ["run"]  # the old worker's exit waits with its data
+        resume.set()
+        sup.restart()
+        assert sup.state.alive and sup.state.pid != old_pid
+        wait_for(lambda: len(got.runs) >= 2, 60, "the new worker's first run")
+        assert order == ["run", "exit", "run"]
+    finally:
+        resume.set()
+        sup.stop()
 
 
 def test_worker_exits_when_its_server_is_killed(tmp_path: Path) -> None:
