@@ -102,9 +102,13 @@ def test_a_study_plans_it_and_refuses_to_start_it_uncalibrated(
     # With a calibration the runtime puts the offsets in its specification.
     runtime = client.app.state.runtime  # type: ignore[attr-defined]
     runtime.calibration = CalibrationResult(1, True, "calibrated", 0.05, -0.03)
+    runtime.calibration_seed = seed = runtime.settings.device_seed  # made on this wearer
     spec = runtime.controller_spec("constant")
     assert spec.settings.calibration == (0.05, -0.03)
     assert runtime.controller_spec("pec").settings.calibration is None
+    # Not on another virtual participant, whom it was not made on.
+    other = runtime.controller_spec("constant", wearer_seed=seed + 1)
+    assert other.settings.calibration is None
 
 
 @pytest.mark.slow
