@@ -188,6 +188,10 @@ def test_a_study_from_participant_to_exported_ticks(
         wait_for(lambda: past_run(client, mine["run_id"], 200), 120, "the E-UMC trial's 2 s",
                  poll=0.1)
         assert _ok(client.post(f"/api/trials/{eumc['id']}/stop", json={}))["tick_count"] == 200
+        # The timed trial's end put the wearer back to real time, which a wearer put on
+        # without a speed keeps: the rest of the study runs at 5x again, as it began.
+        _ok(client.post("/api/worker/simulation",
+                        json={"seed": 21, "script": "squat-sequence", "speed": 5}))
 
         # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
         text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text
