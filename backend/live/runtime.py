@@ -615,8 +615,9 @@ class Runtime:
     def _on_run_started(self, msg: RunStarted) -> None:
         w = msg.wearer
         if w is not None and w.speed is not None:
-            # The simulation as the worker runs it (the supervisor's configuration
-            # follows it too): what a restart or a request without a speed takes.
+            # The wearer as the worker runs it and the speed asked for it (the
+            # supervisor's configuration follows them too): never a wearer a refused
+            # request named.
             self.settings = self.settings.model_copy(update={
                 "device_seed": w.seed, "device_script": w.script, "device_speed": w.speed})
             self.worker_config = self.supervisor.config

@@ -303,9 +303,6 @@ class Machine:
         self.calibration: CalibrationJob | None = None
         self.runs = Runs(outbox, self.pid, self._wearer)
         self.next_status = time.monotonic()
-        #: The loop's scheduling is to follow the configuration again (set where the
-        #: speed changes outside a command; the loop thread applies it).
-        self.reschedule = False
         #: The device the running controller's encoder layout belongs to (None: no
         #: hardware profile, any device); see `backend.worker.device_gate`.
         self.gate: DeviceGate | None = None
@@ -462,12 +459,12 @@ class Machine:
         self.answer(cmd.request_id, "", token)
 
     def _wearer(self) -> Wearer | None:
-        """The in-process simulator's wearer now (None for any other device)."""
+        """The in-process simulator's wearer now, at the speed asked for it (None for
+        any other device)."""
         c = self.config
         if c.device_kind != "sim":
             return None
-        return Wearer(c.device_seed, c.device_script,
-                      float(getattr(self.device, "speed", c.device_speed)))
+        return Wearer(c.device_seed, c.device_script, c.device_speed)
 
     def _new_device(self, wearer: Wearer) -> tuple[Device, WorkerConfig]:
         """The in-process simulator of `wearer`, not yet open, and the configuration it
@@ -583,14 +580,12 @@ class Machine:
     def _back_to_real_time(self) -> None:
         """A timed run is over: a sped-up simulated wearer goes on at real time. What it
         did faster than real time after the run was stored and never read (a third of
-        a virtual study's ticks, and of its time); the next wearer a command puts on
-        the simulator runs at the speed that command (or the server) sets."""
+        a virtual study's ticks, and of its time). The speed asked for stays the
+        configuration's: the next wearer put on without one runs at it."""
         set_speed = getattr(self.device, "set_speed", None)  # the in-process simulator
         if set_speed is None or float(getattr(self.device, "speed", 1.0)) <= 1.0:
             return
         set_speed(1.0)
-        self.config = replace(self.config, device_speed=1.0)
-        self.reschedule = True  # the loop (`run`) follows the device's clock from now
 
     def finish_calibration(self, job: CalibrationJob) -> None:
         """Answer the calibration; a running E-UMC takes its offsets at once, as a new
@@ -650,9 +645,6 @@ class Machine:
                 self.after_tick(record)
                 if self.gate is not None:
                     self.check_device()
-                if self.reschedule:
-                    self.reschedule = False
-                    loop_scheduling(paced(self.config))
             now = time.monotonic()
             if now >= self.next_status:
                 self.next_status = now + self.config.status_interval

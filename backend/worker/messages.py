@@ -112,10 +112,10 @@ class RunStarted:
     controller_config: dict[str, Any]
     device_kind: str
     pid: int
-    #: The in-process simulator's wearer as the run starts (its speed included: a timed
-    #: run's end puts a sped-up one back to real time); None for any other device. The
-    #: server takes its own record of the simulation from here, so that it never holds
-    #: a wearer or speed the worker does not run.
+    #: The in-process simulator's wearer as the run starts, with the speed asked for it
+    #: (after a timed run's end the wearer itself idles at real time); None for any
+    #: other device. The server takes its record of the simulation from here, so that
+    #: it never holds a wearer the worker does not run.
     wearer: Wearer | None = None
 
 

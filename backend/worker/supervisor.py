@@ -199,7 +199,7 @@ class WorkerSupervisor:
         with self._lock:
             self.config = replace(self.config, spec=spec)
             if wearer is not None and wearer.speed is None:
-                # No speed: the one the worker runs now, as for `set_simulation`.
+                # No speed: the one asked for last, as for `set_simulation`.
                 wearer = replace(wearer, speed=self.config.device_speed)
             self._bound = device is not None
             if self._cmd is None or not self.state.alive:
@@ -231,8 +231,9 @@ class WorkerSupervisor:
             return rid
 
     def _follow(self, msg: RunStarted) -> None:
-        """The simulated wearer the worker runs, as its new run reports it: a restart
-        brings back that one, and a request that gives no speed takes its speed."""
+        """The simulated wearer the worker runs and the speed asked for it, as its new
+        run reports them: a restart brings back that one, and a wearer put on without a
+        speed takes that speed. Never one a refused or countermanded request named."""
         w = msg.wearer
         if w is None or w.speed is None:
             return

@@ -165,6 +165,10 @@ def test_a_study_from_participant_to_exported_ticks(
         wait_for(lambda: past_run(client, timed["run_id"], 2000), 120,
                  "the end of the trial's 20 s", poll=0.1)
         assert ticks_per_second(client) < 500  # at 100x: 10,000 a second
+        # The speed asked for last (the trial's 100x) is the server's record too: the next
+        # wearer put on without one takes it, as would a restarted worker.
+        runtime = client.app.state.runtime  # type: ignore[attr-defined]
+        assert runtime.supervisor.config.device_speed == runtime.settings.device_speed == 100
         timed = _ok(client.post(f"/api/trials/{umc['id']}/stop", json={}))
         assert timed["tick_count"] == 2000
         t = _ok(client.get(f"/api/trials/{umc['id']}/ticks.json"))["columns"]["t"]
@@ -188,10 +192,6 @@ def test_a_study_from_participant_to_exported_ticks(
         wait_for(lambda: past_run(client, mine["run_id"], 200), 120, "the E-UMC trial's 2 s",
                  poll=0.1)
         assert _ok(client.post(f"/api/trials/{eumc['id']}/stop", json={}))["tick_count"] == 200
-        # The timed trial's end put the wearer back to real time, which a wearer put on
-        # without a speed keeps: the rest of the study runs at 5x again, as it began.
-        _ok(client.post("/api/worker/simulation",
-                        json={"seed": 21, "script": "squat-sequence", "speed": 5}))
 
         # 4. Export: one CSV row per stored tick, columns named by the data dictionary.
         text = client.get(f"/api/trials/{pec['id']}/ticks.csv").text

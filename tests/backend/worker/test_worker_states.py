@@ -232,7 +232,8 @@ def test_a_timed_trial_ends_by_itself_through_releasing_to_none(h: Harness) -> N
     assert h.trace_since(mark) == [T, R, ID] and h.releases == 1
     assert h.m.loop.controller.name == "none"
     # The sped-up wearer goes on at real time: no ticks faster than anyone asked for.
-    assert h.m.device.speed == 1.0 and h.m.config.device_speed == 1.0  # type: ignore[attr-defined]
+    # The speed asked for stays (the next wearer put on without one takes it).
+    assert h.m.device.speed == 1.0 and h.m.config.device_speed == 50  # type: ignore[attr-defined]
 
 
 def test_a_timed_recording_of_a_new_wearer_ends_the_speed_up_too(h: Harness) -> None:
@@ -242,8 +243,11 @@ def test_a_timed_recording_of_a_new_wearer_ends_the_speed_up_too(h: Harness) -> 
     h.ticks(19)
     assert h.m.device.speed == 50  # type: ignore[attr-defined]
     h.ticks(1)
-    assert _runs(h.messages()) == ["none"] and h.m.state is ID
-    assert h.m.device.speed == 1.0 and h.m.config.device_speed == 1.0  # type: ignore[attr-defined]
+    msgs = h.messages()
+    assert _runs(msgs) == ["none"] and h.m.state is ID
+    assert h.m.device.speed == 1.0  # type: ignore[attr-defined]
+    (run,) = [m for m in msgs if isinstance(m, RunStarted)]
+    assert run.wearer == Wearer(5, "walking", 50)  # what the server records
 
 
 def test_a_trial_with_its_wearer_starts_at_the_wearers_first_sample(h: Harness) -> None:
