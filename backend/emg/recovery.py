@@ -65,12 +65,16 @@ def _finalise(db: Session, row: EmgRecording, folder: Path) -> str:
     quality = QualitySummary(row.fs, list(row.labels))
     rows, first, last = 0, None, None
     if final.exists():
-        for t, x in store.iter_chunks(final):
-            quality.add(t, x)
-            rows += t.size
-            if t.size:
-                first = float(t[0]) if first is None else first
-                last = float(t[-1])
+        try:
+            for t, x in store.iter_chunks(final):
+                quality.add(t, x)
+                rows += t.size
+                if t.size:
+                    first = float(t[0]) if first is None else first
+                    last = float(t[-1])
+        except store.EmgStoreError as exc:
+            # Kept as it is (nothing is deleted); what reads back is counted.
+            note += f"; the file is damaged after {rows} samples: {exc}"
         row.sha256 = store.file_sha256(final)
         row.size_bytes = final.stat().st_size
     quality.finish()
@@ -88,8 +92,16 @@ def _finalise(db: Session, row: EmgRecording, folder: Path) -> str:
 def recover(db: Session, folder: Path) -> list[str]:
     """Finalise every recording a killed server left "recording" (committed); what was
     done for each. Only for a server start: a running server's recordings are live."""
-    done = [_finalise(db, row, folder) for row in db.scalars(
-        select(EmgRecording).where(EmgRecording.status == "recording"))]
+    done = []
+    for row in db.scalars(select(EmgRecording).where(EmgRecording.status == "recording")):
+        try:
+            done.append(_finalise(db, row, folder))
+        except Exception as exc:  # one recording's files must not keep the server down
+            log.exception("recovering EMG recording %s failed", row.id)
+            row.status = "interrupted"
+            row.quality = {**(row.quality or {}), "recovery": f"recovery failed: {exc}"}
+            done.append(f"EMG recording {row.id}: recovery failed ({exc}); its files are "
+                        "kept as they are")
     db.commit()
     return done
 

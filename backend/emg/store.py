@@ -71,6 +71,12 @@ _LEN = struct.Struct("<I")
 #: Largest JSON header a reader accepts (a file is ours, but a damaged one must not
 #: make the reader allocate gigabytes).
 _MAX_HEADER = 1 << 20
+#: Bounds a reader holds the header and every chunk header to, so that a damaged or
+#: hostile file can make it neither allocate without limit nor seek backwards (the
+#: writer's chunks hold `CHUNK_ROWS` rows; amplifiers have at most a few hundred
+#: channels).
+MAX_CHUNK_ROWS = 4 * CHUNK_ROWS
+MAX_CHANNELS = 1024
 
 
 class EmgStoreError(ValueError):
@@ -79,45 +85,125 @@ class EmgStoreError(ValueError):
 
 def _shuffle(arr: NDArray[Any]) -> tuple[bytes, list[list[int]]]:
     """The array's byte planes, each compressed unless a probe shows it does not
-    compress; the bytes and each plane's [stored length, 1 if compressed else 0]."""
+    compress; the bytes and each plane's [stored length, 1 if compressed else 0, CRC-32
+    of the plane] (a plane stored as it is has no zlib checksum: the CRC finds a
+    damaged one)."""
     a = np.ascontiguousarray(arr)
     parts: list[bytes] = []
     layout: list[list[int]] = []
     for plane in a.view(np.uint8).reshape(-1, a.dtype.itemsize).T:
         raw = plane.tobytes()
         probe = raw[:_PROBE]
+        crc = zlib.crc32(raw)
         if probe and len(zlib.compress(probe, ZLIB_LEVEL)) > RAW_ABOVE * len(probe):
             parts.append(raw)
-            layout.append([len(raw), 0])
+            layout.append([len(raw), 0, crc])
         else:
             packed = zlib.compress(raw, ZLIB_LEVEL)
             parts.append(packed)
-            layout.append([len(packed), 1])
+            layout.append([len(packed), 1, crc])
     return b"".join(parts), layout
+
+
+def _inflate(data: bytes, size: int) -> bytes:
+    """`data` decompressed, which must give exactly `size` bytes: never more is
+    allocated (a small damaged or hostile chunk cannot inflate to gigabytes)."""
+    d = zlib.decompressobj()
+    try:
+        out = d.decompress(data, size)
+        if len(out) == size and not d.eof:
+            out += d.decompress(d.unconsumed_tail, 1)
+    except zlib.error as exc:
+        raise EmgStoreError(f"chunk does not decompress ({exc}): the file is damaged") \
+            from exc
+    if len(out) != size or not d.eof or d.unconsumed_tail or d.unused_data:
+        raise EmgStoreError(f"chunk decompresses to other than its {size} bytes: the file "
+                            "is damaged")
+    return out
 
 
 def _unshuffle(data: bytes, dtype: Any, n: int, planes: Any = None) -> NDArray[Any]:
     """`n` values of `dtype` from a chunk's bytes: planes as `_shuffle` laid them out, or
-    (`planes` None, the first format) one zlib stream of all planes."""
+    (`planes` None, the first format) one zlib stream of all planes. EmgStoreError for
+    anything that does not match."""
     dt = np.dtype(dtype)
     if planes is None:
-        raw = zlib.decompress(data)
+        raw = _inflate(data, n * dt.itemsize)
     else:
         if (not isinstance(planes, list) or len(planes) != dt.itemsize
-                or not all(isinstance(p, list) and len(p) == 2 and type(p[0]) is int
-                           and p[0] >= 0 and p[1] in (0, 1) for p in planes)
+                or not all(isinstance(p, list) and len(p) == 3
+                           and all(type(v) is int for v in p) and p[0] >= 0
+                           and p[1] in (0, 1) for p in planes)
                 or sum(p[0] for p in planes) != len(data)):
             raise EmgStoreError("chunk's byte-plane layout does not match its bytes: the "
                                 "file is damaged")
         pieces, at = [], 0
-        for length, packed in planes:
+        for length, packed, crc in planes:
             piece = data[at:at + length]
             at += length
-            pieces.append(zlib.decompress(piece) if packed else piece)
+            plane = _inflate(piece, n) if packed else piece
+            if len(plane) != n or zlib.crc32(plane) != crc:
+                raise EmgStoreError("a byte plane of the chunk does not match its checksum: "
+                                    "the file is damaged")
+            pieces.append(plane)
         raw = b"".join(pieces)
     if len(raw) != n * dt.itemsize:
         raise EmgStoreError(f"chunk holds {len(raw)} bytes, expected {n * dt.itemsize}")
     return np.frombuffer(raw, np.uint8).reshape(dt.itemsize, n).T.copy().view(dt).ravel()
+
+
+@dataclass(frozen=True, slots=True)
+class _Chunk:
+    """A chunk header, checked: sizes within bounds, types as written."""
+
+    rows: int
+    t_bytes: int
+    x_bytes: int
+    t_planes: Any
+    x_planes: Any
+    #: (t_min, t_max) over its finite stamps; None: no finite stamp; absent (files
+    #: written before the index): `indexed` is False.
+    t_range: tuple[float, float] | None
+    indexed: bool
+
+
+def _finite(value: Any) -> float | None:
+    """`value` as a float if it is a finite JSON number (not a boolean), else None."""
+    if isinstance(value, int | float) and not isinstance(value, bool) \
+            and math.isfinite(value):
+        return float(value)
+    return None
+
+
+def _count(doc: dict[str, Any], key: str, most: int) -> int:
+    value = doc.get(key)
+    if type(value) is not int or not 0 <= value <= most:
+        raise EmgStoreError(f"chunk header's {key!r} is {value!r}: the file is damaged")
+    return value
+
+
+def _stored_most(raw: int, width: int) -> int:
+    """The most bytes `raw` bytes in `width` planes can take stored (zlib's worst case
+    for data that does not compress, with room to spare)."""
+    return raw + raw // 500 + 64 * (width + 1)
+
+
+def _chunk(doc: dict[str, Any], n_channels: int) -> _Chunk:
+    rows = _count(doc, "rows", MAX_CHUNK_ROWS)
+    t_bytes = _count(doc, "t_bytes", _stored_most(rows * 8, 8))
+    x_bytes = _count(doc, "x_bytes", _stored_most(rows * 4 * n_channels, 4))
+    indexed = "t_min" in doc
+    t_range: tuple[float, float] | None = None
+    if indexed:
+        lo, hi = doc.get("t_min"), doc.get("t_max")
+        if lo is not None or hi is not None:
+            t_min, t_max = _finite(lo), _finite(hi)
+            if t_min is None or t_max is None:
+                raise EmgStoreError(f"chunk header's time range ({lo!r}, {hi!r}) is not "
+                                    "two finite numbers: the file is damaged")
+            t_range = (t_min, t_max)
+    return _Chunk(rows, t_bytes, x_bytes, doc.get("t_planes"), doc.get("x_planes"),
+                  t_range, indexed)
 
 
 @dataclass(frozen=True, slots=True)
@@ -266,10 +352,18 @@ def _read_json(f: BinaryIO) -> dict[str, Any] | None:
     (n,) = _LEN.unpack(raw)
     if n > _MAX_HEADER:
         raise EmgStoreError(f"chunk header of {n} bytes: the file is damaged")
-    doc = json.loads(_read_exact(f, n))
+    try:
+        doc = json.loads(_read_exact(f, n), parse_constant=_no_constant)
+    except ValueError as exc:  # not JSON, not UTF-8, NaN or Infinity
+        raise EmgStoreError(f"chunk header is not JSON ({exc}): the file is damaged") \
+            from exc
     if not isinstance(doc, dict):
         raise EmgStoreError("chunk header is not an object")
     return doc
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number the writer writes")
 
 
 def read_header(path: Path) -> Header:
@@ -284,7 +378,14 @@ def _header(f: BinaryIO) -> Header:
     doc = _read_json(f)
     if doc is None:
         raise EmgStoreError("recording file has no header")
-    return Header(int(doc["n_channels"]), float(doc["fs"]), tuple(doc["labels"]))
+    n, fs, labels = doc.get("n_channels"), _finite(doc.get("fs")), doc.get("labels")
+    if (not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_CHANNELS
+            or fs is None or not fs > 0
+            or not isinstance(labels, list) or len(labels) != n
+            or not all(isinstance(label, str) for label in labels)):
+        raise EmgStoreError("recording file's header (channels, rate, labels) is not one "
+                            "the writer writes: the file is damaged")
+    return Header(n, fs, tuple(labels))
 
 
 def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float32]]]:
@@ -292,32 +393,34 @@ def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.fl
     with open(path, "rb") as f:
         head = _header(f)
         while (doc := _read_json(f)) is not None:
-            rows = int(doc["rows"])
-            t = _unshuffle(_read_exact(f, int(doc["t_bytes"])), np.float64, rows,
-                           doc.get("t_planes"))
-            x = _unshuffle(_read_exact(f, int(doc["x_bytes"])), np.float32,
-                           rows * head.n_channels, doc.get("x_planes")
-                           ).reshape(rows, head.n_channels)
+            c = _chunk(doc, head.n_channels)
+            t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
+            x = _unshuffle(_read_exact(f, c.x_bytes), np.float32,
+                           c.rows * head.n_channels, c.x_planes
+                           ).reshape(c.rows, head.n_channels)
             yield t, x
 
 
 def whole_length(path: Path) -> tuple[int, int]:
-    """(bytes, rows) of the file's header and whole chunks: what a `.part` a killed
-    writer left can be kept as. EmgStoreError when not even the header is whole."""
+    """(bytes, rows) of the file's header and the whole chunks that read back: what a
+    `.part` a killed writer left can be kept as. EmgStoreError when not even the header
+    is whole."""
     with open(path, "rb") as f:
-        _header(f)
+        head = _header(f)
         good, rows = f.tell(), 0
         while True:
             try:
                 doc = _read_json(f)
                 if doc is None:
                     break
-                size = int(doc["t_bytes"]) + int(doc["x_bytes"])
-                if len(f.read(size)) != size:
-                    break
-            except (EmgStoreError, ValueError, KeyError):
+                c = _chunk(doc, head.n_channels)
+                # Decoded, not only framed: a chunk kept must read back.
+                _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
+                _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
+                           c.x_planes)
+            except EmgStoreError:
                 break
-            good, rows = f.tell(), rows + int(doc["rows"])
+            good, rows = f.tell(), rows + c.rows
     return good, rows
 
 
@@ -333,18 +436,18 @@ def read_window(path: Path, start: float = -np.inf, stop: float = np.inf
     with open(path, "rb") as f:
         head = _header(f)
         while (doc := _read_json(f)) is not None:
-            rows, t_bytes, x_bytes = int(doc["rows"]), int(doc["t_bytes"]), int(doc["x_bytes"])
-            if "t_min" in doc and (doc["t_min"] is None or doc["t_max"] < start
-                                   or doc["t_min"] >= stop):
-                f.seek(t_bytes + x_bytes, os.SEEK_CUR)
+            c = _chunk(doc, head.n_channels)
+            if c.indexed and (c.t_range is None or c.t_range[1] < start
+                              or c.t_range[0] >= stop):
+                f.seek(c.t_bytes + c.x_bytes, os.SEEK_CUR)  # never backwards: checked
                 continue
-            t = _unshuffle(_read_exact(f, t_bytes), np.float64, rows, doc.get("t_planes"))
+            t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
             keep = (t >= start) & (t < stop)
             if not keep.any():
-                f.seek(x_bytes, os.SEEK_CUR)
+                f.seek(c.x_bytes, os.SEEK_CUR)
                 continue
-            x = _unshuffle(_read_exact(f, x_bytes), np.float32, rows * head.n_channels,
-                           doc.get("x_planes")).reshape(rows, head.n_channels)
+            x = _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
+                           c.x_planes).reshape(c.rows, head.n_channels)
             ts.append(t[keep])
             xs.append(x[keep])
     if not ts:

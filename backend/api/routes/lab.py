@@ -258,6 +258,8 @@ def export_bids(study_id: StudyId, engine: EngineDep, site: SiteDep, user: Curre
                         emg_store.emg_folder(settings))
     except bids_export.NothingToExportError as exc:
         conflict("study", str(exc))
+    except emg_store.EmgStoreError as exc:
+        conflict("emg", f"an EMG recording file of the study does not read back: {exc}")
     studies.record_export(db, user, study_id, "export", {"format": "bids", "bytes": len(data)})
     return Response(data, media_type="application/zip", headers={
         "Content-Disposition": f'attachment; filename="study-{study_id}-bids.zip"'})

@@ -94,3 +94,34 @@ def test_a_killed_recording_keeps_its_whole_chunks_at_start_up(
             np.testing.assert_allclose(got_x, x[:2 * store.CHUNK_ROWS].astype(np.float32))
             assert store.file_sha256(w.path) == row.sha256
             assert not part.exists()
+
+
+def test_a_killed_recording_whose_chunk_is_damaged_keeps_what_reads_back(
+        client: TestClient, settings: Settings) -> None:
+    """A `.part` whose second chunk is framed whole but does not read back (a plane's
+    compression flag changed): the server still starts, and keeps the first chunk."""
+    from backend.main import create_app
+
+    _study, sess = _ready(client)
+    with client.app.state.sessions() as db:  # type: ignore[attr-defined]
+        montage = recordings.session_montage(db, sess)
+        w = recordings.RecordingWriter(db, settings, sess, montage, "lsl", 2000.0)
+        n = store.CHUNK_ROWS * 2 + 123
+        t = np.arange(n) / 2000.0
+        x = np.random.default_rng(4).normal(0, 1e-4, (n, 3))
+        w.append(t, x)
+        rid = w.row.id
+        part = w.path.with_name(w.path.name + ".part")
+        data = part.read_bytes()
+        second = data.index(b'"x_planes":[[', data.index(b'"x_planes":[[') + 1)
+        flag = data.index(b",", second + len(b'"x_planes":[[')) + 1  # the first plane's
+        assert data[flag:flag + 1] == b"0"
+        part.write_bytes(data[:flag] + b"1" + data[flag + 1:])
+    quiet = settings.model_copy(update={"device_spawn_simulator": False})
+    with TestClient(create_app(quiet)) as c2, \
+            c2.app.state.sessions() as db:  # type: ignore[attr-defined]
+            row = db.get(EmgRecording, rid)
+            assert row is not None and row.status == "interrupted"
+            assert row.n_samples == store.CHUNK_ROWS
+            got_t, _x = store.read_window(w.path)
+            np.testing.assert_array_equal(got_t, t[:store.CHUNK_ROWS])

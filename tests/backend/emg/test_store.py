@@ -3,8 +3,10 @@ and a damaged file is refused rather than misread."""
 
 from __future__ import annotations
 
+import math
 import stat
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -144,7 +146,7 @@ def test_noise_bytes_are_stored_as_they_are_and_the_rest_compressed(tmp_path: Pa
         assert path.read_bytes().startswith(b"EXOEMG2\n")
         heads = _chunk_headers(path)
         assert len(heads) == 2  # 10,000 rows, then the 2,000 the close wrote
-        assert [flag for _n, flag in heads[0]["x_planes"]] == expected  # type: ignore[attr-defined]
+        assert [p[1] for p in heads[0]["x_planes"]] == expected  # type: ignore[attr-defined]
         got_t, got_x = store.read_window(path)
         np.testing.assert_array_equal(got_t, t)
         np.testing.assert_array_equal(got_x, x.astype(np.float32).astype(np.float64))
@@ -196,3 +198,135 @@ def test_a_plane_layout_that_does_not_match_its_bytes_is_refused(tmp_path: Path)
     path.write_bytes(bad)
     with pytest.raises(store.EmgStoreError, match="byte-plane layout"):
         store.read_window(path)
+
+
+def _frames(path: Path) -> tuple[bytes, list[tuple[dict[str, Any], bytes]]]:
+    """A written file's magic and header frame, and each chunk's header and payload."""
+    import json
+    import struct
+
+    data = path.read_bytes()
+    at = 8
+    (n,) = struct.unpack_from("<I", data, at)
+    head_end = at + 4 + n
+    chunks, at = [], head_end
+    while at < len(data):
+        (n,) = struct.unpack_from("<I", data, at)
+        doc = json.loads(data[at + 4:at + 4 + n])
+        size = doc["t_bytes"] + doc["x_bytes"]
+        chunks.append((doc, data[at + 4 + n:at + 4 + n + size]))
+        at += 4 + n + size
+    return data[:head_end], chunks
+
+
+def _rebuilt(path: Path, head: bytes, chunks: list[tuple[dict[str, Any], bytes]]) -> None:
+    import json
+    import struct
+
+    out = head
+    for doc, payload in chunks:
+        raw = json.dumps(doc, allow_nan=True).encode()
+        out += struct.pack("<I", len(raw)) + raw + payload
+    path.write_bytes(out)
+
+
+def _damaged(path: Path, how: str) -> None:
+    """`path` rewritten with one kind of damage in its first chunk."""
+    import json
+    import struct
+    import zlib
+
+    head, chunks = _frames(path)
+    doc, payload = chunks[0]
+    if how == "negative-size-unindexed":  # a seek back onto its own header
+        doc.update(t_min=None, t_max=None, t_bytes=-(len(json.dumps(doc)) + 4))
+    elif how == "huge-size":
+        doc["t_bytes"] = 10**15
+    elif how == "rows-missing":
+        del doc["rows"]
+    elif how == "time-range-text":
+        doc["t_max"] = "zz"
+    elif how == "size-infinite":
+        doc["t_bytes"] = math.inf
+    elif how == "flag-flipped":
+        doc["x_planes"][0][1] = 1 - doc["x_planes"][0][1]
+    elif how == "raw-byte-changed":
+        start = doc["t_bytes"]  # the samples' first plane, stored as it is
+        assert doc["x_planes"][0][1] == 0
+        payload = payload[:start] + bytes([payload[start] ^ 1]) + payload[start + 1:]
+    elif how == "bomb":  # a small chunk claiming a plane that inflates past its size
+        bomb = zlib.compress(bytes(50_000_000), 9)
+        t_len = doc["t_bytes"]
+        x_planes = [[len(bomb), 1, 0], *doc["x_planes"][1:]]
+        payload = payload[:t_len] + bomb + payload[t_len + doc["x_planes"][0][0]:]
+        doc.update(x_planes=x_planes, x_bytes=sum(p[0] for p in x_planes))
+    elif how == "header-channels":
+        head = head[:8] + _frame({"n_channels": 10**30, "fs": 2000.0, "labels": ["a"]})
+    elif how == "header-labels":
+        head = head[:8] + _frame({"n_channels": 2, "fs": 2000.0, "labels": 5})
+    chunks[0] = (doc, payload)
+    _rebuilt(path, head, chunks)
+    del struct
+
+
+def _frame(doc: dict[str, Any]) -> bytes:
+    import json
+    import struct
+
+    raw = json.dumps(doc).encode()
+    return struct.pack("<I", len(raw)) + raw
+
+
+DAMAGE = ["negative-size-unindexed", "huge-size", "rows-missing", "time-range-text",
+          "size-infinite", "flag-flipped", "raw-byte-changed", "bomb", "header-channels",
+          "header-labels"]
+
+
+@pytest.mark.parametrize("how", DAMAGE)
+def test_a_damaged_or_hostile_file_is_refused_by_every_reader(tmp_path: Path,
+                                                              how: str) -> None:
+    """Whatever the damage, every reader raises `EmgStoreError` (which the API answers as
+    a 4xx and recovery keeps what reads back from): never another exception, a loop,
+    or an allocation the file's size does not justify."""
+    path = tmp_path / "1.emgc"
+    rng = np.random.default_rng(5)
+    _write(path, [(np.arange(12_000) / 2000.0, rng.normal(0, 1e-4, (12_000, 2)))],
+           ["a", "b"])
+    head = len(_frames(path)[0])
+    _damaged(path, how)
+    for read in (lambda: store.read_window(path), lambda: list(store.iter_chunks(path))):
+        with pytest.raises(store.EmgStoreError):
+            read()
+    try:  # a window after the data: its chunks may be skipped unread, never misread
+        got_t, _x = store.read_window(path, 100.0, 200.0)
+        assert got_t.size == 0
+    except store.EmgStoreError:
+        pass
+    if how.startswith("header"):
+        with pytest.raises(store.EmgStoreError):
+            store.whole_length(path)
+    else:  # recovery keeps the header alone: the first chunk does not read back
+        assert store.whole_length(path) == (head, 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(flips=st.lists(st.tuples(st.integers(0, 10**9), st.integers(1, 255)),
+                      min_size=1, max_size=3))
+def test_changed_bytes_read_back_or_raise_the_stores_error(
+        tmp_path_factory: pytest.TempPathFactory, flips: list[tuple[int, int]]) -> None:
+    path = tmp_path_factory.mktemp("f") / "1.emgc"
+    t = np.arange(3_000) / 2000.0
+    x = np.random.default_rng(6).normal(0, 1e-4, (3_000, 2))
+    _write(path, [(t, x)], ["a", "b"])
+    data = bytearray(path.read_bytes())
+    for at, mask in flips:
+        data[at % len(data)] ^= mask
+    path.write_bytes(bytes(data))
+    try:
+        got_t, got_x = store.read_window(path)
+    except store.EmgStoreError:
+        return
+    # Read back whole: then it is what was written (a changed header byte that still
+    # parses, e.g. in a label, leaves the data as it was).
+    np.testing.assert_array_equal(got_t, t)
+    np.testing.assert_array_equal(got_x, x.astype(np.float32).astype(np.float64))
