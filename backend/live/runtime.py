@@ -386,6 +386,7 @@ class Runtime:
             raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
                              "faster than real time")
         speed = self.supervisor.config.device_speed if speed is None else speed
+        before = self.settings
         self.settings = self.settings.model_copy(update={"device_seed": seed,
                                                          "device_script": script,
                                                          "device_speed": speed})
@@ -405,6 +406,14 @@ class Runtime:
                 answer = await self._answer(rid, fut, "change the simulation",
                                             COMMAND_TIMEOUT_S)
                 if not answer.ok:
+                    # Refused: the worker runs the wearer it ran; so does the record.
+                    self.settings = self.settings.model_copy(update={
+                        "device_seed": before.device_seed,
+                        "device_script": before.device_script,
+                        "device_speed": before.device_speed})
+                    self.supervisor.record_wearer(before.device_seed, before.device_script,
+                                                  before.device_speed)
+                    self.worker_config = self.supervisor.config
                     raise RuntimeError(answer.message)
                 run_id = self._run_ids.get(answer.run_token)
         elif self.settings.device_spawn_simulator:

@@ -235,11 +235,15 @@ class WorkerSupervisor:
         run reports them: a restart brings back that one, and a wearer put on without a
         speed takes that speed. Never one a refused or countermanded request named."""
         w = msg.wearer
-        if w is None or w.speed is None:
-            return
+        if w is not None and w.speed is not None:
+            self.record_wearer(w.seed, w.script, w.speed)
+
+    def record_wearer(self, seed: int, script: str, speed: float) -> None:
+        """The simulated wearer and speed the configuration holds (what a restart starts
+        and a request without a speed takes)."""
         with self._lock:
-            self.config = replace(self.config, device_seed=w.seed, device_script=w.script,
-                                  device_speed=w.speed)
+            self.config = replace(self.config, device_seed=seed, device_script=script,
+                                  device_speed=speed)
 
     def request_calibration(self, seconds: float, max_std_deg: float) -> int:
         """Ask the worker to calibrate over the next `seconds`; returns the request id.

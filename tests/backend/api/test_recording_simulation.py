@@ -92,3 +92,28 @@ def test_only_the_in_process_simulator_starts_a_wearer_with_a_recording(
         detail = r.json()["detail"][0]
         assert detail["loc"] == ["body", "simulation"] and "'udp'" in detail["msg"]
         assert _ok(client.get(f"/api/sessions/{sid}/recordings")) == []
+
+
+def test_a_refused_simulation_change_leaves_the_record_of_the_wearer(
+        settings: Settings, experimenter: dict[str, str]) -> None:
+    """The worker refuses a new wearer under a timed trial (the API's own checks refuse
+    it sooner): the server's record stays the wearer the worker runs."""
+    from controller.controllers.spec import ControllerSpec
+
+    settings = settings.model_copy(update={"start_worker": True, "device_speed": 1.0,
+                                           "device_seed": 2, "device_script": "walking"})
+    with TestClient(create_app(settings)) as client:
+        log_in(client, experimenter)
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 10, 60,
+                 "the worker's ticks")
+        runtime = client.app.state.runtime  # type: ignore[attr-defined]
+        portal = client.portal  # the app's own event loop, as a request's
+        assert portal is not None
+        portal.call(lambda: runtime.switch_controller(ControllerSpec("pec"),
+                                                      max_ticks=100_000))
+        with pytest.raises(RuntimeError, match="simulated wearer cannot change"):
+            portal.call(lambda: runtime.set_simulation(9, "squat-sequence", 50.0))
+        assert (runtime.settings.device_seed, runtime.settings.device_script,
+                runtime.settings.device_speed) == (2, "walking", 1.0)
+        assert (runtime.supervisor.config.device_seed,
+                runtime.supervisor.config.device_speed) == (2, 1.0)
