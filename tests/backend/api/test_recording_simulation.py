@@ -62,7 +62,7 @@ def test_the_recording_holds_the_wearer_from_the_scripts_first_sample(
         wait_for(lambda: past_run(client, rec["run_id"], 3000), 120,
                  "the end of the recording's 30 s", poll=0.1)
         # Then the wearer goes on at real time: at 100x a second would be 10,000 ticks.
-        assert ticks_per_second(client) < 500
+        assert ticks_per_second(client) < 2000  # real time, bursts after a stall included
         rec = _ok(client.post(f"/api/recordings/{rec['id']}/stop"))
         assert rec["last_tick_id"] - rec["first_tick_id"] + 1 == 3000
         angles = _ok(client.get(f"/api/recordings/{rec['id']}/angles"))

@@ -104,7 +104,7 @@ def test_pec_then_eumc_with_calibration(settings: Settings, experimenter: dict[s
         ).mappings().all()
     engine.dispose()
     assert all(f & TickFlag.NOT_CALIBRATED and not lock for f, lock in uncalibrated_flags)
-    assert len(other_ticks) >= 800
+    assert len(other_ticks) >= 500
     assert all(f & TickFlag.NOT_CALIBRATED and not (left or right)
                for f, left, right in other_ticks)
     ran = [t for t in ticks if t["controller_ran"] and t["post_squat"] is not None]

@@ -143,6 +143,7 @@ def test_a_restart_waits_for_the_last_workers_data_to_be_stored(
             sup.restart()
         assert order == ["run"]  # the old worker's exit waits with its data
         resume.set()
+        wait_for(lambda: "exit" in order, 60, "the old worker's data stored")
         sup.restart()
         assert sup.state.alive and sup.state.pid != old_pid
         wait_for(lambda: len(got.runs) >= 2, 60, "the new worker's first run")
