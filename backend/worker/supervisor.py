@@ -154,27 +154,31 @@ class WorkerSupervisor:
             self.callbacks.on_event("worker", {"alive": True, "pid": proc.pid})
 
     def stop(self, reason: str = "requested", timeout: float = 3.0) -> None:
-        """Ask the worker to release the device and exit; force it if it does not."""
+        """Ask the worker to release the device and exit; force it if it does not.
+
+        Only the reader thread waits on the process: the fork server reports an exit
+        once, on one pipe, and of two threads waiting on it the one that reads second
+        records 255 ("unknown") however the worker ended. So this waits on the reader,
+        outside the lock its record of the exit takes, and signals the worker only
+        while it has not exited."""
         with self._lock:
-            proc, cmd = self._proc, self._cmd
-            if proc is None:
+            proc, cmd, reader = self._proc, self._cmd, self._reader
+            if proc is None or reader is None:
                 return
             self._stopping = True
             self.state.exit_reason = reason
-            if proc.is_alive() and cmd is not None:
+            if cmd is not None:
                 try:
                     cmd.send(StopWorker(reason))
                 except (BrokenPipeError, OSError):
                     pass
-            proc.join(timeout)
-            if proc.is_alive():
-                proc.terminate()
-                proc.join(1.0)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(1.0)
-        if self._reader is not None:
-            self._reader.join(2.0)
+        reader.join(timeout)
+        for force in (proc.terminate, proc.kill):
+            if not reader.is_alive() or wait([proc.sentinel], 0):
+                break
+            force()
+            reader.join(1.0)
+        reader.join(2.0)
 
     def restart(self) -> None:
         """Stop (if running) and start again with the same configuration."""
@@ -216,34 +220,31 @@ class WorkerSupervisor:
         """Ask the running worker to switch its simulated wearer or script (its run ends
         after `max_ticks` samples, if given); returns the request id its `CommandResult`
         will carry, None when no worker runs (the new configuration then applies at the
-        next start)."""
+        next start). A running worker's new wearer is recorded when its run reports it
+        (`_follow`): a refused change records nothing."""
         with self._lock:
             speed = self.config.device_speed if speed is None else speed
+            if self._cmd is not None and self.state.alive:
+                rid = self._next_request_id()
+                try:
+                    self._cmd.send(SetSimulation(seed, script, speed, rid, max_ticks))
+                    return rid
+                except (BrokenPipeError, OSError):
+                    pass
             self.config = replace(self.config, device_seed=seed, device_script=script,
                                   device_speed=speed)
-            if self._cmd is None or not self.state.alive:
-                return None
-            rid = self._next_request_id()
-            try:
-                self._cmd.send(SetSimulation(seed, script, speed, rid, max_ticks))
-            except (BrokenPipeError, OSError):
-                return None
-            return rid
+            return None
 
     def _follow(self, msg: RunStarted) -> None:
         """The simulated wearer the worker runs and the speed asked for it, as its new
         run reports them: a restart brings back that one, and a wearer put on without a
         speed takes that speed. Never one a refused or countermanded request named."""
         w = msg.wearer
-        if w is not None and w.speed is not None:
-            self.record_wearer(w.seed, w.script, w.speed)
-
-    def record_wearer(self, seed: int, script: str, speed: float) -> None:
-        """The simulated wearer and speed the configuration holds (what a restart starts
-        and a request without a speed takes)."""
+        if w is None or w.speed is None:
+            return
         with self._lock:
-            self.config = replace(self.config, device_seed=seed, device_script=script,
-                                  device_speed=speed)
+            self.config = replace(self.config, device_seed=w.seed, device_script=w.script,
+                                  device_speed=w.speed)
 
     def request_calibration(self, seconds: float, max_std_deg: float) -> int:
         """Ask the worker to calibrate over the next `seconds`; returns the request id.
