@@ -386,18 +386,12 @@ class Runtime:
             raise ValueError("speed: only the in-process simulator (device_kind 'sim') runs "
                              "faster than real time")
         speed = self.supervisor.config.device_speed if speed is None else speed
-        before = self.settings
-        self.settings = self.settings.model_copy(update={"device_seed": seed,
-                                                         "device_script": script,
-                                                         "device_speed": speed})
-        self.worker_config = replace(self.supervisor.config, device_seed=seed,
-                                     device_script=script, device_speed=speed)
-        self.supervisor.config = self.worker_config
         runs_before = self._runs_started
         run_id: int | None = None
         if self.settings.device_kind == "sim":
             # The running worker swaps its simulated device (no process start); a worker
-            # that is down picks the new configuration up when it starts.
+            # that is down picks the new configuration up when it starts. Either way the
+            # record of the wearer follows the worker's new run (`_on_run_started`).
             fut = self._command_future()
             rid = self.supervisor.set_simulation(seed, script, speed, max_ticks)
             if rid is None:
@@ -406,17 +400,15 @@ class Runtime:
                 answer = await self._answer(rid, fut, "change the simulation",
                                             COMMAND_TIMEOUT_S)
                 if not answer.ok:
-                    # Refused: the worker runs the wearer it ran; so does the record.
-                    self.settings = self.settings.model_copy(update={
-                        "device_seed": before.device_seed,
-                        "device_script": before.device_script,
-                        "device_speed": before.device_speed})
-                    self.supervisor.record_wearer(before.device_seed, before.device_script,
-                                                  before.device_speed)
-                    self.worker_config = self.supervisor.config
                     raise RuntimeError(answer.message)
                 run_id = self._run_ids.get(answer.run_token)
         elif self.settings.device_spawn_simulator:
+            # The device process starts from these settings.
+            self.settings = self.settings.model_copy(update={
+                "device_seed": seed, "device_script": script, "device_speed": speed})
+            self.worker_config = replace(self.supervisor.config, device_seed=seed,
+                                         device_script=script, device_speed=speed)
+            self.supervisor.config = self.worker_config
             if self.device_process is not None:
                 await asyncio.to_thread(device_process.stop, self.device_process,
                                         self._device_pid_file())

@@ -23,6 +23,7 @@ from backend.db.personalisation import PriorSetRecord
 from backend.lab.hub import Lab
 from backend.live.runtime import Runtime
 from backend.schemas.evidence import TrialPlanIn, TrialStartIn, TrialStopIn
+from backend.schemas.live import SimulationChoice
 from backend.study import activity, conditions, hardware_profiles
 from backend.study.counterbalance import blinded_labels, condition_order, controller_order
 from backend.study.recordings import check_simulation
@@ -282,25 +283,32 @@ def _check_sets_belong(db: Session, trial: Trial, sess: StudySession, ms: ModelS
 
 
 def trial_spec(db: Session, runtime: Runtime, trial: Trial, sess: StudySession,
-               rate_hz: float | None, wearer_seed: int | None = None
+               rate_hz: float | None, sim: SimulationChoice | None = None
                ) -> tuple[ControllerSpec, dict[str, Any]]:
     """The trial's controller configuration and the snapshot stored with the trial:
     the server's defaults at the session's precompression, `rate_hz` for every
     controller if given, and the trial's own model and utility sets inline (so the
-    stored snapshot is what ran, whatever the files hold later)."""
+    stored snapshot is what ran, whatever the files hold later). With `sim`, the trial
+    runs on that simulated wearer: another virtual participant's calibration does not
+    apply, and the snapshot names that wearer and the speed it runs at."""
     overrides: dict[str, Any] = {"precompression_pct": sess.precompression_pct}
     if rate_hz is not None:
         overrides.update(umc_rate_hz=rate_hz, eumc_triggered_rate_hz=rate_hz,
                          pec_rate_hz=rate_hz)
     try:
-        spec = runtime.controller_spec(trial.controller, overrides, wearer_seed)
+        spec = runtime.controller_spec(trial.controller, overrides,
+                                       None if sim is None else sim.seed)
     except SettingError as exc:
         raise InvalidError.at(["body", "rate_hz" if exc.field.endswith("rate_hz")
                                else exc.field], exc.problem) from exc
+    s = runtime.settings
     snapshot: dict[str, Any] = {"controller": trial.controller, "task": trial.task,
-                                "device": {"kind": runtime.settings.device_kind,
-                                           "seed": runtime.settings.device_seed,
-                                           "script": runtime.settings.device_script}}
+                                "device": {"kind": s.device_kind, "seed": s.device_seed,
+                                           "script": s.device_script}}
+    if sim is not None:
+        snapshot["device"].update(seed=sim.seed, script=sim.script)
+        snapshot["simulation"] = {"seed": sim.seed, "script": sim.script,
+                                  "speed": s.device_speed if sim.speed is None else sim.speed}
     if trial.condition:
         snapshot["condition"] = trial.condition
     if trial.demonstrations is not None:
@@ -379,16 +387,9 @@ async def _start(db: Session, user: User, runtime: Runtime, lab: Lab, trial_id: 
     sim = body.simulation
     if sim is not None:
         check_simulation(runtime, sim, "trial")
-    # On its own wearer: another virtual participant's calibration does not apply.
-    spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz,
-                                None if sim is None else sim.seed)
+    spec, snapshot = trial_spec(db, runtime, trial, sess, body.rate_hz, sim)
     if body.duration_s is not None:
         snapshot["duration_s"] = body.duration_s
-    if sim is not None:
-        speed = runtime.settings.device_speed if sim.speed is None else sim.speed
-        snapshot["device"] = {"kind": runtime.settings.device_kind, "seed": sim.seed,
-                              "script": sim.script}
-        snapshot["simulation"] = {"seed": sim.seed, "script": sim.script, "speed": speed}
     snapshot["exostudy_version"] = version()
     try:
         run_id = await runtime.switch_controller(

@@ -419,44 +419,35 @@ class Machine:
         try:
             new = build(cmd.spec)
         except Exception as exc:
-            refused = f"controller {cmd.spec.name!r} rejected: {exc}; running " \
-                      f"{_resting()!r}"
-            self.outbox.put(WorkerError(refused))
-            if self.state is State.IDLE:
-                self.answer(cmd.request_id, refused)
-            else:
-                self.answer(cmd.request_id, refused, self._fall_back())
+            self._not_started(cmd, f"controller {cmd.spec.name!r} rejected: {exc}; "
+                                   f"running {_resting()!r}")
             return
         wrong_device = "" if _is_resting(cmd.spec.name) or cmd.device is None \
             else cmd.device.refusal(self.device.identity)
         if wrong_device:
-            # The layout is not this device's: the controller does not start, and the one
-            # it was to replace stops too (released), as for a spec that does not build.
-            refused = f"controller {cmd.spec.name!r} not started: {wrong_device}"
-            self.outbox.put(WorkerError(refused))
-            if self.state is State.IDLE:
-                self.answer(cmd.request_id, refused)
-            else:
-                self.answer(cmd.request_id, refused, self._fall_back())
+            # The layout is not this device's, as for a spec that does not build.
+            self._not_started(cmd, f"controller {cmd.spec.name!r} not started: "
+                                   f"{wrong_device}")
             return
         if cmd.wearer is not None:
             try:
                 device, config = self._new_device(cmd.wearer)
             except Exception as exc:
-                refused = (f"simulation seed {cmd.wearer.seed}, script "
-                           f"{cmd.wearer.script!r} rejected: {exc}; running {_resting()!r}")
-                self.outbox.put(WorkerError(refused))
-                if self.state is State.IDLE:
-                    self.answer(cmd.request_id, refused)
-                else:
-                    self.answer(cmd.request_id, refused, self._fall_back())
+                self._not_started(cmd, f"simulation seed {cmd.wearer.seed}, script "
+                                       f"{cmd.wearer.script!r} rejected: {exc}; running "
+                                       f"{_resting()!r}")
                 return
-            self._put_on(device, config)
-            self.loop = self._new_loop(new)  # fresh timing: the wearer's first sample
-            self.next_status = 0.0
+            self._put_on(device, config, new)
         token = self._run(new, cmd.spec, self._target(cmd.spec, cmd.max_ticks),
                           cmd.max_ticks, cmd.device)
         self.answer(cmd.request_id, "", token)
+
+    def _not_started(self, cmd: SetController, refused: str) -> None:
+        """The controller asked for does not start, and the one it was to replace stops
+        too (released, a new run of `none`): shown to the experimenter and answered."""
+        self.outbox.put(WorkerError(refused))
+        self.answer(cmd.request_id, refused,
+                    0 if self.state is State.IDLE else self._fall_back())
 
     def _wearer(self) -> Wearer | None:
         """The in-process simulator's wearer now, at the speed asked for it (None for
@@ -473,9 +464,11 @@ class Machine:
                          device_speed=wearer.speed or self.config.device_speed)
         return make_device(config, self.parent.server_pid), config
 
-    def _put_on(self, device: Device, config: WorkerConfig) -> None:
+    def _put_on(self, device: Device, config: WorkerConfig, controller: Controller) -> None:
         """The old device lets go before the new one opens (a failure to open ends the
-        worker, released); a calibration being collected is abandoned."""
+        worker, released); a calibration being collected is abandoned. `controller` runs
+        on the new wearer with fresh timing: health counts ticks from its first sample,
+        reported at once."""
         self.abandon("the simulated wearer changed")
         back = self.state
         self.go(State.RELEASING)
@@ -484,6 +477,8 @@ class Machine:
         self.device.open()
         self.config = config
         self.go(back)
+        self.loop = self._new_loop(controller)
+        self.next_status = 0.0
 
     def on_set_simulation(self, cmd: SetSimulation) -> None:
         """Another simulated wearer: the old device lets go before the new one opens (a
@@ -503,15 +498,12 @@ class Machine:
             self.refuse(cmd, f"simulation seed {cmd.seed}, script {cmd.script!r} "
                              f"rejected: {exc}")
             return
-        self._put_on(new_device, sim_config)
+        self._put_on(new_device, sim_config, fresh)
         self.spec = spec
         if recalibrate:
             self.outbox.put(WorkerError(
                 f"controller {spec.name!r}: its calibration was made on another wearer; "
                 "it runs uncalibrated (no locks) until calibrated again"))
-        # Fresh timing too: health counts ticks from the new wearer's start.
-        self.loop = self._new_loop(fresh)
-        self.next_status = 0.0  # report the new wearer at its first sample
         self.answer(cmd.request_id, "", self.runs.start(self.spec, self.device.kind,
                                                         cmd.max_ticks))
 

@@ -5,6 +5,7 @@ old file, and a server killed mid-recording keeps every whole chunk of the `.par
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -62,10 +63,11 @@ def test_erasure_deletes_the_files_and_a_reused_id_never_overwrites(
         assert found == [path] and path.read_bytes() == stale
 
 
-def test_a_killed_recording_keeps_its_whole_chunks_at_start_up(
-        client: TestClient, settings: Settings) -> None:
-    from backend.main import create_app
-
+def _written_then_killed(client: TestClient, settings: Settings
+                         ) -> tuple[int, Path, Path, np.ndarray, np.ndarray]:
+    """A live recording of two whole chunks and 123 buffered rows whose server is then
+    gone (its writer never closed): its id, its file and `.part`, the timestamps and
+    samples appended."""
     _study, sess = _ready(client)
     with client.app.state.sessions() as db:  # type: ignore[attr-defined]
         montage = recordings.session_montage(db, sess)
@@ -75,10 +77,17 @@ def test_a_killed_recording_keeps_its_whole_chunks_at_start_up(
         x = np.random.default_rng(4).normal(0, 1e-4, (n, 3))
         w.append(t, x)
         rid = w.row.id
-        part = w.path.with_name(w.path.name + ".part")
-        # The kill: the process dies with the buffered rows; a chunk was half written.
-        with open(part, "ab") as f:
-            f.write(b"\x40\x00\x00\x00{\"rows\":10000,\"t_b")
+    return rid, w.path, w.path.with_name(w.path.name + ".part"), t, x
+
+
+def test_a_killed_recording_keeps_its_whole_chunks_at_start_up(
+        client: TestClient, settings: Settings) -> None:
+    from backend.main import create_app
+
+    rid, path, part, t, x = _written_then_killed(client, settings)
+    # The kill: the process dies with the buffered rows; a chunk was half written.
+    with open(part, "ab") as f:
+        f.write(b"\x40\x00\x00\x00{\"rows\":10000,\"t_b")
     quiet = settings.model_copy(update={"device_spawn_simulator": False})
     with TestClient(create_app(quiet)) as c2, \
             c2.app.state.sessions() as db:  # type: ignore[attr-defined]
@@ -89,10 +98,10 @@ def test_a_killed_recording_keeps_its_whole_chunks_at_start_up(
             assert "interrupted" in row.quality["flags"]
             assert "cut" in row.quality["recovery"]
             assert row.t_start == 0.0 and row.t_end == (2 * store.CHUNK_ROWS - 1) / 2000.0
-            got_t, got_x = store.read_window(w.path)
+            got_t, got_x = store.read_window(path)
             np.testing.assert_array_equal(got_t, t[:2 * store.CHUNK_ROWS])
             np.testing.assert_allclose(got_x, x[:2 * store.CHUNK_ROWS].astype(np.float32))
-            assert store.file_sha256(w.path) == row.sha256
+            assert store.file_sha256(path) == row.sha256
             assert not part.exists()
 
 
@@ -102,26 +111,17 @@ def test_a_killed_recording_whose_chunk_is_damaged_keeps_what_reads_back(
     compression flag changed): the server still starts, and keeps the first chunk."""
     from backend.main import create_app
 
-    _study, sess = _ready(client)
-    with client.app.state.sessions() as db:  # type: ignore[attr-defined]
-        montage = recordings.session_montage(db, sess)
-        w = recordings.RecordingWriter(db, settings, sess, montage, "lsl", 2000.0)
-        n = store.CHUNK_ROWS * 2 + 123
-        t = np.arange(n) / 2000.0
-        x = np.random.default_rng(4).normal(0, 1e-4, (n, 3))
-        w.append(t, x)
-        rid = w.row.id
-        part = w.path.with_name(w.path.name + ".part")
-        data = part.read_bytes()
-        second = data.index(b'"x_planes":[[', data.index(b'"x_planes":[[') + 1)
-        flag = data.index(b",", second + len(b'"x_planes":[[')) + 1  # the first plane's
-        assert data[flag:flag + 1] == b"0"
-        part.write_bytes(data[:flag] + b"1" + data[flag + 1:])
+    rid, path, part, t, _x = _written_then_killed(client, settings)
+    data = part.read_bytes()
+    second = data.index(b'"x_planes":[[', data.index(b'"x_planes":[[') + 1)
+    flag = data.index(b",", second + len(b'"x_planes":[[')) + 1  # the first plane's
+    assert data[flag:flag + 1] == b"0"
+    part.write_bytes(data[:flag] + b"1" + data[flag + 1:])
     quiet = settings.model_copy(update={"device_spawn_simulator": False})
     with TestClient(create_app(quiet)) as c2, \
             c2.app.state.sessions() as db:  # type: ignore[attr-defined]
             row = db.get(EmgRecording, rid)
             assert row is not None and row.status == "interrupted"
             assert row.n_samples == store.CHUNK_ROWS
-            got_t, _x = store.read_window(w.path)
+            got_t, _got_x = store.read_window(path)
             np.testing.assert_array_equal(got_t, t[:store.CHUNK_ROWS])
