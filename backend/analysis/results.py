@@ -32,10 +32,14 @@ from backend.db.models import (
 from backend.live import trial_quality
 from backend.schemas.results import StudyResultsOut
 from backend.schemas.wearers import LONG_USE_TASK
-from controller.controllers import registry
 from controller.evaluation.columns import TickData
 from controller.evaluation.ground_truth import NO_TRUTH, TrialTruth, ground_truth
-from controller.evaluation.study import RecordingEvaluation, controller_label, evaluate_recording
+from controller.evaluation.study import (
+    RecordingEvaluation,
+    controller_label,
+    evaluate_recording,
+    table_conditions,
+)
 from controller.evaluation.tables import (
     FalsePositiveTable,
     PerformanceTable,
@@ -54,15 +58,6 @@ if TYPE_CHECKING:
 TABLE_NAMES = ("performance", "performance_by_kind", "false_positives", "questionnaires",
                "onset_to_lock", "lifts")
 FIGURE_NAMES = ("peak_torques", "onset_to_lock")
-
-
-def table_controllers(intent_only: bool = False) -> tuple[str, ...]:
-    """The planned controllers (`controller.controllers.registry.PlanPlace`) in the order of the
-    paper's tables: those that estimate no intent first (the PEC), then the others by
-    plan rank (UMC, E-UMC); `intent_only`: only those that estimate intent (the
-    performance table: no intent, no recognised or correct lifts)."""
-    regs = [r for r in registry.planned() if r.estimates_intent or not intent_only]
-    return tuple(r.name for r in sorted(regs, key=lambda r: r.estimates_intent))
 
 
 class ResultsError(ValueError):
@@ -86,6 +81,9 @@ class TrialResult:
     evaluation: RecordingEvaluation
     #: Device time gaps or time going backwards (`backend.live.trial_quality`); {} if none.
     quality_flags: dict[str, Any] = field(default_factory=dict)
+    #: The trial's condition key ("umc+personal"; the controller's name for the
+    #: population models with equal priors): what its evaluation is labelled with.
+    condition: str = ""
 
 
 @dataclass
@@ -103,19 +101,26 @@ class StudyResults:
         """The evaluations in trial order."""
         return [t.evaluation for t in self.trials]
 
+    def columns(self, intent_only: bool = False) -> tuple[str, ...]:
+        """The conditions the tables show (`table_conditions`), from the trials' and the
+        questionnaires' (a condition answered but not yet evaluated still shows)."""
+        present = {t.condition for t in self.trials}
+        present |= {s.controller for s in self.questionnaire_scores}
+        return table_conditions(present, intent_only)
+
     def table(self, name: str) -> Table:
         """One of `TABLE_NAMES` as a `Table` (the paper's wide layout where it has one)."""
         evs = self.evaluations
         if name == "performance":
-            return PerformanceTable.from_evaluations(evs, table_controllers(True)).wide()
+            return PerformanceTable.from_evaluations(evs, self.columns(True)).wide()
         if name == "performance_by_kind":
-            return PerformanceTable.from_evaluations(evs, table_controllers(True),
+            return PerformanceTable.from_evaluations(evs, self.columns(True),
                                                      by_kind=True).long()
         if name == "false_positives":
-            return FalsePositiveTable.from_evaluations(evs, table_controllers()).wide()
+            return FalsePositiveTable.from_evaluations(evs, self.columns()).wide()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  table_controllers()).wide()
+                                                  self.columns()).wide()
         if name == "onset_to_lock":
             return onset_to_lock_table(evs)
         if name == "lifts":
@@ -127,12 +132,12 @@ class StudyResults:
         """A table as CSV: the long form (every count) where the paper's is wide."""
         evs = self.evaluations
         if name == "performance":
-            return PerformanceTable.from_evaluations(evs, table_controllers(True)).to_csv()
+            return PerformanceTable.from_evaluations(evs, self.columns(True)).to_csv()
         if name == "false_positives":
-            return FalsePositiveTable.from_evaluations(evs, table_controllers()).to_csv()
+            return FalsePositiveTable.from_evaluations(evs, self.columns()).to_csv()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  table_controllers()).to_csv()
+                                                  self.columns()).to_csv()
         return self.table(name).to_csv()
 
     def markdown(self, name: str) -> str:
@@ -197,10 +202,11 @@ def evaluate_trial(engine: Engine, db: Session, trial: Trial) -> TrialResult:
     cols = trial_columns(engine, trial, EVALUATION_FIELDS)
     truth = ground_truth(cols, trial.task, trial_segments(db, trial.id))
     part = _participant_of(db, trial)
-    ev = evaluate_recording(cols, part.code, trial.controller, truth.lifts, truth.gait,
+    condition = trial.condition or trial.controller
+    ev = evaluate_recording(cols, part.code, condition, truth.lifts, truth.gait,
                             recording=f"trial-{trial.id}")
     return TrialResult(trial.id, part.code, trial.controller, trial.task, truth, ev,
-                       dict(trial.quality_flags or {}))
+                       dict(trial.quality_flags or {}), condition)
 
 
 # --------------------------------------------------------------------------- a study
@@ -336,7 +342,8 @@ def results_document(res: StudyResults) -> StudyResultsOut:
         "study_id": res.study_id,
         "tables": tables,
         "trials": [{"trial_id": t.trial_id, "participant": t.participant,
-                    "controller": t.controller, "task": t.task, "truth": t.truth.source,
+                    "controller": t.controller, "condition": t.condition,
+                    "task": t.task, "truth": t.truth.source,
                     "truth_note": t.truth.note, "lifts": len(t.truth.lifts),
                     "incomplete_lifts": t.truth.incomplete_lifts,
                     "gait_trials": len(t.truth.gait),
@@ -364,7 +371,8 @@ def timeline_figure(engine: Engine, db: Session, trial: Trial) -> RenderedFigure
         if ms is not None and ms.document is not None:
             models = ModelSet.from_json(ms.document)
     part = _participant_of(db, trial)
-    title = f"Trial {trial.id}: {part.code}, {controller_label(trial.controller)}, {trial.task}"
+    shown = controller_label(trial.condition or trial.controller)
+    title = f"Trial {trial.id}: {part.code}, {shown}, {trial.task}"
     marks = [(m.t, m.label) for m in trial_markers(db, trial.id)
              if m.t is not None and m.source != "system"]
     return render_figure(controller_output_figure(cols, models=models, lifts=truth.lifts,

@@ -39,6 +39,9 @@ class TrialResultOut(_Closed):
     trial_id: int
     participant: str = Field(description="the participant's pseudonymous code")
     controller: str
+    condition: str = Field(description="the condition's key the tables use: the "
+                           "controller's name, or e.g. umc+personal for its personal "
+                           "models")
     task: str
     truth: str = Field(description="where the lifts came from: simulation, segments, "
                        "task or none")

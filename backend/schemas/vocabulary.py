@@ -23,6 +23,7 @@ from backend.schemas.evidence import SegmentLabel
 from backend.schemas.live import STREAM_FIELDS, DatabaseHealth, DeviceHealth, WorkerHealth
 from controller.controllers import registry
 from controller.evaluation.lifts import CORRECT_ACTION
+from controller.evaluation.study import VARIANT_LABELS
 from controller.tick_record import (
     CATEGORY_NAMES,
     MODEL_NAMES,
@@ -119,6 +120,9 @@ class Vocabulary(BaseModel):
     tick_flags: list[BitName]
     plausibility: list[BitName]
     controllers: list[ControllerName]
+    condition_variants: list[Named] = Field(
+        description="how a condition's variant reads after its controller's label: a "
+        "condition key is controller+variant (umc+personal)")
     scripts: list[str] = Field(description="the simulated wearer's scripts")
     health: HealthFields
 
@@ -176,6 +180,7 @@ def vocabulary() -> Vocabulary:
         plausibility=_bits(Plausibility, {int(p): t for p, t in PLAUSIBILITY_LABELS.items()}),
         # The planned controllers in plan rank order, then the others, the idle one last.
         controllers=[_controller(n) for n in registry.display_order()],
+        condition_variants=[Named(name=k, label=v) for k, v in VARIANT_LABELS.items()],
         scripts=list(SCRIPT_NAMES),
         health=HealthFields(worker=list(WorkerHealth.model_fields),
                             device=list(DeviceHealth.model_fields),

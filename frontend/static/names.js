@@ -31,17 +31,27 @@ export function controllerInfo(name) {
   return controllers.get(name) ?? null;
 }
 
-// "eumc" -> "E-UMC"; a name the vocabulary does not know is shown as given.
+const variants = byName(VOCABULARY.condition_variants);
+
+// "eumc" -> "E-UMC"; a condition's key reads with its variant, "umc+personal" ->
+// "UMC (personal models)"; a name the vocabulary does not know is shown as given.
 export function controllerLabel(name) {
-  return controllers.get(name)?.label ?? name;
+  const known = controllers.get(name);
+  if (known || name == null) return known?.label ?? name;
+  const [base, ...rest] = String(name).split("+");
+  if (!rest.length) return name;
+  const variant = rest.join("+");
+  return `${controllers.get(base)?.label ?? base} (${variants.get(variant)?.label ?? variant})`;
 }
 
-// Controller cells read "UMC", "E-UMC", "umc", "eumc", "springs free", "springs_free":
-// one key for all of them, the controller's name (a cell no controller has is squashed).
+// Controller cells read "UMC", "E-UMC", "umc", "eumc", "springs free", "springs_free",
+// and a condition's "UMC (personal models)" or "umc+personal": one key for all of them,
+// the controller's name (a cell no controller has is squashed).
 const squash = (cell) => String(cell ?? "").toLowerCase().replace(/[^a-z]/g, "");
 const keys = new Map(VOCABULARY.controllers.flatMap((c) => [[squash(c.label), c.name], [squash(c.name), c.name]]));
 export function controllerKey(cell) {
-  return keys.get(squash(cell)) ?? squash(cell);
+  const text = String(cell ?? "").replace(/\s*\(.*\)\s*$/, "").split("+")[0];
+  return keys.get(squash(text)) ?? squash(text);
 }
 
 // "stoop_left" -> "stoop left" (models, categories and segment labels).

@@ -82,10 +82,11 @@ function tableView(key, header, rows, extra = {}, record = null) {
   }));
 }
 
-// Controller keys ("eumc") read as their labels ("E-UMC"); the rest as the table has them.
+// Controller and condition keys ("eumc", "umc+personal") read as their labels ("E-UMC",
+// "UMC (personal models)"); the rest as the table has them.
 function labelled(header) {
   const cCol = header.map((x) => x.toLowerCase()).indexOf("controller");
-  return { render: (r, col) => (col === cCol && CONTROLLER_NAMES.includes(r[col]) ? controllerLabel(r[col]) : cellNode(r[col])) };
+  return { render: (r, col) => (col === cCol && CONTROLLER_NAMES.includes(controllerKey(r[col])) ? controllerLabel(r[col]) : cellNode(r[col])) };
 }
 
 function tableCard(spec, table, wide) {
@@ -148,7 +149,7 @@ function renderTrials() {
   const trials = doc.trials.filter((t) => (!p || t.participant === p) && (!c || t.controller === c));
   state.trials = trials.map((t) => t.trial_id);
   const byId = new Map(trials.map((t) => [t.trial_id, t]));
-  const rows = trials.map((t) => [t.trial_id, t.participant, controllerLabel(t.controller),
+  const rows = trials.map((t) => [t.trial_id, t.participant, controllerLabel(t.condition || t.controller),
     t.task, t.truth, t.lifts, t.incomplete_lifts, t.gait_trials, null]);
   $("#trials").replaceChildren(tableView("trials", TRIAL_HEADER, rows, {
     sortable: (col) => col < TRIAL_HEADER.length - 1,

@@ -19,6 +19,13 @@ test("controllers: the paper's three by their labels, then the baselines, 'none'
   assert.equal(controllerKey("Springs Free"), "springs_free");
   assert.equal(controllerKey("Mystery-1"), "mystery");
   for (const c of CONTROLLER_NAMES) assert.equal(controllerKey(controllerLabel(c)), c);
+  // A condition's key reads with its variant, and filters as its controller.
+  assert.equal(controllerLabel("umc+personal"), "UMC (personal models)");
+  assert.equal(controllerLabel("eumc+personal+priors"), "E-UMC (personal models, learned priors)");
+  assert.equal(controllerLabel("umc+odd"), "UMC (odd)");
+  assert.equal(controllerKey("UMC (personal models)"), "umc");
+  assert.equal(controllerKey("umc+priors"), "umc");
+  assert.equal(controllerKey(controllerLabel("eumc+priors")), "eumc");
 });
 
 test("controllers declare their capabilities; pages read them, not names", () => {

@@ -16,6 +16,7 @@ import csv
 import io
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,12 @@ from backend.analysis import results, tick_queries
 from backend.core.config import Settings
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.evidence_tables import ModelSetRecord, Trial, UtilitySetRecord
+from backend.db.models import (
+    ConditionLabel,
+    QuestionnaireInstrument,
+    QuestionnaireResponse,
+    StudySession,
+)
 from backend.live.recorder import TickRecorder
 from backend.worker.messages import RunStarted, TickBatch
 from controller.config import ControllerConfig
@@ -155,6 +162,68 @@ def test_results_tables_count_the_known_lifts(client: TestClient, settings: Sett
     assert float(lifts[0]["peak_torque_left_nm"]) == 5.0
     bad = client.get(f"/api/studies/{ids['study']}/results/nonsense.csv")
     assert bad.status_code == 422
+
+
+def test_a_controllers_conditions_are_tables_of_their_own(
+        client: TestClient, settings: Settings) -> None:
+    """A plan that runs the UMC on its population models and on the participant's own
+    ("umc+personal") is compared condition against condition: the same lifts, decided
+    correctly in one and never in the other, are two columns of every table, not one
+    pooled column; and the personal condition's questionnaire scores are in the table."""
+    ids = _setup(client, settings)
+    engine = make_engine(settings.database_url)
+    rec = TickRecorder(engine)
+    run = rec.run_started(RunStarted(3, "umc", {}, "sim", 1), "sim")
+    never = [replace(r, action=int(Action.NO_LOCK), lock_left=False, lock_right=False,
+                     torque_left=0.0, torque_right=0.0) for r in _ticks()]
+    rec.add(TickBatch.from_records(3, tuple(never)))
+    assert rec.flush() == N
+    with make_session_factory(engine)() as db:
+        first = db.get(Trial, ids["umc"])
+        assert first is not None
+        sess = db.get(StudySession, first.session_id)
+        assert sess is not None
+        personal = Trial(session_id=first.session_id, controller="umc",
+                         task="paper-evaluation", planned_order=2, status="completed",
+                         run_id=run, model_set_id=ids["ms"], utility_set_id=ids["us"],
+                         condition="umc+personal", models="personal",
+                         config_snapshot=first.config_snapshot)
+        db.add(personal)
+        sus = db.scalars(select(QuestionnaireInstrument).where(
+            QuestionnaireInstrument.key == "sus")).first()
+        assert sus is not None
+        for label, key, score in (("A", "umc", 80.0), ("B", "umc+personal", 62.5)):
+            db.add(ConditionLabel(participant_id=sess.participant_id, label=label,
+                                  controller=key))
+            db.add(QuestionnaireResponse(
+                participant_id=sess.participant_id, instrument_id=sus.id,
+                instrument_key="sus", instrument_version=sus.version,
+                condition_label=label, answers={}, score=score, subscale_scores={}))
+        db.commit()
+        personal_id = personal.id
+    engine.dispose()
+
+    doc = _ok(client.get(f"/api/studies/{ids['study']}/results"))
+    conds = {t["trial_id"]: (t["controller"], t["condition"]) for t in doc["trials"]}
+    assert conds[ids["umc"]] == ("umc", "umc")
+    assert conds[personal_id] == ("umc", "umc+personal")
+    perf = doc["tables"]["performance"]
+    assert perf["title"].endswith("(UMC/UMC (personal models)/E-UMC)")
+    rows = {(r[0], r[1]): r[2] for r in perf["rows"]}
+    assert rows[("Intent estimation", "SQ")] == "1/1"  # the same posteriors
+    assert rows[("Decision correct", "SQ")] == "1/0"
+    assert rows[("Decision missed", "SQ")] == "0/1"
+    assert rows[("Decision wrong", "AS")] == "1/0"
+    assert rows[("Decision missed", "AS")] == "0/1"
+    fp = {(r[0], r[1]): r[2] for r in doc["tables"]["false_positives"]["rows"]}
+    assert fp[("UMC", "W")] == "1" and fp[("UMC (personal models)", "W")] == "0"
+    long = list(csv.DictReader(io.StringIO(
+        client.get(f"/api/studies/{ids['study']}/results/performance.csv").text)))
+    sq = {r["controller"]: (r["correct"], r["missed"]) for r in long if r["motion"] == "SQ"}
+    assert sq == {"umc": ("1", "0"), "umc+personal": ("0", "1")}
+    q = {(r[0], r[1]): r[2] for r in doc["tables"]["questionnaires"]["rows"]}
+    # The higher of a participant's scores is marked.
+    assert (q[("SUS", "UMC")], q[("SUS", "UMC (personal models)")]) == ("**80**", "62.5")
 
 
 def test_figures_are_png_and_svg(client: TestClient, settings: Settings) -> None:

@@ -8,6 +8,12 @@ from hypothesis import strategies as st
 
 from backend.study import conditions
 from backend.study.counterbalance import condition_order, controller_order
+from controller.evaluation.study import (
+    VARIANT_LABELS,
+    condition_controller,
+    condition_rank,
+    controller_label,
+)
 
 PERSONAL = ("population", "personal")
 
@@ -19,6 +25,17 @@ def test_keys_keep_the_controller_name_for_population_with_equal_priors() -> Non
     assert conditions.key("umc", "population+priors") == "umc+priors"
     assert max(len(conditions.key(c, v)) for c in ("umc", "eumc")
                for v in conditions.VARIANTS) <= 32  # fits the blinding key's column
+
+
+def test_every_variant_has_a_label_and_a_place_in_the_tables() -> None:
+    """The result tables read a condition's key back (`controller.evaluation.study`):
+    each variant the plan can make is labelled there and keeps the plan's order."""
+    suffixes = [s for s in conditions.VARIANTS.values() if s]
+    assert suffixes == list(VARIANT_LABELS)
+    keys = [conditions.key("umc", v) for v in conditions.VARIANTS]
+    assert [condition_controller(k) for k in keys] == ["umc"] * len(keys)
+    assert [condition_rank(k) for k in keys] == list(range(len(keys)))
+    assert controller_label(conditions.key("eumc", "personal")) == "E-UMC (personal models)"
 
 
 @given(position=st.integers(0, 10_000), optional=st.booleans(), baselines=st.booleans())

@@ -19,14 +19,13 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from backend.analysis.results import table_controllers
 from backend.schemas.vocabulary import vocabulary
 from backend.study.counterbalance import blinded_labels, controller_order
 from backend.worker.messages import CalibrationResult
 from controller.controllers import registry
 from controller.evaluation.cohort import CohortConfig, cohort_controllers, simulate_cohort
 from controller.evaluation.rendering import controller_colour, controller_marker
-from controller.evaluation.study import controller_label
+from controller.evaluation.study import controller_label, table_controllers
 
 MODULE = "tests.controller.controllers.constant_controller"
 
