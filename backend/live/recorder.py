@@ -113,7 +113,8 @@ class TickRecorder:
         self.flush()
         with self.engine.begin() as conn:
             if self.current_run_id is not None:
-                self._close(conn, self.current_run_id, "controller changed")
+                self._close(conn, self.current_run_id,
+                            msg.previous_ended or "controller changed")
             result = conn.execute(
                 insert(Run).values(
                     started_at=datetime.now(UTC),

@@ -25,6 +25,7 @@ from backend.core.errors import ConflictError
 from backend.db.evidence_tables import LockEvent, Recording, Trial
 from backend.db.models import Run, ticks_table
 from backend.live import trial_quality
+from backend.worker.messages import TIME_LIMIT_REACHED
 
 
 def running(db: Session) -> str | None:
@@ -93,18 +94,34 @@ def close_recording(db: Session, engine: Engine, recording_id: int, status: str)
     return True
 
 
+def _timed_out(db: Session, run_id: int | None) -> bool:
+    """Whether the run ended by reaching its time limit: the trial or recording it was
+    started for holds every sample it asked for, and only waited to be closed."""
+    return run_id is not None and db.scalar(
+        select(Run.end_reason).where(Run.id == run_id)) == TIME_LIMIT_REACHED
+
+
 def interrupt_running(engine: Engine, reason: str) -> list[str]:
     """Close every running trial and recording as `interrupted` (their worker or server
-    died); returns what was closed, e.g. ["trial 3"]."""
+    died); returns what was closed, e.g. ["trial 3"]. A timed one whose run had already
+    reached its time limit is whole: it closes as the experimenter's stop would have
+    (completed, stopped), its reason saying when."""
     closed: list[str] = []
     with Session(engine) as db:
-        for tid in list(db.scalars(select(Trial.id).where(Trial.status == "running"))):
-            if close_trial(db, engine, tid, "interrupted", reason):
+        for tid, run_id in list(db.execute(select(Trial.id, Trial.run_id)
+                                           .where(Trial.status == "running"))):
+            if _timed_out(db, run_id):
+                if close_trial(db, engine, tid, "completed",
+                               f"its timed run had ended before it was stopped ({reason})"):
+                    closed.append(f"trial {tid} (completed: its time was up)")
+            elif close_trial(db, engine, tid, "interrupted", reason):
                 closed.append(f"trial {tid}")
-        for rid in list(db.scalars(select(Recording.id)
-                                   .where(Recording.status == "recording"))):
-            if close_recording(db, engine, rid, "interrupted"):
-                closed.append(f"recording {rid}")
+        for rid, run_id in list(db.execute(select(Recording.id, Recording.run_id)
+                                           .where(Recording.status == "recording"))):
+            whole = _timed_out(db, run_id)
+            if close_recording(db, engine, rid, "stopped" if whole else "interrupted"):
+                closed.append(f"recording {rid}" + (" (stopped: its time was up)"
+                                                    if whole else ""))
     return closed
 
 

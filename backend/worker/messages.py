@@ -103,6 +103,12 @@ class Wearer:
     speed: float | None = None
 
 
+#: `RunStarted.previous_ended` (and the stored run's `end_reason`) for a timed run that
+#: reached its sample count: what it was started for is complete, whatever happens to
+#: the worker before the experimenter closes it.
+TIME_LIMIT_REACHED = "its time limit was reached"
+
+
 @dataclass(frozen=True, slots=True)
 class RunStarted:
     """A new run began (at start-up or after a controller change)."""
@@ -117,6 +123,10 @@ class RunStarted:
     #: other device. The server takes its record of the simulation from here, so that
     #: it never holds a wearer the worker does not run.
     wearer: Wearer | None = None
+    #: Why the previous run ended, when the worker ended it by itself
+    #: (`TIME_LIMIT_REACHED`: a timed trial's or recording's data is whole); "" when a
+    #: command of the server's ended it.
+    previous_ended: str = ""
 
 
 @dataclass(frozen=True, slots=True)

@@ -79,6 +79,26 @@ def test_the_recording_holds_the_wearer_from_the_scripts_first_sample(
         assert (runtime.settings.device_seed, runtime.settings.device_script,
                 runtime.settings.device_speed) == (3, "squat-sequence", 100.0)
 
+        # A worker that stops after a timed recording's end and before its stop: the
+        # recording holds every sample it asked for, so it is stopped, not interrupted.
+        # One still short of its time is interrupted.
+        whole = _ok(client.post(f"/api/sessions/{sid}/recordings", json={
+            "label": "whole", "duration_s": 2.0,
+            "simulation": {"seed": 4, "script": "standing", "speed": 20}}), 201)
+        wait_for(lambda: past_run(client, whole["run_id"], 200), 120,
+                 "the end of the recording's 2 s", poll=0.1)
+        _ok(client.post("/api/worker/restart"))
+        whole = _ok(client.get(f"/api/recordings/{whole['id']}"))
+        assert whole["status"] == "stopped"
+        assert whole["last_tick_id"] - whole["first_tick_id"] + 1 == 200
+        wait_for(lambda: client.get("/api/health").json()["worker"]["alive"], 60,
+                 "the worker back")
+        cut = _ok(client.post(f"/api/sessions/{sid}/recordings", json={
+            "label": "cut", "duration_s": 600.0,
+            "simulation": {"seed": 4, "script": "standing", "speed": 1}}), 201)
+        _ok(client.post("/api/worker/restart"))
+        assert _ok(client.get(f"/api/recordings/{cut['id']}"))["status"] == "interrupted"
+
 
 def test_only_the_in_process_simulator_starts_a_wearer_with_a_recording(
         settings: Settings, experimenter: dict[str, str]) -> None:

@@ -14,7 +14,7 @@ from backend.db import migrate
 from backend.db.engine import make_engine
 from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
 from backend.live.recorder import TickRecorder, sqlite_rows
-from backend.worker.messages import RunStarted, TickBatch
+from backend.worker.messages import TIME_LIMIT_REACHED, RunStarted, TickBatch
 from controller.tick_codec import FIELD_KINDS, FIELD_NAMES, db_rows, pack
 from controller.tick_record import TickRecord
 
@@ -64,6 +64,21 @@ def test_a_controller_change_closes_the_old_run(db_url: str) -> None:
     assert runs[second].controller == "pec"
     assert runs[second].ended_at is None
     assert set(per_run) == {first, second}
+    engine.dispose()
+
+
+def test_a_run_the_worker_ended_at_its_time_limit_says_so(db_url: str) -> None:
+    """The worker names why it ended a run by itself; the stored run keeps that reason
+    (what closes a timed trial whole when its worker stops before the experimenter)."""
+    migrate.upgrade(db_url)
+    engine = make_engine(db_url)
+    rec = TickRecorder(engine)
+    timed = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
+    rec.add(_batch(1, range(4)))
+    rec.run_started(RunStarted(2, "none", {}, "sim", 1, None, TIME_LIMIT_REACHED), "sim")
+    with engine.connect() as conn:
+        run = conn.execute(select(Run).where(Run.id == timed)).one()
+    assert (run.end_reason, run.tick_count) == (TIME_LIMIT_REACHED, 4)
     engine.dispose()
 
 

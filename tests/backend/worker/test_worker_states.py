@@ -33,6 +33,7 @@ from backend.worker.machine import (
     kind_of,
 )
 from backend.worker.messages import (
+    TIME_LIMIT_REACHED,
     BringupCapture,
     BringupCommand,
     BringupPulse,
@@ -228,7 +229,10 @@ def test_a_timed_trial_ends_by_itself_through_releasing_to_none(h: Harness) -> N
     h.ticks(39)
     assert h.m.state is T and _runs(h.messages()) == []
     h.ticks(1)
-    assert _runs(h.messages()) == ["none"]
+    (run,) = [m for m in h.messages() if isinstance(m, RunStarted)]
+    # The next run says the trial's ended by its time (its data is whole); a stop from
+    # the server ends one without saying so.
+    assert (run.controller, run.previous_ended) == ("none", TIME_LIMIT_REACHED)
     assert h.trace_since(mark) == [T, R, ID] and h.releases == 1
     assert h.m.loop.controller.name == "none"
     # The sped-up wearer goes on at real time: no ticks faster than anyone asked for.
@@ -286,6 +290,7 @@ def test_a_trial_is_stopped_only_by_none(h: Harness) -> None:
     mark = len(h.m.trace)
     msgs = h.send(SetController(NONE, request_id=6))
     assert _runs(msgs) == ["none"] and _answer(msgs, CommandResult).ok
+    assert [m.previous_ended for m in msgs if isinstance(m, RunStarted)] == [""]
     assert h.trace_since(mark) == [R, ID] and h.releases == 1
 
 
