@@ -77,6 +77,12 @@ class EmgStream(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
+#: The statuses of a recording whose file an analysis reads: complete, or interrupted (a
+#: live recording a killed server left, finalised at the next start with every whole
+#: chunk it holds and the flag `interrupted`: the trials before the crash are in it).
+ANALYSED_STATUSES = ("complete", "interrupted")
+
+
 class EmgRecording(Base):
     """One EMG recording file: where it came from, its span, and what is wrong with it."""
 
@@ -91,7 +97,8 @@ class EmgRecording(Base):
     source: Mapped[str] = mapped_column(String(16))
     stream_id: Mapped[int | None] = mapped_column(
         ForeignKey("emg_streams.id", ondelete="SET NULL"))
-    #: "recording" while a live stream writes it, then "complete".
+    #: "recording" while a live stream writes it, then "complete"; "interrupted" when a
+    #: killed server left it recording (`backend.emg.recovery`).
     status: Mapped[str] = mapped_column(String(16), default="complete")
     filename: Mapped[str] = mapped_column(String(255), default="")
     fs: Mapped[float] = mapped_column(Float)

@@ -53,7 +53,7 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.analysis import results
-from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
+from backend.db.emg import ANALYSED_STATUSES, EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.db.models import Participant, StudySession
@@ -93,6 +93,9 @@ NO_MVC = "no_mvc"
 EXCEEDS_MVC = "exceeds_mvc"
 NON_FINITE_FILLED = "non_finite_filled"
 SAMPLES_MISSING = "samples_missing"
+#: The recording's file does not read back past some point inside the trial (a damaged
+#: chunk): the lifts after it have no EMG; every other trial is measured as usual.
+FILE_DAMAGED = "file_damaged"
 #: A lift's window must hold this share of the samples its duration asks for (fewer: the
 #: stream lost samples there, flagged `samples_missing`), and half of them to be measured
 #: at all (fewer: `no_emg`).
@@ -507,7 +510,10 @@ def _envelope(folder: Path, rec: EmgRecording, t0: float, t1: float,
     path = folder / f"{rec.id}.emgc"
     if not path.is_file():
         return None
-    ts, x = store.read_window(path, t0 - rec.time_offset_s, t1 - rec.time_offset_s)
+    try:
+        ts, x = store.read_window(path, t0 - rec.time_offset_s, t1 - rec.time_offset_s)
+    except store.EmgStoreError:  # a damaged file: no reference from it (flagged no_mvc)
+        return None
     return _process(rec, ts + rec.time_offset_s, x, proc)
 
 
@@ -571,9 +577,11 @@ def _measure(lift_t: tuple[float, float], envs: Sequence[_Envelope], proc: EmgPr
 
 
 def _session_recordings(db: Session, session_id: int) -> list[EmgRecording]:
+    """The session's recordings an analysis reads (`ANALYSED_STATUSES`): an interrupted
+    one holds the trials before the crash, and carries its flag into theirs."""
     return list(db.scalars(select(EmgRecording).where(
-        EmgRecording.session_id == session_id, EmgRecording.status == "complete")
-        .order_by(EmgRecording.id)))
+        EmgRecording.session_id == session_id,
+        EmgRecording.status.in_(ANALYSED_STATUSES)).order_by(EmgRecording.id)))
 
 
 def _flag_stopped_inside(db: Session, trial: Trial, recs: Sequence[EmgRecording],
@@ -675,19 +683,30 @@ def _finish(p: _Prepared) -> TrialEmg:
             lf.flags.append(NO_EMG)
         out.lifts.append(lf)
     missing = sum(1 for lf in out.lifts if lf.outcome is None)
-    if missing and p.covered:
+    if missing and p.covered and FILE_DAMAGED not in out.flags:
         out.note = (f"{missing} of {len(out.lifts)} lifts have no EMG: no recording "
                     "covers them whole, or the stream lost most of their samples (a "
                     "stream that stopped, restarted or fell behind)")
     return out
 
 
+@dataclass
+class _Damage:
+    """Where a recording's file stopped reading back (session clock), and why."""
+
+    after: float
+    why: str
+
+
 def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, float]],
-              proc: EmgProcessing) -> Iterable[tuple[int, _Envelope]]:
+              proc: EmgProcessing, damage: list[_Damage] | None = None
+              ) -> Iterable[tuple[int, _Envelope]]:
     """(span index, envelope) of each span the recording holds, from one pass over its
     chunks: a span is processed as soon as the chunks have passed it, so only the raw
     samples of the spans still open are held (the file is read once, however many
-    trials it covers)."""
+    trials it covers). A chunk that does not read back ends the pass there: the spans
+    still open get what came before it, and `damage` says where (one damaged file
+    costs its own trials' later lifts, not the study's results)."""
     path = folder / f"{rec.id}.emgc"
     if not path.is_file() or not spans:
         return
@@ -703,10 +722,23 @@ def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, floa
                      np.concatenate(xs_parts).astype(np.float64), proc)
         return None if e is None else (i, e)
 
-    for t, x in store.iter_chunks(path):
+    chunks = store.iter_chunks(path)
+    last = -math.inf
+    while True:
+        try:
+            t, x = next(chunks)
+        except StopIteration:
+            break
+        except store.EmgStoreError as exc:
+            if damage is not None:
+                damage.append(_Damage(last, str(exc)))
+            break
         if t.size == 0:
             continue
         ts = t + off
+        finite = ts[np.isfinite(ts)]
+        if finite.size:
+            last = max(last, float(finite.max()))
         for i in list(parts):
             a, b = spans[i]
             if ts[-1] >= a and ts[0] < b:
@@ -752,8 +784,17 @@ def session_trials(engine: Engine, db: Session, folder: Path, trials: Sequence[T
         mine = [p for p in prepared if p.span is not None
                 and rec.t_start <= p.span[1] and rec.t_end >= p.span[0]]
         spans = [p.span for p in mine if p.span is not None]
-        for i, e in _one_pass(folder, rec, spans, proc):
+        damage: list[_Damage] = []
+        for i, e in _one_pass(folder, rec, spans, proc, damage):
             _apply(mine[i], e, proc)
+        for d in damage:
+            for p in mine:
+                if p.span is not None and p.span[1] > d.after and FILE_DAMAGED not in p.out.flags:
+                    p.out.flags.append(FILE_DAMAGED)
+                    where = (f"after {d.after:.3f} s on the session clock"
+                             if math.isfinite(d.after) else "from its start")
+                    p.out.note = (f"EMG recording {rec.id} does not read back {where} "
+                                  f"({d.why}); later lifts have no EMG")
     return [_finish(p) for p in prepared]
 
 

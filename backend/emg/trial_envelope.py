@@ -37,7 +37,7 @@ from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
-from backend.db.emg import EmgMontage, EmgRecording
+from backend.db.emg import ANALYSED_STATUSES, EmgMontage, EmgRecording
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
 from backend.emg import recordings, store
@@ -79,9 +79,11 @@ def _marker(db: Session, trial_id: int, label: str) -> Marker | None:
 
 
 def _recording(db: Session, trial: Trial, start: float, stop: float) -> EmgRecording:
-    """The complete recording of the session that overlaps the trial most."""
+    """The recording of the session (complete, or interrupted: `ANALYSED_STATUSES`) that
+    overlaps the trial most."""
     rows = list(db.scalars(select(EmgRecording).where(
-        EmgRecording.session_id == trial.session_id, EmgRecording.status == "complete")))
+        EmgRecording.session_id == trial.session_id,
+        EmgRecording.status.in_(ANALYSED_STATUSES))))
     best, overlap = None, 0.0
     for r in rows:
         if r.t_start is None or r.t_end is None:

@@ -44,7 +44,7 @@ from sqlalchemy.orm import Session
 
 from backend.analysis import bids_dictionary, data_dictionary, tick_queries
 from backend.core.resources import version
-from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording
+from backend.db.emg import ANALYSED_STATUSES, EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import LockEvent, Trial, TrialSegment
 from backend.db.lab import Marker, XdfAttachment
 from backend.db.models import (
@@ -304,7 +304,7 @@ def _session_files(engine: Engine, db: Session, sub: str, sess: StudySession, se
     counts: dict[tuple[str, str], int] = {}
     scans: list[list[Any]] = []
     emg_recordings = list(db.scalars(select(EmgRecording).where(
-        EmgRecording.session_id == sess.id, EmgRecording.status == "complete")
+        EmgRecording.session_id == sess.id, EmgRecording.status.in_(ANALYSED_STATUSES))
         .order_by(EmgRecording.id)))
     for trial in trials:
         assert trial.run_id is not None

@@ -10,11 +10,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from backend.core.config import Settings
 from backend.db import migrate
-from backend.db.emg import EmgAnalysisSettings, EmgMontage, MvcStep
+from backend.db.emg import EmgAnalysisSettings, EmgMontage, EmgRecording, MvcStep
 from backend.db.engine import make_engine
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
@@ -202,6 +203,44 @@ def test_a_stream_that_stops_mid_trial_and_a_trial_without_emg(
     flags = [r[header.index("flags")] for r in rows if r[0] == fourth.trial_id]
     assert flags and all("no_emg" in f for f in flags)
     assert any(f"trial {fourth.trial_id}" in n for n in res.notes)
+    made["engine"].dispose()
+
+
+def test_an_interrupted_recording_is_measured_and_a_damaged_file_costs_its_later_lifts(
+        db_url: str, settings: Settings) -> None:
+    """A recording a killed server left (finalised at the next start as `interrupted`,
+    one recording for the whole session) holds the trials before the crash: they are
+    measured, with its flag. A chunk that does not read back (the sixth, 25-30 s into
+    the session) costs the lifts after it, which their trials say, and nothing else:
+    the study's results are still computed."""
+    made = _study(db_url, settings, participants=1, order=list(LEVELS))
+    with Session(made["engine"]) as db:
+        rec = db.scalars(select(EmgRecording)).one()
+        rec.status = "interrupted"
+        rec.quality = {**rec.quality, "flags": [*rec.quality["flags"], "interrupted"]}
+        db.commit()
+        rid = rec.id
+    res = _results(made, settings)
+    assert [t.condition for t in res.trials] == list(LEVELS)
+    assert all(lf.outcome is not None for t in res.trials for lf in t.lifts)
+    assert all("interrupted" in t.flags for t in res.trials)
+
+    path = store.emg_folder(settings) / f"{rid}.emgc"
+    data = path.read_bytes()
+    heads = [i for i in range(len(data)) if data.startswith(b'{"rows":', i)]
+    assert len(heads) == 8  # 40 s at 2 kHz, 10,000 rows a chunk
+    path.write_bytes(data[:heads[5]] + b"[" + data[heads[5] + 1:])
+    res = _results(made, settings)
+    measured = {t.condition: [lf.outcome is not None for lf in t.lifts] for t in res.trials}
+    # Trials at 0-8, 10-18, 20-28 and 30-38 s; lifts 2-4 and 5-7 s into each.
+    assert measured == {"umc": [True, True], "pec": [True, True],
+                        "springs_free": [True, False], "no_exoskeleton": [False, False]}
+    flagged = {t.condition for t in res.trials if muscle_results.FILE_DAMAGED in t.flags}
+    assert flagged == {"springs_free", "no_exoskeleton"}
+    third = next(t for t in res.trials if t.condition == "springs_free")
+    assert f"EMG recording {rid} does not read back after" in third.note
+    assert "chunk header is not JSON" in third.note
+    assert res.document()["trials"]  # the study's results, not a refusal
     made["engine"].dispose()
 
 

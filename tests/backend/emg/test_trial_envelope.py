@@ -13,6 +13,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session
 
+from backend.db.emg import EmgRecording
 from backend.db.engine import make_engine
 from backend.db.evidence_tables import Trial
 from tests.backend.lab.test_xdf_import import _session_with_two_trials
@@ -75,6 +76,16 @@ def test_the_envelope_over_a_trial_with_its_lifts(client: TestClient, db_url: st
     assert lift["peak"][0] == pytest.approx(LEVEL_V, rel=0.01)
     assert lift["mean"][0] == pytest.approx(LEVEL_V, rel=0.01)
     assert lift["iemg"][0] == pytest.approx(LEVEL_V * 1.0, rel=0.01)
+
+    # The same recording left by a killed server (finalised as interrupted) is shown too.
+    with client.app.state.sessions() as db:  # type: ignore[attr-defined]
+        row = db.get(EmgRecording, doc["recording_id"])
+        assert row is not None
+        row.status = "interrupted"
+        db.commit()
+    again = client.get(f"/api/trials/{first}/emg-envelope", params={"points": 300})
+    assert again.status_code == 200, again.text
+    assert again.json()["channels"] == doc["channels"]
 
     r = client.get(f"/api/trials/{second}/emg-envelope")  # 12 s after the file ends
     assert r.status_code == 409 and f"trial {second} has no EMG" in r.json()["detail"]
