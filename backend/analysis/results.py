@@ -108,6 +108,12 @@ class StudyResults:
         present |= {s.controller for s in self.questionnaire_scores}
         return table_conditions(present, intent_only)
 
+    def answered(self) -> tuple[str, ...]:
+        """The questionnaire table's rows: `columns`, then any other condition scored (a
+        blinded baseline's), so that no answer is left out."""
+        return tuple(dict.fromkeys([*self.columns(),
+                                    *(s.controller for s in self.questionnaire_scores)]))
+
     def table(self, name: str) -> Table:
         """One of `TABLE_NAMES` as a `Table` (the paper's wide layout where it has one)."""
         evs = self.evaluations
@@ -120,9 +126,9 @@ class StudyResults:
             return FalsePositiveTable.from_evaluations(evs, self.columns()).wide()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  self.columns()).wide()
+                                                  self.answered()).wide()
         if name == "onset_to_lock":
-            return onset_to_lock_table(evs)
+            return onset_to_lock_table(evs, controllers=self.columns())
         if name == "lifts":
             return lift_table(evs)
         raise ResultsError("table", f"unknown table {name!r}; choose one of "
@@ -137,7 +143,7 @@ class StudyResults:
             return FalsePositiveTable.from_evaluations(evs, self.columns()).to_csv()
         if name == "questionnaires":
             return QuestionnaireTable.from_scores(self.questionnaire_scores, self.preferences,
-                                                  self.columns()).to_csv()
+                                                  self.answered()).to_csv()
         return self.table(name).to_csv()
 
     def markdown(self, name: str) -> str:
@@ -150,10 +156,14 @@ class StudyResults:
         from controller.evaluation.figures import onset_to_lock_figure, peak_torque_figure
         from controller.evaluation.rendering import render_figure
         evs = [e for e in self.evaluations if e.lifts]
+        # The tables' order, then any other condition with lifts as it appears.
+        present = {e.controller for e in evs}
+        order = [c for c in dict.fromkeys([*self.columns(), *(e.controller for e in evs)])
+                 if c in present]
         if name == "peak_torques":
-            return render_figure(peak_torque_figure(evs))
+            return render_figure(peak_torque_figure(evs, controllers=order))
         if name == "onset_to_lock":
-            return render_figure(onset_to_lock_figure(evs))
+            return render_figure(onset_to_lock_figure(evs, controllers=order))
         raise ResultsError("figure", f"unknown figure {name!r}; choose one of "
                            f"{', '.join(FIGURE_NAMES)}")
 
@@ -233,7 +243,7 @@ def _questionnaires(db: Session, participants: Sequence[Participant]
     return scores, prefs
 
 
-def _counted(study_id: int, site: str | None) -> Any:
+def counted(study_id: int, site: str | None) -> Any:
     """The participants whose data results may use: not withdrawn (an "exclude" protocol
     keeps their rows but out of every result), and of `site` for a site-limited member."""
     cond = (Participant.study_id == study_id) & Participant.withdrawn_at.is_(None)
@@ -248,7 +258,7 @@ def study_results(engine: Engine, db: Session, study_id: int,
     Withdrawn participants are left out, and with `site` everyone of another site.
     """
     out = StudyResults(study_id)
-    participants = list(db.scalars(select(Participant).where(_counted(study_id, site))
+    participants = list(db.scalars(select(Participant).where(counted(study_id, site))
                                    .order_by(Participant.id)))
     for p in participants:
         trials = db.scalars(select(Trial).join(StudySession, Trial.session_id == StudySession.id)
@@ -266,55 +276,6 @@ def study_results(engine: Engine, db: Session, study_id: int,
             out.trials.append(evaluate_trial(engine, db, t))
     out.questionnaire_scores, out.preferences = _questionnaires(db, participants)
     return out
-
-
-class ResultsCache:
-    """The last few study evaluations, keyed by everything they read (`fingerprint`).
-
-    The tables, figures and JSON of one study are often fetched together and evaluating
-    reads every tick; an entry is reused only while nothing it depends on changed."""
-
-    def __init__(self, size: int = 4) -> None:
-        self.size = size
-        self._entries: dict[tuple[Any, ...], StudyResults] = {}
-
-    def get(self, engine: Engine, db: Session, study_id: int,
-            site: str | None) -> StudyResults:
-        """The study's results for a caller limited to `site` (None: every site)."""
-        key = fingerprint(db, study_id, site)
-        hit = self._entries.get(key)
-        if hit is None:
-            hit = study_results(engine, db, study_id, site)
-            if len(self._entries) >= self.size:
-                self._entries.pop(next(iter(self._entries)))
-            self._entries[key] = hit
-        return hit
-
-
-def fingerprint(db: Session, study_id: int, site: str | None = None) -> tuple[Any, ...]:
-    """What the study's results depend on, cheaply: its trials' states and runs and its
-    questionnaire answers. Equal fingerprints give equal results, so a caller may reuse
-    an evaluation (reading every tick of a study takes seconds)."""
-    trials = tuple(db.execute(
-        select(Trial.id, Trial.status, Trial.run_id, Trial.ended_at)
-        .join(StudySession, Trial.session_id == StudySession.id)
-        .join(Participant, StudySession.participant_id == Participant.id)
-        .where(_counted(study_id, site)).order_by(Trial.id)).all())
-    people = select(Participant.id).where(_counted(study_id, site))
-    answers = tuple(db.scalars(select(QuestionnaireResponse.id).where(
-        QuestionnaireResponse.participant_id.in_(people)).order_by(
-        QuestionnaireResponse.id)))
-    prefs = tuple(db.scalars(select(Preference.id).where(
-        Preference.participant_id.in_(people)).order_by(Preference.id)))
-    segs = tuple(db.execute(select(TrialSegment.id, TrialSegment.updated_at)
-                            .join(Trial, TrialSegment.trial_id == Trial.id)
-                            .join(StudySession, Trial.session_id == StudySession.id)
-                            .where(StudySession.participant_id.in_(people))
-                            .order_by(TrialSegment.id)).all())
-    labels = tuple(db.execute(select(ConditionLabel.participant_id, ConditionLabel.label,
-                                     ConditionLabel.controller).where(
-        ConditionLabel.participant_id.in_(people)).order_by(ConditionLabel.id)).all())
-    return (study_id, site, trials, answers, prefs, labels, segs)
 
 
 def _table_json(table: Table) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from starlette.requests import HTTPConnection
 from starlette.routing import BaseRoute
 
 from backend.analysis.jobs import JobRunner
-from backend.analysis.results import ResultsCache
+from backend.analysis.results_cache import ResultsCache
 from backend.api import web_surface
 from backend.api.errors import not_found
 from backend.api.params import path_id

@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
-from backend.analysis import results
+from backend.analysis import results, results_cache
 from backend.db.emg import ANALYSED_STATUSES, EmgAnalysisSettings, EmgMontage, EmgRecording
 from backend.db.evidence_tables import Trial
 from backend.db.lab import Marker
@@ -70,6 +70,7 @@ from controller.emg.processing import EmgProcessing, EmgSettingsError, fill_non_
 from controller.evaluation import muscle_stats
 from controller.evaluation.columns import TickData
 from controller.evaluation.lifts import LIFT_KINDS
+from controller.evaluation.study import condition_controller, condition_rank
 
 if TYPE_CHECKING:
     from controller.evaluation.rendering import RenderedFigure
@@ -164,10 +165,15 @@ class MuscleResults:
     # ------------------------------------------------------------------ rows
 
     def conditions(self) -> list[str]:
-        """Conditions present, in the registry's display order."""
+        """Conditions present, in the registry's display order, a controller's variants
+        (personal models, learned priors) after its plain name."""
         present = {t.condition for t in self.trials if any(lf.outcome for lf in t.lifts)}
         order = list(registry.display_order())
-        return sorted(present, key=lambda c: (order.index(c) if c in order else len(order), c))
+
+        def rank(c: str) -> tuple[int, int, str]:
+            base = condition_controller(c)
+            return (order.index(base) if base in order else len(order), condition_rank(c), c)
+        return sorted(present, key=rank)
 
     def baselines(self) -> list[str]:
         """The baseline conditions with data."""
@@ -882,7 +888,7 @@ def study_muscle_results(engine: Engine, db: Session, folder: Path, study_id: in
     proc, mains = study_processing(db, study_id)
     out = MuscleResults(study_id, proc.to_dict(), mains)
     participants = list(db.scalars(select(Participant).where(
-        results._counted(study_id, site)).order_by(Participant.id)))
+        results.counted(study_id, site)).order_by(Participant.id)))
     for p in participants:
         sessions = list(db.scalars(select(StudySession).where(
             StudySession.participant_id == p.id).order_by(StudySession.id)))
@@ -932,7 +938,7 @@ def _channel_name(m: dict[str, Any], label: str) -> str:
 
 def emg_fingerprint(db: Session, study_id: int) -> tuple[Any, ...]:
     """What the muscle results read besides the trials: recordings, settings, MVC
-    markers (a cache is valid while this and `results.fingerprint` stay the same)."""
+    markers (a cache is valid while this and `results_cache.fingerprint` stay the same)."""
     sessions = select(StudySession.id).join(
         Participant, StudySession.participant_id == Participant.id).where(
         Participant.study_id == study_id)
@@ -959,7 +965,7 @@ class MuscleResultsCache:
     def get(self, engine: Engine, db: Session, folder: Path, study_id: int,
             site: str | None) -> MuscleResults:
         key = (str(engine.url), str(folder), study_id, site,
-               results.fingerprint(db, study_id, site), emg_fingerprint(db, study_id))
+               results_cache.fingerprint(db, study_id, site), emg_fingerprint(db, study_id))
         hit = self._entries.get(key)
         if hit is None:
             hit = study_muscle_results(engine, db, folder, study_id, site)

@@ -26,7 +26,7 @@ from sqlalchemy import Connection, Engine, insert, update
 
 from backend.core.resources import version
 from backend.db.models import TICK_DATA_COLUMNS, Run, ticks_table
-from backend.worker.messages import RunStarted, TickBatch
+from backend.worker.messages import TIME_LIMIT_REACHED, RunStarted, TickBatch
 from controller.tick_codec import FIELD_NAMES, TICK_DTYPE, TickBlock, db_rows
 
 log = logging.getLogger(__name__)
@@ -113,8 +113,12 @@ class TickRecorder:
         self.flush()
         with self.engine.begin() as conn:
             if self.current_run_id is not None:
+                # Whole only if every sample the worker made for it is stored: none
+                # dropped by the worker's outbox or this backlog, none still unwritten.
+                whole = (msg.limit_reached is not None
+                         and self._counts.get(self.current_run_id, 0) == msg.limit_reached)
                 self._close(conn, self.current_run_id,
-                            msg.previous_ended or "controller changed")
+                            TIME_LIMIT_REACHED if whole else "controller changed")
             result = conn.execute(
                 insert(Run).values(
                     started_at=datetime.now(UTC),

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from backend.schemas.fields import MAX_ID, UtcDatetime
+from backend.schemas.fields import MAX_ID, MIN_TIMED_S, UtcDatetime
 from backend.schemas.live import SimulationChoice
 
 SegmentLabel = Literal["squat", "stoop_left", "stoop_right", "other", "unlabelled"]
@@ -23,7 +23,7 @@ class RecordingIn(BaseModel):
         "as the recording starts, so that the recording holds the script from its first "
         "sample (a simulation faster than real time runs ahead while a recording is "
         "started by a second request)"))
-    duration_s: float | None = Field(default=None, ge=0.01, le=3600, description=(
+    duration_s: float | None = Field(default=None, ge=MIN_TIMED_S, le=3600, description=(
         "with `simulation` only: the recording holds this much device time (seconds, "
         "rounded to whole 10 ms samples as a timed trial's, at least one) from the "
         "wearer's first sample; the worker ends it by itself, so a simulation faster "
@@ -255,7 +255,7 @@ class TrialStartIn(BaseModel):
 
     rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
                                   description="every controller at this rate; paper's if unset")
-    duration_s: float | None = Field(default=None, ge=0.01, le=24 * 3600.0, description=(
+    duration_s: float | None = Field(default=None, ge=MIN_TIMED_S, le=24 * 3600.0, description=(
         "a timed trial: the worker ends the controller after this much device time "
         "(rounded to whole 10 ms samples, at least one), so the trial holds exactly "
         "that; stop it as usual. A "

@@ -51,3 +51,8 @@ Label = Annotated[str, Field(pattern=r"^[A-Z][A-Za-z0-9]{0,15}$", examples=["A"]
 
 UtcDatetime = Annotated[datetime, AfterValidator(_utc)]
 """A time in UTC, time zone included."""
+
+
+#: The shortest timed run (`duration_s` of a trial, a recording, a long-use block): one
+#: 10 ms sample. The worker counts whole samples, so anything shorter would time nothing.
+MIN_TIMED_S = 0.01

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from backend.schemas.fields import MAX_ID, UtcDatetime
+from backend.schemas.fields import MAX_ID, MIN_TIMED_S, UtcDatetime
 
 #: The task of a long-use trial: the wearer works, no task of a trial plan. Results
 #: leave these trials out of the study's tables (they are no plan's condition).
@@ -30,7 +30,7 @@ class LongUseStartIn(BaseModel):
         "a ready utility set at the session's precompression (same controllers)"))
     rate_hz: float | None = Field(default=None, gt=0.0, le=100.0,
                                   description="the controller's rate; the paper's if unset")
-    duration_s: float | None = Field(default=None, gt=0.0, le=24 * 3600.0, description=(
+    duration_s: float | None = Field(default=None, ge=MIN_TIMED_S, le=24 * 3600.0, description=(
         "end the controller after this much device time; unset: until stopped"))
 
 

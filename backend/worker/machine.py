@@ -41,7 +41,6 @@ from backend.worker.child_processes import ParentWatch
 from backend.worker.device_gate import DeviceGate
 from backend.worker.devices import make_device
 from backend.worker.messages import (
-    TIME_LIMIT_REACHED,
     BringupCommand,
     BringupResult,
     Calibrate,
@@ -280,12 +279,12 @@ class Runs:
         """Announce a new run of `spec`; its token. With `count_again=False` the sample
         count and limit carry over (a calibration applied to the running controller)."""
         self.token += 1
-        ended = (TIME_LIMIT_REACHED if self.limit is not None and self.ticks >= self.limit
-                 else "")
+        reached = (self.ticks if self.limit is not None and self.ticks >= self.limit
+                   else None)
         if count_again:
             self.ticks, self.limit = 0, limit
         self.outbox.put(RunStarted(self.token, spec.name, spec.to_config(), device_kind,
-                                   self.pid, self.wearer(), ended))
+                                   self.pid, self.wearer(), reached))
         self.outbox.run_token = self.token
         return self.token
 

@@ -103,9 +103,9 @@ class Wearer:
     speed: float | None = None
 
 
-#: `RunStarted.previous_ended` (and the stored run's `end_reason`) for a timed run that
-#: reached its sample count: what it was started for is complete, whatever happens to
-#: the worker before the experimenter closes it.
+#: The stored run's `end_reason` for a timed run that reached its sample count with every
+#: sample stored (`RunStarted.limit_reached`): what it was started for is complete,
+#: whatever happens to the worker before the experimenter closes it.
 TIME_LIMIT_REACHED = "its time limit was reached"
 
 
@@ -123,10 +123,11 @@ class RunStarted:
     #: other device. The server takes its record of the simulation from here, so that
     #: it never holds a wearer the worker does not run.
     wearer: Wearer | None = None
-    #: Why the previous run ended, when the worker ended it by itself
-    #: (`TIME_LIMIT_REACHED`: a timed trial's or recording's data is whole); "" when a
-    #: command of the server's ended it.
-    previous_ended: str = ""
+    #: The previous run ended by itself at its time limit, after this many samples (the
+    #: ones the worker made, whether or not they all reached the server); None when a
+    #: command of the server's ended it. The server stores the run as whole
+    #: (`TIME_LIMIT_REACHED`) only if it stored exactly this many of its ticks.
+    limit_reached: int | None = None
 
 
 @dataclass(frozen=True, slots=True)

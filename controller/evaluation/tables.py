@@ -99,8 +99,20 @@ class Table:
         return "\n".join(lines) + "\n"
 
 
-def _join(values: Sequence[str]) -> str:
-    return "/".join(values) if values else NOT_APPLICABLE
+#: A condition a participant did not run, inside a wide cell ("3/–/2"): an en dash, as
+#: "-" is a value the controller did not compute and "n/a" would read as two cells.
+NOT_RUN = "\u2013"
+
+
+def _join(values: Sequence[str | None]) -> str:
+    """One wide cell: a value per column of the title, in its order. Columns the
+    participant did not run at the end are left out (the paper's cells: "3" where only
+    the UMC ran, "3/2" where the E-UMC did too); one inside is `NOT_RUN`, so every value
+    stays under its own column."""
+    vals = list(values)
+    while vals and vals[-1] is None:
+        vals.pop()
+    return "/".join(NOT_RUN if v is None else v for v in vals) if vals else NOT_APPLICABLE
 
 
 # --------------------------------------------------------------------------- performance
@@ -223,10 +235,11 @@ class PerformanceTable:
                     continue  # a one-sided first lock is the correct one in a stoop
                 cells: list[Cell] = [label, m]
                 for p in self.participants:
-                    vals = []
+                    vals: list[str | None] = []
                     for c in self.controllers:
                         r = index.get((p, c, m))
                         if r is None:
+                            vals.append(None)
                             continue
                         v = getattr(r, attr)
                         vals.append("-" if v is None else str(v))  # "n/a" would read as two cells
@@ -239,7 +252,8 @@ class PerformanceTable:
             tuple(rows),
             title=f"Intent estimation and decision performance ({labels})",
             notes=(
-                f"Cells list {labels} where a participant used several controllers. "
+                f"Cells list {labels} where a participant used several controllers "
+                f"({NOT_RUN} for one not run before another that was). "
                 f"Lifts per cell: {', '.join(map(str, lifts)) or 'none'}. "
                 "Recognised: the correct model's posterior reached 0.5 in the first half "
                 "of the lift. Decision (the paper's rule): squat correct if both sides "
@@ -399,11 +413,14 @@ def lift_table(evaluations: Sequence[RecordingEvaluation]) -> Table:
 
 
 def onset_to_lock_table(
-    evaluations: Sequence[RecordingEvaluation], by_kind: bool = True
+    evaluations: Sequence[RecordingEvaluation], by_kind: bool = True,
+    controllers: Sequence[str] | None = None,
 ) -> Table:
     """Median and IQR of onset-to-lock times per controller (and lift kind, plus all
-    kinds together), for the first lock on either side and for the correct side(s)."""
-    ctls = _unique(e.controller for e in evaluations if e.lifts)
+    kinds together), for the first lock on either side and for the correct side(s).
+    `controllers`: their order (default: as they appear); any other with lifts follows."""
+    ctls = _unique([*(controllers or ()), *(e.controller for e in evaluations if e.lifts)])
+    ctls = [c for c in ctls if any(e.controller == c and e.lifts for e in evaluations)]
     rows: list[tuple[Cell, ...]] = []
     for c in ctls:
         outs = [o for e in evaluations if e.controller == c for o in e.lifts]

@@ -242,7 +242,7 @@ async function startReplay(id) {
   const raw = addProgress(body.columns);
   const thr = trial.config_snapshot?.settings?.velocity_threshold;
   if (thr != null) plots.setThreshold(thr);
-  $("mode-text").textContent = `replay · trial ${id} · ${controllerLabel(trial.controller)} · ` +
+  $("mode-text").textContent = `replay · trial ${id} · ${controllerLabel(trial.condition || trial.controller)} · ` +
     `${trial.task} · ${trial.status}`;
   const disp = Object.fromEntries(PLOTTED.map((n) => [n, (raw[n] || []).map((v) => displayValue(n, v))]));
   replay = { raw, disp, n: raw.t.length, index: 0 };

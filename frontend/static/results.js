@@ -268,7 +268,7 @@ function whatIfDefault(name) {
 function openTrial(t) {
   currentTrial = t;
   $("#trial-panel").hidden = false;
-  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${controllerLabel(t.controller)} · ${t.task}`;
+  $("#panel-trial").textContent = `${t.trial_id} · ${t.participant} · ${controllerLabel(t.condition || t.controller)} · ${t.task}`;
   $("#panel-replay").href = `/live?trial=${t.trial_id}`;
   $("#panel-timeline-svg").href = api.results.trialTimeline.url(t.trial_id, "svg");
   $("#panel-timeline-png").href = api.results.trialTimeline.url(t.trial_id, "png");

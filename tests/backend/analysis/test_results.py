@@ -162,6 +162,12 @@ def test_results_tables_count_the_known_lifts(client: TestClient, settings: Sett
     assert float(lifts[0]["peak_torque_left_nm"]) == 5.0
     bad = client.get(f"/api/studies/{ids['study']}/results/nonsense.csv")
     assert bad.status_code == 422
+    # The tables name participants by their code: a new code is in the next answer (the
+    # server's cache of the evaluation is keyed on what it shows).
+    pid = _ok(client.get(f"/api/studies/{ids['study']}/participants"))[0]["id"]
+    _ok(client.patch(f"/api/participants/{pid}", json={"code": "P99"}))
+    again = _ok(client.get(f"/api/studies/{ids['study']}/results"))
+    assert again["tables"]["performance"]["header"] == ["Metric", "Motion", "P99"]
 
 
 def test_a_controllers_conditions_are_tables_of_their_own(
@@ -183,8 +189,9 @@ def test_a_controllers_conditions_are_tables_of_their_own(
         assert first is not None
         sess = db.get(StudySession, first.session_id)
         assert sess is not None
+        # Planned first: the tables' order is not the order the trials ran in.
         personal = Trial(session_id=first.session_id, controller="umc",
-                         task="paper-evaluation", planned_order=2, status="completed",
+                         task="paper-evaluation", planned_order=-1, status="completed",
                          run_id=run, model_set_id=ids["ms"], utility_set_id=ids["us"],
                          condition="umc+personal", models="personal",
                          config_snapshot=first.config_snapshot)
@@ -192,7 +199,8 @@ def test_a_controllers_conditions_are_tables_of_their_own(
         sus = db.scalars(select(QuestionnaireInstrument).where(
             QuestionnaireInstrument.key == "sus")).first()
         assert sus is not None
-        for label, key, score in (("A", "umc", 80.0), ("B", "umc+personal", 62.5)):
+        for label, key, score in (("A", "umc", 80.0), ("B", "umc+personal", 62.5),
+                                  ("C", "springs_free", 40.0)):
             db.add(ConditionLabel(participant_id=sess.participant_id, label=label,
                                   controller=key))
             db.add(QuestionnaireResponse(
@@ -222,8 +230,11 @@ def test_a_controllers_conditions_are_tables_of_their_own(
     sq = {r["controller"]: (r["correct"], r["missed"]) for r in long if r["motion"] == "SQ"}
     assert sq == {"umc": ("1", "0"), "umc+personal": ("0", "1")}
     q = {(r[0], r[1]): r[2] for r in doc["tables"]["questionnaires"]["rows"]}
-    # The higher of a participant's scores is marked.
-    assert (q[("SUS", "UMC")], q[("SUS", "UMC (personal models)")]) == ("**80**", "62.5")
+    # The higher of a participant's scores is marked; a baseline's answer has its row too.
+    assert (q[("SUS", "UMC")], q[("SUS", "UMC (personal models)")],
+            q[("SUS", "springs free")]) == ("**80**", "62.5", "40")
+    onset = [r[0] for r in doc["tables"]["onset_to_lock"]["rows"]]
+    assert onset[0] == "UMC" and onset[-1] == "UMC (personal models)"
 
 
 def test_figures_are_png_and_svg(client: TestClient, settings: Settings) -> None:

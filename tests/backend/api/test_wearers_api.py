@@ -52,6 +52,10 @@ def test_long_use_refusals_name_what_is_wrong(client: TestClient, db_url: str) -
     assert "rate_hz" in _detail(client.post(url, json={"controller": "pec",
                                                        "rate_hz": 0}), 422)
     assert "extra" in _detail(client.post(url, json={"controller": "pec", "x": 1}), 422)
+    # Under one 10 ms sample times nothing: refused where it is asked, not at the trial.
+    short = client.post(url, json={"controller": "pec", "duration_s": 0.001})
+    assert short.status_code == 422 and short.json()["detail"][0]["loc"] == [
+        "body", "duration_s"]
     assert client.post("/api/sessions/999999/long-use",
                        json={"controller": "pec"}).status_code == 404
     assert client.post("/api/sessions/0/long-use", json={"controller": "pec"}

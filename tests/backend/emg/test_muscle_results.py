@@ -295,6 +295,18 @@ def _lift(index: int, kind: str, level: float) -> muscle_results.LiftEmg:
     return muscle_results.LiftEmg(index, kind, 0.0, 1.0, 1, LiftOutcome(w))
 
 
+def test_conditions_list_each_controllers_variants_after_its_plain_name() -> None:
+    keys = ["umc+personal", "no_exoskeleton", "eumc+priors", "umc", "springs_free", "pec",
+            "eumc", "umc+personal+priors", "umc+priors"]
+    trials = [muscle_results.TrialEmg(k, 1, "P01", c, "lifting", "markers",
+                                      lifts=[_lift(0, "squat", 0.5)])
+              for k, c in enumerate(keys)]
+    res = muscle_results.MuscleResults(1, {}, 50, ["ES_left"], trials)
+    assert res.conditions() == ["umc", "umc+personal", "umc+priors", "umc+personal+priors",
+                                "eumc", "eumc+priors", "pec", "springs_free",
+                                "no_exoskeleton"]
+
+
 def test_a_baseline_with_only_some_lift_kinds_is_a_stated_gap() -> None:
     """The attack: the baseline trials hold squats only, so the stoop groups have no
     baseline; that family is reported as a gap, the squat reductions still computed."""

@@ -67,18 +67,31 @@ def test_a_controller_change_closes_the_old_run(db_url: str) -> None:
     engine.dispose()
 
 
-def test_a_run_the_worker_ended_at_its_time_limit_says_so(db_url: str) -> None:
-    """The worker names why it ended a run by itself; the stored run keeps that reason
-    (what closes a timed trial whole when its worker stops before the experimenter)."""
+def test_a_run_the_worker_ended_at_its_time_limit_is_whole_only_if_all_is_stored(
+        db_url: str) -> None:
+    """The worker says a run ended at its time limit after N samples; the stored run
+    says so (what closes a timed trial whole when its worker stops before the
+    experimenter) only when exactly N of its ticks are stored: not when the backlog
+    dropped some, nor while a failed write still holds them."""
     migrate.upgrade(db_url)
     engine = make_engine(db_url)
-    rec = TickRecorder(engine)
-    timed = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
+    rec = TickRecorder(engine, backlog_limit=40)
+    whole = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
     rec.add(_batch(1, range(4)))
-    rec.run_started(RunStarted(2, "none", {}, "sim", 1, None, TIME_LIMIT_REACHED), "sim")
+    dropped = rec.run_started(RunStarted(2, "umc", {}, "sim", 1, None, 4), "sim")
+    rec.add(_batch(2, range(100)))  # 60 of them over the backlog limit: dropped
+    unwritten = rec.run_started(RunStarted(3, "umc", {}, "sim", 1, None, 100), "sim")
+    rec.add(_batch(3, range(30)))
+    real = rec._insert_sql
+    rec._insert_sql = lambda run_id: "INSERT INTO no_such_table VALUES (1)"  # type: ignore[method-assign]
+    rec.run_started(RunStarted(4, "none", {}, "sim", 1, None, 30), "sim")
+    rec._insert_sql = real  # type: ignore[method-assign]
+    assert rec.failures == 1 and rec.backlog == 30  # kept for the next attempt
     with engine.connect() as conn:
-        run = conn.execute(select(Run).where(Run.id == timed)).one()
-    assert (run.end_reason, run.tick_count) == (TIME_LIMIT_REACHED, 4)
+        reasons = {r.id: (r.end_reason, r.tick_count) for r in conn.execute(select(Run))}
+    assert reasons[whole] == (TIME_LIMIT_REACHED, 4)
+    assert reasons[dropped] == ("controller changed", 40)
+    assert reasons[unwritten] == ("controller changed", 0)
     engine.dispose()
 
 

@@ -13,7 +13,7 @@ from backend.db.evidence_tables import Recording, Trial
 from backend.db.models import Participant, Study, StudySession
 from backend.live.recorder import TickRecorder
 from backend.study import activity
-from backend.worker.messages import TIME_LIMIT_REACHED, RunStarted, TickBatch
+from backend.worker.messages import RunStarted, TickBatch
 from controller.tick_record import TickRecord
 
 
@@ -21,8 +21,7 @@ def _runs(rec: TickRecorder) -> tuple[int, int]:
     """A timed run of 5 ticks that reached its limit, then the open run after it."""
     timed = rec.run_started(RunStarted(1, "umc", {}, "sim", 1), "sim")
     rec.add(TickBatch.from_records(1, (TickRecord(seq=k, t=k / 100) for k in range(5))))
-    after = rec.run_started(RunStarted(2, "none", {}, "sim", 1, None, TIME_LIMIT_REACHED),
-                            "sim")
+    after = rec.run_started(RunStarted(2, "none", {}, "sim", 1, None, 5), "sim")
     rec.add(TickBatch.from_records(2, (TickRecord(seq=k, t=k / 100) for k in range(5, 8))))
     rec.flush()
     return timed, after

@@ -232,7 +232,7 @@ def test_a_timed_trial_ends_by_itself_through_releasing_to_none(h: Harness) -> N
     (run,) = [m for m in h.messages() if isinstance(m, RunStarted)]
     # The next run says the trial's ended by its time (its data is whole); a stop from
     # the server ends one without saying so.
-    assert (run.controller, run.previous_ended) == ("none", TIME_LIMIT_REACHED)
+    assert (run.controller, run.limit_reached) == ("none", 40)
     assert h.trace_since(mark) == [T, R, ID] and h.releases == 1
     assert h.m.loop.controller.name == "none"
     # The sped-up wearer goes on at real time: no ticks faster than anyone asked for.
@@ -290,7 +290,7 @@ def test_a_trial_is_stopped_only_by_none(h: Harness) -> None:
     mark = len(h.m.trace)
     msgs = h.send(SetController(NONE, request_id=6))
     assert _runs(msgs) == ["none"] and _answer(msgs, CommandResult).ok
-    assert [m.previous_ended for m in msgs if isinstance(m, RunStarted)] == [""]
+    assert [m.limit_reached for m in msgs if isinstance(m, RunStarted)] == [None]
     assert h.trace_since(mark) == [R, ID] and h.releases == 1
 
 

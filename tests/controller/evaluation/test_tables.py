@@ -74,6 +74,12 @@ def test_performance_paper_layout(study: list[RecordingEvaluation]) -> None:
                        "first_correct": "1", "first_one_sided": "0"}
     assert cells[("First decision correct", "AS")] == ("1", "2/1")
     assert ("First lock one-sided", "AS") not in cells
+    # A column a participant did not run keeps the others under their own: left out at
+    # the end (participant 1, no E-UMC), a dash inside (participant 2, no PEC).
+    mixed = PerformanceTable.from_evaluations(study, controllers=("umc", "pec", "eumc"))
+    cells = {(r[0], r[1]): r[2:] for r in mixed.wide().rows}
+    assert cells[("Decision correct", "SQ")] == ("1/2", "2/\u2013/1")
+    assert cells[("Intent estimation", "SQ")] == ("1/-", "2/\u2013/1")  # the PEC: no intent
     pec = PerformanceTable.from_evaluations(study, controllers=("pec",))
     assert pec.rows[0].recognised is None
     assert "| Intent estimation | SQ | - |" in pec.to_markdown()
