@@ -114,6 +114,22 @@ def trial_window(rec: EmgRecording, trial_id: int) -> tuple[float, float] | None
     return None
 
 
+def _coverage(rec: EmgRecording, trial_id: int) -> str:
+    """What the file does not hold, said in its description: a recording a killed
+    server left (finalised with the samples it held), a trial it covers only in part."""
+    said = ""
+    if rec.status == "interrupted" or "interrupted" in (rec.quality or {}).get("flags", []):
+        said += (". The recording was interrupted (its server stopped) and kept the "
+                 "samples written until then")
+    span = next((t for t in rec.trials if t["trial_id"] == trial_id), None)
+    if span is not None and not span.get("complete", True) and span.get("stop") is not None:
+        held = (min(float(span["stop"]), rec.t_end or math.inf)
+                - max(float(span["start"]), rec.t_start or -math.inf))
+        said += (f". This file holds {max(held, 0.0):.2f} s of the trial's "
+                 f"{float(span['stop']) - float(span['start']):.2f} s")
+    return said
+
+
 def sidecar(rec: EmgRecording, montage: EmgMontage, task: str, description: str,
             mains_hz: int, processing: dict[str, Any], n: int,
             info: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -191,7 +207,8 @@ def trial_files(settings_dir: Path, rec: EmgRecording, montage: EmgMontage, tria
     bad = {i: int((~np.isfinite(x[:, i])).sum()) for i in range(x.shape[1])}
     labels = [c["label"] for c in montage.channels]
     yield f"{stem}_emg.bdf", bdf_bytes(x, rec.fs, labels)
-    yield f"{stem}_emg.json", sidecar(rec, montage, task, description, mains_hz,
+    yield f"{stem}_emg.json", sidecar(rec, montage, task,
+                                      description + _coverage(rec, trial_id), mains_hz,
                                       processing, t.size, info)
     yield f"{stem}_channels.tsv", channels_rows(montage, bad)
     yield "shift", float(t[0] + rec.time_offset_s)

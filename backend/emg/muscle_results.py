@@ -516,9 +516,10 @@ def _envelope(folder: Path, rec: EmgRecording, t0: float, t1: float,
     path = folder / f"{rec.id}.emgc"
     if not path.is_file():
         return None
-    try:
-        ts, x = store.read_window(path, t0 - rec.time_offset_s, t1 - rec.time_offset_s)
-    except store.EmgStoreError:  # a damaged file: no reference from it (flagged no_mvc)
+    try:  # damage after the window costs nothing; in or before it, what came first
+        ts, x = store.read_window(path, t0 - rec.time_offset_s, t1 - rec.time_offset_s,
+                                  upto_damage=True)
+    except store.EmgStoreError:  # not even the file's header reads back
         return None
     return _process(rec, ts + rec.time_offset_s, x, proc)
 
@@ -714,7 +715,11 @@ def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, floa
     still open get what came before it, and `damage` says where (one damaged file
     costs its own trials' later lifts, not the study's results)."""
     path = folder / f"{rec.id}.emgc"
-    if not path.is_file() or not spans:
+    if not spans:
+        return
+    if not path.is_file():
+        if damage is not None:
+            damage.append(_Damage(-math.inf, "its file is missing"))
         return
     off = rec.time_offset_s
     parts: dict[int, tuple[list[NDArray[np.float64]], list[NDArray[np.float32]]]] = {
@@ -795,7 +800,10 @@ def session_trials(engine: Engine, db: Session, folder: Path, trials: Sequence[T
             _apply(mine[i], e, proc)
         for d in damage:
             for p in mine:
-                if p.span is not None and p.span[1] > d.after and FILE_DAMAGED not in p.out.flags:
+                # A trial whose last lift ends before the damage lost nothing (its 1 s pad
+                # may run past it).
+                last_lift = max((x[3] for x in p.lifts), default=-math.inf)
+                if last_lift > d.after and FILE_DAMAGED not in p.out.flags:
                     p.out.flags.append(FILE_DAMAGED)
                     where = (f"after {d.after:.3f} s on the session clock"
                              if math.isfinite(d.after) else "from its start")
@@ -912,6 +920,11 @@ def study_muscle_results(engine: Engine, db: Session, folder: Path, study_id: in
                 out.references[sess.id] = _session_reference(
                     db, folder, recs, emg, proc, out.channels, montage)
                 _normalise(emg, out.references[sess.id])
+                if proc.normalisation.startswith("task") and any(
+                        FILE_DAMAGED in t.flags for t in emg):
+                    out.notes.append(
+                        f"session {sess.id}: normalised to the {proc.normalisation} of the "
+                        "lifts with EMG; the lifts a damaged file lost are not in it")
             out.trials += emg
     if not out.trials or not any(lf.outcome for t in out.trials for lf in t.lifts):
         out.notes.append("no lift of this study has EMG: subscribe an EMG stream to the "

@@ -336,6 +336,16 @@ def recording_path(settings: Settings, recording_id: int) -> Path:
     return emg_folder(settings) / f"{recording_id}.emgc"
 
 
+def _open(path: Path) -> BinaryIO:
+    """The recording file for reading; one that is missing or unreadable is the store's
+    error (a 409 naming it where a route reads it), not an `OSError` (a 500)."""
+    try:
+        return open(path, "rb")
+    except OSError as exc:
+        raise EmgStoreError(f"the recording file {path.name} cannot be read: "
+                            f"{exc.strerror or exc}") from exc
+
+
 def _read_exact(f: BinaryIO, n: int) -> bytes:
     data = f.read(n)
     if len(data) != n:
@@ -368,7 +378,7 @@ def _no_constant(name: str) -> Any:
 
 def read_header(path: Path) -> Header:
     """The channel count, nominal rate and labels of a recording file."""
-    with open(path, "rb") as f:
+    with _open(path) as f:
         return _header(f)
 
 
@@ -390,7 +400,7 @@ def _header(f: BinaryIO) -> Header:
 
 def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float32]]]:
     """(timestamps, samples) of each chunk in order: one chunk in memory at a time."""
-    with open(path, "rb") as f:
+    with _open(path) as f:
         head = _header(f)
         while (doc := _read_json(f)) is not None:
             c = _chunk(doc, head.n_channels)
@@ -405,7 +415,7 @@ def whole_length(path: Path) -> tuple[int, int]:
     """(bytes, rows) of the file's header and the whole chunks that read back: what a
     `.part` a killed writer left can be kept as. EmgStoreError when not even the header
     is whole."""
-    with open(path, "rb") as f:
+    with _open(path) as f:
         head = _header(f)
         good, rows = f.tell(), 0
         while True:
@@ -424,35 +434,51 @@ def whole_length(path: Path) -> tuple[int, int]:
     return good, rows
 
 
-def read_window(path: Path, start: float = -np.inf, stop: float = np.inf
+def read_window(path: Path, start: float = -np.inf, stop: float = np.inf,
+                upto_damage: bool = False
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Timestamps and samples (float64 volts) with start <= t < stop. Chunks whose time
     range (chunk header) misses the window are skipped unread, so a window costs its
     own chunks, not the file. Rows whose timestamp is not finite have no place on the
     time axis and are in no window: the recording's quality says how many
-    (`non_finite_timestamps`)."""
+    (`non_finite_timestamps`). `upto_damage`: a chunk that does not read back ends the
+    read there with what came before it, instead of the store's error (for an analysis
+    that says elsewhere where the file is damaged)."""
     ts: list[NDArray[np.float64]] = []
     xs: list[NDArray[np.float32]] = []
-    with open(path, "rb") as f:
+    with _open(path) as f:
         head = _header(f)
-        while (doc := _read_json(f)) is not None:
-            c = _chunk(doc, head.n_channels)
-            if c.indexed and (c.t_range is None or c.t_range[1] < start
-                              or c.t_range[0] >= stop):
-                f.seek(c.t_bytes + c.x_bytes, os.SEEK_CUR)  # never backwards: checked
-                continue
-            t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
-            keep = (t >= start) & (t < stop)
-            if not keep.any():
-                f.seek(c.x_bytes, os.SEEK_CUR)
-                continue
-            x = _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
-                           c.x_planes).reshape(c.rows, head.n_channels)
-            ts.append(t[keep])
-            xs.append(x[keep])
+        while True:
+            try:
+                if (doc := _read_json(f)) is None:
+                    break
+                got = _window_chunk(f, _chunk(doc, head.n_channels), head, start, stop)
+            except EmgStoreError:
+                if not upto_damage:
+                    raise
+                break
+            if got is not None:
+                ts.append(got[0])
+                xs.append(got[1])
     if not ts:
         return np.zeros(0), np.zeros((0, head.n_channels))
     return np.concatenate(ts), np.concatenate(xs).astype(np.float64)
+
+
+def _window_chunk(f: BinaryIO, c: _Chunk, head: Header, start: float, stop: float
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float32]] | None:
+    """One chunk's rows inside [start, stop), or None; a chunk outside is skipped unread."""
+    if c.indexed and (c.t_range is None or c.t_range[1] < start or c.t_range[0] >= stop):
+        f.seek(c.t_bytes + c.x_bytes, os.SEEK_CUR)  # never backwards: checked
+        return None
+    t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
+    keep = (t >= start) & (t < stop)
+    if not keep.any():
+        f.seek(c.x_bytes, os.SEEK_CUR)
+        return None
+    x = _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
+                   c.x_planes).reshape(c.rows, head.n_channels)
+    return t[keep], x[keep]
 
 
 def file_sha256(path: Path) -> str:

@@ -318,7 +318,16 @@ class Runtime:
         answer = await self._answer(rid, fut, f"start {name}", timeout)
         if not answer.ok:
             raise RuntimeError(answer.message)
-        return self._run_ids[answer.run_token]
+        run_id = self._run_ids.get(answer.run_token)
+        if run_id is None:
+            # The worker runs it, but the database refused its run's row: nothing may run
+            # that the study cannot record (its ticks would be dropped, and a trial or
+            # recording would have no run, or another's).
+            self.release()
+            raise RuntimeError(f"{name} not started: its run could not be stored "
+                               f"({self.recorder.last_error or 'the database refused it'})"
+                               "; the worker is back to none")
+        return run_id
 
     async def idle(self) -> None:
         """Back to controller `none` (a new run, no locks) if the worker is alive; a
@@ -622,7 +631,14 @@ class Runtime:
             self.settings = self.settings.model_copy(update={
                 "device_seed": w.seed, "device_script": w.script, "device_speed": w.speed})
             self.worker_config = self.supervisor.config
-        run_id = self.recorder.run_started(msg, msg.device_kind)
+        try:
+            run_id = self.recorder.run_started(msg, msg.device_kind)
+        except Exception as exc:
+            # Its ticks are dropped and counted (an unknown run token); a start waiting
+            # for this run is refused and the worker released (`switch_controller`).
+            self.recorder.last_error = f"storing a new run failed: {exc}"[:300]
+            log.exception("storing run %s of the worker failed", msg.run_token)
+            return
         for listener in self.listeners:
             listener.on_run_started(msg.run_token, run_id)
         self.stream.run_id = run_id
@@ -632,6 +648,10 @@ class Runtime:
         self._on_event("run", {"run_id": run_id, "controller": msg.controller})
 
     def _on_exit(self, code: int | None, reason: str) -> None:
+        # A new worker numbers its runs from 1 again: none of this one's tokens may name
+        # a run of the next (a run the database refused to store would otherwise be
+        # answered with an old run's id).
+        self._run_ids.clear()
         # Everything the worker sent is stored and its run closed first, so the trial
         # it ran is closed with its real tick count.
         try:

@@ -13,9 +13,11 @@ import sqlite3
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import OperationalError
 
 from backend.core.config import Settings
 from backend.main import create_app
+from backend.worker.messages import RunStarted
 from tests.faults.served import stored_ticks
 from tests.login import bearer
 from tests.polling import wait_for
@@ -65,3 +67,53 @@ def test_write_failures_bound_memory_count_the_loss_and_recover(
     assert seqs == sorted(seqs) and outbox_drops == 0
     missing = (seqs[-1] - seqs[0] + 1) - len(seqs)
     assert missing == dropped
+
+
+def test_a_run_the_database_refuses_is_never_answered_with_another(
+        settings: Settings, experimenter: dict[str, str]) -> None:
+    """The database refuses the row of the run a recording's start makes, after a worker
+    restart (whose runs are numbered from 1 again, as the old worker's were): the start
+    is refused with the reason and the worker released; it never gets the id of the old
+    worker's run with the same number (that run's data would become the recording's),
+    and the next start, with the database back, gets a run of its own."""
+    settings = settings.model_copy(update={"start_worker": True})
+    with TestClient(create_app(settings)) as client:
+        client.headers.update(bearer(client, experimenter))
+        study = client.post("/api/studies", json={"name": "refused run"}).json()["id"]
+        part = client.post(f"/api/studies/{study}/participants", json={"code": "R1"}).json()
+        sid = client.post(f"/api/participants/{part['id']}/sessions", json={
+            "kind": "data_collection", "precompression_pct": 25}).json()["id"]
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 5, 60,
+                 "the worker's ticks")
+        first = client.post(f"/api/sessions/{sid}/recordings", json={"label": "a"})
+        assert first.status_code == 201, first.text
+        assert client.post(f"/api/recordings/{first.json()['id']}/stop").status_code == 200
+        assert client.post("/api/worker/restart").status_code == 200
+        wait_for(lambda: client.get("/api/health").json()["worker"]["ticks"] > 5, 60,
+                 "the restarted worker's ticks")
+        runtime = client.app.state.runtime  # type: ignore[attr-defined]
+        real = runtime.recorder.run_started
+        refused: list[int] = []
+
+        def locked(msg: RunStarted, kind: str) -> int:
+            if not refused:
+                refused.append(msg.run_token)
+                raise OperationalError("INSERT INTO runs", {}, Exception("database is locked"))
+            return real(msg, kind)
+
+        runtime.recorder.run_started = locked
+        try:
+            second = client.post(f"/api/sessions/{sid}/recordings", json={"label": "b"})
+        finally:
+            runtime.recorder.run_started = real
+        assert second.status_code == 409, second.text
+        assert "could not be stored" in second.text and "database is locked" in second.text
+        assert refused  # the refused run's number was one the old worker had used too
+        rows = client.get(f"/api/sessions/{sid}/recordings").json()
+        assert [r["label"] for r in rows] == ["a"]
+        wait_for(lambda: client.get("/api/health").json()["worker"]["controller"] == "none",
+                 30, "the worker released")
+        third = client.post(f"/api/sessions/{sid}/recordings", json={"label": "c"})
+        assert third.status_code == 201, third.text
+        assert third.json()["run_id"] not in {first.json()["run_id"]}
+        assert client.post(f"/api/recordings/{third.json()['id']}/stop").status_code == 200

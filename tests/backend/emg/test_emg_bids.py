@@ -35,9 +35,26 @@ def _recording(folder: Path) -> tuple[Any, np.ndarray]:
     w.append(t, x)
     w.close()
     rec = SimpleNamespace(id=1, fs=fs, t_start=100.0, t_end=100.0 + t[-1], time_offset_s=100.0,
-                          source="edf",
-                          trials=[{"trial_id": 7, "start": 101.0, "stop": 105.0}])
+                          source="edf", status="complete", quality={},
+                          trials=[{"trial_id": 7, "start": 101.0, "stop": 105.0,
+                                   "complete": True}])
     return rec, x
+
+
+def test_an_interrupted_recording_and_a_cut_trial_say_so_in_the_sidecar(
+        tmp_path: Path) -> None:
+    """A recording a killed server left covers the trial's first 2.0 of 4.5 s: the
+    file holds what there is, and its description says what it is not."""
+    rec, _x = _recording(tmp_path)
+    rec.status, rec.quality = "interrupted", {"flags": ["interrupted"]}
+    rec.trials = [{"trial_id": 7, "start": 104.0, "stop": 108.5, "complete": False}]
+    montage = SimpleNamespace(channels=CHANNELS, placement_scheme="")
+    parts = dict(bids.trial_files(tmp_path, rec, montage, 7, "s", "squat",  # type: ignore[arg-type]
+                                  "squats", 50, {}))
+    text = parts["s_emg.json"]["TaskDescription"]
+    assert text.startswith("squats. The recording was interrupted (its server stopped)")
+    assert "This file holds 2.00 s of the trial's 4.50 s" in text
+    assert parts["s_emg.json"]["RecordingDuration"] == pytest.approx(2.0, abs=1e-3)
 
 
 @pytest.mark.slow

@@ -241,6 +241,43 @@ def test_an_interrupted_recording_is_measured_and_a_damaged_file_costs_its_later
     assert f"EMG recording {rid} does not read back after" in third.note
     assert "chunk header is not JSON" in third.note
     assert res.document()["trials"]  # the study's results, not a refusal
+    # Normalised to the session's task peak: the lost lifts are not in the reference.
+    assert any("the lifts a damaged file lost are not in it" in n for n in res.notes)
+
+    # A file that is gone: every trial it covered says so, nothing is measured from it.
+    path.unlink()
+    res = _results(made, settings)
+    assert all(muscle_results.FILE_DAMAGED in t.flags and "its file is missing" in t.note
+               for t in res.trials)
+    assert not any(lf.outcome for t in res.trials for lf in t.lifts)
+    made["engine"].dispose()
+
+
+def test_damage_after_a_trials_lifts_and_after_the_mvc_costs_them_nothing(
+        db_url: str, settings: Settings) -> None:
+    """The last chunk (40-44 s of a session whose MVC is at 1-3 s) does not read back:
+    the MVC reference stands, the last trial's first lift (36-38 s) and every earlier
+    one are measured, and only the last trial, whose second lift (39-41 s) runs into the
+    damage, is flagged."""
+    made = _study(db_url, settings, participants=1, normalisation="mvc", mvc_level=0.9,
+                  order=list(LEVELS))
+    whole = _results(made, settings)
+    with Session(made["engine"]) as db:
+        rid = db.scalars(select(EmgRecording)).one().id
+    path = store.emg_folder(settings) / f"{rid}.emgc"
+    data = path.read_bytes()
+    heads = [i for i in range(len(data)) if data.startswith(b'{"rows":', i)]
+    assert len(heads) == 9  # 44 s at 2 kHz
+    path.write_bytes(data[:heads[-1]] + b"[" + data[heads[-1] + 1:])
+    res = _results(made, settings)
+    (sid,) = made["sessions"]
+    assert muscle_results.NO_MVC not in res.references[sid].flags
+    assert res.references[sid].values == whole.references[sid].values
+    flagged = [t.condition for t in res.trials if muscle_results.FILE_DAMAGED in t.flags]
+    assert flagged == ["no_exoskeleton"]
+    measured = {t.condition: [lf.outcome is not None for lf in t.lifts] for t in res.trials}
+    assert measured["springs_free"] == [True, True]
+    assert measured["no_exoskeleton"] == [True, False]
     made["engine"].dispose()
 
 

@@ -86,6 +86,15 @@ def test_the_envelope_over_a_trial_with_its_lifts(client: TestClient, db_url: st
     again = client.get(f"/api/trials/{first}/emg-envelope", params={"points": 300})
     assert again.status_code == 200, again.text
     assert again.json()["channels"] == doc["channels"]
+    # Its file gone (deleted by hand, a disk fault): a 409 that names it, not a 500.
+    with client.app.state.sessions() as db:  # type: ignore[attr-defined]
+        row = db.get(EmgRecording, doc["recording_id"])
+        assert row is not None
+        moved = client.app.state.settings.emg_dir / f"{row.id}.emgc"  # type: ignore[attr-defined]
+    moved.rename(moved.with_suffix(".away"))
+    gone = client.get(f"/api/trials/{first}/emg-envelope")
+    assert gone.status_code == 409 and f"{row.id}.emgc cannot be read" in gone.text
+    moved.with_suffix(".away").rename(moved)
 
     r = client.get(f"/api/trials/{second}/emg-envelope")  # 12 s after the file ends
     assert r.status_code == 409 and f"trial {second} has no EMG" in r.json()["detail"]

@@ -33,7 +33,6 @@ from backend.worker.machine import (
     kind_of,
 )
 from backend.worker.messages import (
-    TIME_LIMIT_REACHED,
     BringupCapture,
     BringupCommand,
     BringupPulse,
