@@ -218,6 +218,13 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
         seen = seen or bool(st & bit)
         if st & other:
             problem = f"the {'right' if left else 'left'} solenoid came on instead"
+        if seen and st & Status.WATCHDOG_RELEASED:
+            # The device dropped the solenoid: the commands reached it too late (a busy
+            # computer). A later command would energise it again, a second pulse nobody
+            # asked for: the pulse ends here, released.
+            problem = problem or ("the device's watchdog released the solenoid during the "
+                                  "pulse: the commands came late (a busy computer or "
+                                  "network); try again")
         problem = problem or load_reason(sample, layout, cmd.max_alpha_deg)
         if problem or step.now() - began + SAMPLE_PERIOD_S > seconds:
             break

@@ -85,9 +85,21 @@ def test_capture_pulse_and_watchdog(worker: BringupWorker) -> None:
     assert max(zero.std_deg) < 0.5
 
     pulse = worker.run(BringupPulse("left", 0.3, LAY.offsets, LAY.directions, 2.0))
-    assert pulse.ok, pulse.message
-    on = [i for i, st in enumerate(statuses(pulse)) if st & Status.SOLENOID_LEFT]
-    assert on and on == list(range(on[0], on[-1] + 1))  # one contiguous pulse
+    # On a loaded machine the commands can reach the device too late: its watchdog then
+    # drops the solenoid, and the pulse stops there and says so rather than energise it
+    # a second time (CI once saw it off for 5 samples, then on again for 10).
+    cut = "watchdog released the solenoid during the pulse" in pulse.message
+    assert pulse.ok or cut, pulse.message
+    sts = statuses(pulse)
+    on = [i for i, st in enumerate(sts) if st & Status.SOLENOID_LEFT]
+    if cut:
+        # Released by the device, then by the worker as soon as it read so: only a lock
+        # command already on its way (answering a sample under 100 ms old) may energise
+        # it again, until the release that follows it arrives.
+        gone = next(i for i, st in enumerate(sts) if st & Status.WATCHDOG_RELEASED)
+        assert len([i for i in on if i > gone]) <= 2
+    else:
+        assert on and on == list(range(on[0], on[-1] + 1))  # one contiguous pulse
     assert not any(st & Status.SOLENOID_RIGHT for st in statuses(pulse))
     # The worker commands the solenoid for at most the 0.3 s hold on its own clock; the
     # device sees it on for at most that plus the delay of the release, which
@@ -207,6 +219,35 @@ class _StaleLink(Device):
     def link_counters(self) -> dict[str, int]:
         reported = sum(self.t >= t + 0.11 for t in self.dropped_at)
         return {"device_stale": reported, "device_restarts": 0}
+
+
+class _LateLink(_StaleLink):
+    """A host that fell behind and caught up: the lock commands answering the samples
+    from 10 to 150 ms after the energising one reach the device too late (dropped as
+    stale), and the later ones in time again."""
+
+    def __init__(self) -> None:
+        super().__init__(drop_stale=False)
+
+    def send(self, cmd: LockCommand) -> None:
+        if (cmd.lock_left and self.first is not None
+                and 0.0 < self.read_t - self.first < 0.15):
+            self.dropped_at.append(self.read_t)
+            return
+        super().send(cmd)
+
+
+def test_a_pulse_the_watchdog_cut_is_not_energised_again() -> None:
+    """The device's watchdog drops the solenoid 100 ms into the pulse: the step stops
+    there and says why, instead of commanding on until its commands are in time again
+    and the device energises the solenoid a second time."""
+    dev = _LateLink()
+    cmd = BringupPulse("left", 0.3, (0, 0, 0, 0), (1, 1, 1, 1), 2.0, request_id=8)
+    res = bringup.pulse(cmd, bringup._Step(dev))
+    assert not res.ok and "watchdog released the solenoid during the pulse" in res.message
+    on = [i for i, st in enumerate(statuses(res)) if st & Status.SOLENOID_LEFT]
+    assert on and on == list(range(on[0], on[-1] + 1))  # energised once
+    assert dev.dropped_at and dev.commands == 1  # none sent once the release was seen
 
 
 @pytest.mark.parametrize("drop_stale", [False, True])
