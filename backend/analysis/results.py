@@ -38,6 +38,7 @@ from controller.evaluation.study import (
     RecordingEvaluation,
     controller_label,
     evaluate_recording,
+    in_order,
     table_conditions,
 )
 from controller.evaluation.tables import (
@@ -156,10 +157,7 @@ class StudyResults:
         from controller.evaluation.figures import onset_to_lock_figure, peak_torque_figure
         from controller.evaluation.rendering import render_figure
         evs = [e for e in self.evaluations if e.lifts]
-        # The tables' order, then any other condition with lifts as it appears.
-        present = {e.controller for e in evs}
-        order = [c for c in dict.fromkeys([*self.columns(), *(e.controller for e in evs)])
-                 if c in present]
+        order = in_order(evs, self.columns())  # the tables' order, then any other
         if name == "peak_torques":
             return render_figure(peak_torque_figure(evs, controllers=order))
         if name == "onset_to_lock":

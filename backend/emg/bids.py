@@ -118,7 +118,7 @@ def _coverage(rec: EmgRecording, trial_id: int) -> str:
     """What the file does not hold, said in its description: a recording a killed
     server left (finalised with the samples it held), a trial it covers only in part."""
     said = ""
-    if rec.status == "interrupted" or "interrupted" in (rec.quality or {}).get("flags", []):
+    if rec.status == "interrupted":
         said += (". The recording was interrupted (its server stopped) and kept the "
                  "samples written until then")
     span = next((t for t in rec.trials if t["trial_id"] == trial_id), None)

@@ -733,17 +733,9 @@ def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, floa
                      np.concatenate(xs_parts).astype(np.float64), proc)
         return None if e is None else (i, e)
 
-    chunks = store.iter_chunks(path)
     last = -math.inf
-    while True:
-        try:
-            t, x = next(chunks)
-        except StopIteration:
-            break
-        except store.EmgStoreError as exc:
-            if damage is not None:
-                damage.append(_Damage(last, str(exc)))
-            break
+    why: list[str] = []
+    for t, x in store.iter_chunks(path, why):
         if t.size == 0:
             continue
         ts = t + off
@@ -761,6 +753,8 @@ def _one_pass(folder: Path, rec: EmgRecording, spans: Sequence[tuple[float, floa
                 got = done(i)
                 if got is not None:
                     yield got
+    if why and damage is not None:
+        damage.append(_Damage(last, why[0]))
     for i in list(parts):
         got = done(i)
         if got is not None:

@@ -65,16 +65,15 @@ def _finalise(db: Session, row: EmgRecording, folder: Path) -> str:
     quality = QualitySummary(row.fs, list(row.labels))
     rows, first, last = 0, None, None
     if final.exists():
-        try:
-            for t, x in store.iter_chunks(final):
-                quality.add(t, x)
-                rows += t.size
-                if t.size:
-                    first = float(t[0]) if first is None else first
-                    last = float(t[-1])
-        except store.EmgStoreError as exc:
-            # Kept as it is (nothing is deleted); what reads back is counted.
-            note += f"; the file is damaged after {rows} samples: {exc}"
+        damage: list[str] = []
+        for t, x in store.iter_chunks(final, damage):
+            quality.add(t, x)
+            rows += t.size
+            if t.size:
+                first = float(t[0]) if first is None else first
+                last = float(t[-1])
+        if damage:  # kept as it is (nothing is deleted); what reads back is counted
+            note += f"; the file is damaged after {rows} samples: {damage[0]}"
         row.sha256 = store.file_sha256(final)
         row.size_bytes = final.stat().st_size
     quality.finish()

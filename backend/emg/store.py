@@ -146,9 +146,7 @@ def _unshuffle(data: bytes, dtype: Any, n: int, planes: Any = None) -> NDArray[A
                 raise EmgStoreError("a byte plane of the chunk does not match its checksum: "
                                     "the file is damaged")
             pieces.append(plane)
-        raw = b"".join(pieces)
-    if len(raw) != n * dt.itemsize:
-        raise EmgStoreError(f"chunk holds {len(raw)} bytes, expected {n * dt.itemsize}")
+        raw = b"".join(pieces)  # n bytes a plane, checked: n values whichever the format
     return np.frombuffer(raw, np.uint8).reshape(dt.itemsize, n).T.copy().view(dt).ravel()
 
 
@@ -398,17 +396,33 @@ def _header(f: BinaryIO) -> Header:
     return Header(n, fs, tuple(labels))
 
 
-def iter_chunks(path: Path) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float32]]]:
-    """(timestamps, samples) of each chunk in order: one chunk in memory at a time."""
-    with _open(path) as f:
-        head = _header(f)
-        while (doc := _read_json(f)) is not None:
-            c = _chunk(doc, head.n_channels)
-            t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
-            x = _unshuffle(_read_exact(f, c.x_bytes), np.float32,
-                           c.rows * head.n_channels, c.x_planes
-                           ).reshape(c.rows, head.n_channels)
-            yield t, x
+def _stamps(f: BinaryIO, c: _Chunk) -> NDArray[np.float64]:
+    """The chunk's timestamps, read from where `f` stands."""
+    return _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
+
+
+def _samples(f: BinaryIO, c: _Chunk, head: Header) -> NDArray[np.float32]:
+    """The chunk's samples (rows, channels), read from where `f` stands."""
+    return _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
+                      c.x_planes).reshape(c.rows, head.n_channels)
+
+
+def iter_chunks(path: Path, damage: list[str] | None = None
+                ) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float32]]]:
+    """(timestamps, samples) of each chunk in order: one chunk in memory at a time.
+    `damage`: a file that stops reading back ends the iteration there, the reason
+    appended, instead of raising the store's error (for a reader that keeps what came
+    before the damage and says where it stopped)."""
+    try:
+        with _open(path) as f:
+            head = _header(f)
+            while (doc := _read_json(f)) is not None:
+                c = _chunk(doc, head.n_channels)
+                yield _stamps(f, c), _samples(f, c, head)
+    except EmgStoreError as exc:
+        if damage is None:
+            raise
+        damage.append(str(exc))
 
 
 def whole_length(path: Path) -> tuple[int, int]:
@@ -425,9 +439,8 @@ def whole_length(path: Path) -> tuple[int, int]:
                     break
                 c = _chunk(doc, head.n_channels)
                 # Decoded, not only framed: a chunk kept must read back.
-                _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
-                _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
-                           c.x_planes)
+                _stamps(f, c)
+                _samples(f, c, head)
             except EmgStoreError:
                 break
             good, rows = f.tell(), rows + c.rows
@@ -471,14 +484,12 @@ def _window_chunk(f: BinaryIO, c: _Chunk, head: Header, start: float, stop: floa
     if c.indexed and (c.t_range is None or c.t_range[1] < start or c.t_range[0] >= stop):
         f.seek(c.t_bytes + c.x_bytes, os.SEEK_CUR)  # never backwards: checked
         return None
-    t = _unshuffle(_read_exact(f, c.t_bytes), np.float64, c.rows, c.t_planes)
+    t = _stamps(f, c)
     keep = (t >= start) & (t < stop)
     if not keep.any():
         f.seek(c.x_bytes, os.SEEK_CUR)
         return None
-    x = _unshuffle(_read_exact(f, c.x_bytes), np.float32, c.rows * head.n_channels,
-                   c.x_planes).reshape(c.rows, head.n_channels)
-    return t[keep], x[keep]
+    return t[keep], _samples(f, c, head)[keep]
 
 
 def file_sha256(path: Path) -> str:

@@ -80,6 +80,15 @@ def table_conditions(present: Iterable[str], intent_only: bool = False) -> tuple
     return tuple(out)
 
 
+def in_order(evaluations: Sequence[RecordingEvaluation],
+             order: Sequence[str] | None = None) -> list[str]:
+    """The conditions of `evaluations` that have lifts: those in `order` first, in its
+    order, then any other as it appears."""
+    present = [e.controller for e in evaluations if e.lifts]
+    found = set(present)
+    return [c for c in dict.fromkeys([*(order or ()), *present]) if c in found]
+
+
 @dataclass(frozen=True, slots=True)
 class RecordingEvaluation:
     """Per-lift outcomes and per-trial false positives of one recording.

@@ -22,7 +22,7 @@ from controller.evaluation.metrics import (
     LiftOutcome,
     summarise_onset_to_lock,
 )
-from controller.evaluation.study import RecordingEvaluation, controller_label
+from controller.evaluation.study import RecordingEvaluation, controller_label, in_order
 from controller.tick_record import ACTION_NAMES
 
 Cell = str | int | float | bool | None
@@ -419,10 +419,8 @@ def onset_to_lock_table(
     """Median and IQR of onset-to-lock times per controller (and lift kind, plus all
     kinds together), for the first lock on either side and for the correct side(s).
     `controllers`: their order (default: as they appear); any other with lifts follows."""
-    ctls = _unique([*(controllers or ()), *(e.controller for e in evaluations if e.lifts)])
-    ctls = [c for c in ctls if any(e.controller == c and e.lifts for e in evaluations)]
     rows: list[tuple[Cell, ...]] = []
-    for c in ctls:
+    for c in in_order(evaluations, controllers):
         outs = [o for e in evaluations if e.controller == c for o in e.lifts]
         kinds: list[str] = [k for k in LIFT_KINDS if any(o.lift.kind == k for o in outs)]
         for k in [*kinds, "all"] if by_kind else ["all"]:

@@ -19,7 +19,6 @@ from backend.core.config import Settings
 from backend.db import migrate
 from backend.db.engine import make_engine, make_session_factory
 from backend.db.lab import MarkerStream
-from backend.db.models import Participant, Study, StudySession
 from backend.lab import marker_inlet
 from backend.lab.marker_inlet import MarkerInlet
 from backend.lsl import backoff
@@ -27,6 +26,7 @@ from backend.lsl import names as lsl_names
 from backend.main import create_app
 from tests.login import log_in
 from tests.polling import wait_for
+from tests.session_rows import evaluation_session
 
 
 @pytest.mark.parametrize("text", ["Tobii:gaze@lab-pc", "openvibeMarkers", "EMG (left) #2"])
@@ -145,15 +145,7 @@ def test_bad_subscriptions_stored_before_are_closed_at_start(
     migrate.upgrade(settings.database_url)
     engine = make_engine(settings.database_url)
     with make_session_factory(engine)() as db:
-        study = Study(name="S")
-        db.add(study)
-        db.flush()
-        p = Participant(study_id=study.id, code="P1")
-        db.add(p)
-        db.flush()
-        session = StudySession(participant_id=p.id, kind="evaluation", precompression_pct=25)
-        db.add(session)
-        db.flush()
+        session = evaluation_session(db)
         db.add_all([MarkerStream(session_id=session.id, name="x' or name='y", active=True),
                     MarkerStream(session_id=session.id, name="Markers", source_id="ok-1",
                                  active=True)])

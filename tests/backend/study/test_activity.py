@@ -10,11 +10,11 @@ from sqlalchemy.orm import Session
 from backend.db import migrate
 from backend.db.engine import make_engine
 from backend.db.evidence_tables import Recording, Trial
-from backend.db.models import Participant, Study, StudySession
 from backend.live.recorder import TickRecorder
 from backend.study import activity
 from backend.worker.messages import RunStarted, TickBatch
 from controller.tick_record import TickRecord
+from tests.session_rows import evaluation_session
 
 
 def _runs(rec: TickRecorder) -> tuple[int, int]:
@@ -32,16 +32,8 @@ def test_only_what_was_cut_short_is_interrupted(db_url: str) -> None:
     engine = make_engine(db_url)
     rec = TickRecorder(engine)
     with Session(engine) as db:
-        study = Study(name="closing")
-        db.add(study)
-        db.flush()
-        part = Participant(study_id=study.id, code="P01")
-        db.add(part)
-        db.flush()
-        sess = StudySession(participant_id=part.id, kind="evaluation", precompression_pct=25)
-        db.add(sess)
+        sid = evaluation_session(db, "closing", "P01").id
         db.commit()
-        sid = sess.id
 
     def running(trial_run: int, recording_run: int) -> tuple[int, int]:
         with Session(engine) as db:
