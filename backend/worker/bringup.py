@@ -72,8 +72,8 @@ class _Step:
     def now(self) -> float:
         return time.monotonic() - self.t0
 
-    def read(self) -> Sample | None:
-        sample = self.device.read(_READ_S)
+    def read(self, timeout: float = _READ_S) -> Sample | None:
+        sample = self.device.read(timeout)
         if sample is not None:
             c = sample.counts
             self.samples.append((self.now(), sample.seq, sample.t, c[0], c[1], c[2], c[3],
@@ -193,6 +193,18 @@ def _precheck(step: _Step, layout: EncoderLayout, max_alpha_deg: float) -> str:
     return "" if seen == PRECHECK_SAMPLES else "the device sent no samples"
 
 
+#: Why a pulse the device's command watchdog cut is not passed.
+WATCHDOG_CUT = ("the device's watchdog released the solenoid during the pulse: the "
+                "commands came late (a busy computer or network); try again")
+
+
+def _lapsed(step: _Step) -> bool:
+    """Whether the device's watchdog has released by now for certain: its time (a lower
+    bound, `device_time`) is a watchdog's time past the sample the last command
+    answered, and no later command can have fed it."""
+    return step.device_time(step.now()) - step.last_echo_t > WATCHDOG_S
+
+
 def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
     """Energise one solenoid for at most `PULSE_MAX_S`, then release and check both the
     solenoid bit coming on (and only that side's) and going off again."""
@@ -205,26 +217,29 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
         return step.result(cmd.request_id, False, f"pulse refused: {refused}", refused=True)
     began = step.now()
     step.send(left, right)
+    first_echo = step.last_echo_t  # the sample the first lock answered
     seen, problem = False, ""
     # On the worker's clock the lock commands cover at most `seconds`: the last one goes
-    # out one period before the end, and the clock is read again after each (possibly
-    # late) sample, right before the command. A release that arrives late is bounded by
-    # the device's own watchdog (100-110 ms after the sample the last lock answered).
-    while step.now() - began + SAMPLE_PERIOD_S <= seconds:
-        sample = step.read()
+    # out one period before the end, no read waits past it, and the clock is read again
+    # after each (possibly late) sample, right before the command. A release that
+    # arrives late is bounded by the device's own watchdog (100-110 ms after the sample
+    # the last lock answered).
+    while (left_s := seconds - SAMPLE_PERIOD_S - (step.now() - began)) >= 0:
+        sample = step.read(min(_READ_S, left_s + 1e-3))
         if sample is None:
             continue
         st = Status(sample.status)
         seen = seen or bool(st & bit)
         if st & other:
             problem = f"the {'right' if left else 'left'} solenoid came on instead"
-        if seen and st & Status.WATCHDOG_RELEASED:
-            # The device dropped the solenoid: the commands reached it too late (a busy
-            # computer). A later command would energise it again, a second pulse nobody
-            # asked for: the pulse ends here, released.
-            problem = problem or ("the device's watchdog released the solenoid during the "
-                                  "pulse: the commands came late (a busy computer or "
-                                  "network); try again")
+        # The device dropped the solenoid (it says so, or no lock can have reached it in
+        # time: the last answered a sample over a watchdog's time ago): the commands came
+        # too late. Another would energise it again, a second pulse nobody asked for. A
+        # release a previous step left shows until the first lock takes: a watchdog's
+        # time after that lock's sample it is this pulse's (seen on or not).
+        if (st & Status.WATCHDOG_RELEASED
+                and (seen or sample.t >= first_echo + WATCHDOG_S - 1e-6)) or _lapsed(step):
+            problem = problem or WATCHDOG_CUT
         problem = problem or load_reason(sample, layout, cmd.max_alpha_deg)
         if problem or step.now() - began + SAMPLE_PERIOD_S > seconds:
             break
@@ -236,7 +251,11 @@ def pulse(cmd: BringupPulse, step: _Step) -> BringupResult:
         if sample is None:
             continue
         step.send(False, False)
-        if not Status(sample.status) & SOLENOIDS:
+        st = Status(sample.status)
+        if seen and st & Status.WATCHDOG_RELEASED:
+            # Off, but by the watchdog before the release arrived: the locks came late.
+            problem = problem or WATCHDOG_CUT
+        if not st & SOLENOIDS:
             released = True
             break
     if problem:

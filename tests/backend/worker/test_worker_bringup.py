@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -96,7 +98,8 @@ def test_capture_pulse_and_watchdog(worker: BringupWorker) -> None:
         # Released by the device, then by the worker as soon as it read so: only a lock
         # command already on its way (answering a sample under 100 ms old) may energise
         # it again, until the release that follows it arrives.
-        gone = next(i for i, st in enumerate(sts) if st & Status.WATCHDOG_RELEASED)
+        gone = next((i for i, st in enumerate(sts) if st & Status.WATCHDOG_RELEASED),
+                    len(sts))  # or seen lapsed before a sample said so
         assert len([i for i in on if i > gone]) <= 2
     else:
         assert on and on == list(range(on[0], on[-1] + 1))  # one contiguous pulse
@@ -248,6 +251,86 @@ def test_a_pulse_the_watchdog_cut_is_not_energised_again() -> None:
     on = [i for i, st in enumerate(statuses(res)) if st & Status.SOLENOID_LEFT]
     assert on and on == list(range(on[0], on[-1] + 1))  # energised once
     assert dev.dropped_at and dev.commands == 1  # none sent once the release was seen
+
+
+class _ClockedLink(Device):
+    """A device on real time, as the simulator's rules go: a sample every 10 ms from the
+    first read; a lock holds the solenoid until 100 ms after the sample it answered (the
+    watchdog), a release drops it at once. `lose(t, status)`: samples lost on the way
+    in; commands answering samples from `late_from` on arrive too late (dropped)."""
+
+    kind = "udp"
+
+    def __init__(self, lose: Any = lambda t, st: False, late_from: float = math.inf) -> None:
+        self.lose, self.late_from = lose, late_from
+        self.t0: float | None = None
+        self.k = -1
+        self.read_t = math.nan
+        self.held_until = -math.inf  # the watchdog's end of the last lock taken
+        self.released = True  # by a release command (no WATCHDOG_RELEASED bit)
+        self.on = False
+        self.energisings = 0
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def release(self) -> None:
+        self.held_until, self.released = -math.inf, True
+
+    def link_counters(self) -> dict[str, int]:
+        return {}
+
+    def _status(self, t: float) -> Status:
+        on = t < self.held_until - 1e-9
+        self.energisings += on and not self.on
+        self.on = on
+        if on:
+            return Status.SOLENOID_LEFT
+        return Status.NONE if self.released else Status.WATCHDOG_RELEASED
+
+    def read(self, timeout: float) -> Sample | None:
+        now = time.monotonic()
+        if self.t0 is None:
+            self.t0 = now
+        deadline = now + timeout
+        while True:
+            t = (self.k + 1) * SAMPLE_PERIOD_S
+            due = self.t0 + t
+            if due > deadline:
+                time.sleep(max(0.0, deadline - time.monotonic()))
+                return None
+            time.sleep(max(0.0, due - time.monotonic()))
+            self.k += 1
+            st = self._status(t)
+            if not self.lose(t, st):
+                self.read_t = t
+                return Sample(self.k, t, (0, 0, 0, 0), st)
+
+    def send(self, cmd: LockCommand) -> None:
+        if self.read_t >= self.late_from - 1e-9:
+            return  # answered a sample too old by the time it arrived
+        if cmd.lock_left:
+            self.held_until, self.released = self.read_t + 0.1, False
+        else:
+            self.release()
+
+
+@pytest.mark.parametrize("case", ["release late", "samples lost"])
+def test_a_pulse_the_watchdog_ends_is_never_passed_nor_energised_twice(case: str) -> None:
+    """The watchdog, not the worker's release, takes the solenoid off: the worker's last
+    commands (the release too) arrived late, or every sample showing it on was lost on
+    the way in. Either way the pulse is not passed, and the worker sends no lock that
+    could energise it again."""
+    dev = (_ClockedLink(late_from=0.30) if case == "release late" else
+           _ClockedLink(lose=lambda t, st: bool(st & Status.SOLENOID_LEFT)))
+    cmd = BringupPulse("left", 0.3, (0, 0, 0, 0), (1, 1, 1, 1), 2.0, request_id=9)
+    res = bringup.pulse(cmd, bringup._Step(dev))
+    assert not res.ok and res.message == f"pulse stopped: {bringup.WATCHDOG_CUT}"
+    assert dev.energisings == 1
+    assert res.energised_s <= 0.3 + 0.02  # the worker's clock: the pulse and one read
 
 
 @pytest.mark.parametrize("drop_stale", [False, True])
